@@ -1,0 +1,117 @@
+//! In-memory LRU cache with a byte budget.
+
+use super::CacheEntry;
+use crate::hash::Hash;
+use std::collections::{BTreeMap, HashMap};
+use std::sync::Arc;
+
+pub struct MemoryCache {
+    budget: usize,
+    used: usize,
+    tick: u64,
+    map: HashMap<Hash, (Arc<CacheEntry>, u64)>,
+    lru: BTreeMap<u64, Hash>,
+}
+
+impl MemoryCache {
+    pub fn new(budget_bytes: usize) -> Self {
+        MemoryCache { budget: budget_bytes, used: 0, tick: 0, map: HashMap::new(), lru: BTreeMap::new() }
+    }
+
+    pub fn get(&mut self, key: &Hash) -> Option<Arc<CacheEntry>> {
+        self.tick += 1;
+        let tick = self.tick;
+        let (entry, t) = self.map.get_mut(key)?;
+        self.lru.remove(t);
+        *t = tick;
+        self.lru.insert(tick, *key);
+        Some(entry.clone())
+    }
+
+    /// Peeks without touching the LRU order.
+    pub fn contains(&self, key: &Hash) -> Option<&Arc<CacheEntry>> {
+        self.map.get(key).map(|(e, _)| e)
+    }
+
+    /// Inserts, evicting least recently used entries to stay under budget. An entry larger
+    /// than the whole budget is not kept.
+    pub fn put(&mut self, key: Hash, entry: Arc<CacheEntry>) {
+        let size = entry.bytes();
+        if size > self.budget {
+            return;
+        }
+        self.remove(&key);
+        while self.used + size > self.budget {
+            let Some((_, victim)) = self.lru.pop_first() else { break };
+            if let Some((e, _)) = self.map.remove(&victim) {
+                self.used -= e.bytes();
+            }
+        }
+        self.tick += 1;
+        self.used += size;
+        self.lru.insert(self.tick, key);
+        self.map.insert(key, (entry, self.tick));
+    }
+
+    pub fn remove(&mut self, key: &Hash) {
+        if let Some((e, t)) = self.map.remove(key) {
+            self.used -= e.bytes();
+            self.lru.remove(&t);
+        }
+    }
+
+    pub fn clear(&mut self) {
+        self.map.clear();
+        self.lru.clear();
+        self.used = 0;
+    }
+
+    pub fn used_bytes(&self) -> usize {
+        self.used
+    }
+
+    pub fn len(&self) -> usize {
+        self.map.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.map.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::port::{PortValue, Value};
+
+    struct Blob(Vec<u8>);
+    impl PortValue for Blob {
+        const NAME: &'static str = "Blob";
+        const COLOR: [u8; 3] = [0, 0, 0];
+        fn fingerprint(&self) -> Hash {
+            Hash::of_bytes(&self.0)
+        }
+        fn byte_size(&self) -> usize {
+            self.0.len()
+        }
+    }
+
+    fn entry(n: usize) -> Arc<CacheEntry> {
+        Arc::new(CacheEntry { outputs: vec![Value::new(Blob(vec![0; n]))], metrics: vec![], notes: vec![] })
+    }
+
+    #[test]
+    fn least_recently_used_entries_go_first_and_the_budget_holds() {
+        let mut c = MemoryCache::new(100);
+        let k = |i: u8| Hash([i; 32]);
+        c.put(k(1), entry(40));
+        c.put(k(2), entry(40));
+        assert!(c.get(&k(1)).is_some()); // 2 is now the oldest
+        c.put(k(3), entry(40));
+        assert!(c.contains(&k(2)).is_none());
+        assert!(c.contains(&k(1)).is_some() && c.contains(&k(3)).is_some());
+        assert_eq!(c.used_bytes(), 80);
+        c.put(k(4), entry(500));
+        assert!(c.contains(&k(4)).is_none(), "larger than the budget: not kept");
+    }
+}

@@ -1,0 +1,81 @@
+//! Load-time errors that name the file, line, node and parameter.
+
+use crate::ron::Pos;
+use std::fmt;
+use std::path::PathBuf;
+
+/// One problem in a graph file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GraphError {
+    pub file: Option<PathBuf>,
+    pub pos: Option<Pos>,
+    pub node: Option<String>,
+    pub param: Option<String>,
+    pub msg: String,
+}
+
+impl GraphError {
+    pub fn new(msg: impl Into<String>) -> Self {
+        GraphError { file: None, pos: None, node: None, param: None, msg: msg.into() }
+    }
+    pub fn at(mut self, pos: Pos) -> Self {
+        self.pos = Some(pos);
+        self
+    }
+    pub fn node(mut self, id: &str) -> Self {
+        self.node = Some(id.to_string());
+        self
+    }
+    pub fn param(mut self, name: &str) -> Self {
+        self.param = Some(name.to_string());
+        self
+    }
+}
+
+impl fmt::Display for GraphError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match (&self.file, &self.pos) {
+            (Some(file), Some(p)) => write!(f, "{}:{}:{}: ", file.display(), p.line, p.col)?,
+            (Some(file), None) => write!(f, "{}: ", file.display())?,
+            (None, Some(p)) => write!(f, "line {}:{}: ", p.line, p.col)?,
+            (None, None) => {}
+        }
+        if let Some(n) = &self.node {
+            write!(f, "node \"{n}\": ")?;
+        }
+        if let Some(p) = &self.param {
+            write!(f, "parameter `{p}`: ")?;
+        }
+        f.write_str(&self.msg)
+    }
+}
+
+/// All problems found in one graph, in file order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GraphErrors(pub Vec<GraphError>);
+
+impl GraphErrors {
+    pub fn one(e: GraphError) -> Self {
+        GraphErrors(vec![e])
+    }
+    pub(crate) fn with_file(mut self, file: &Option<PathBuf>) -> Self {
+        for e in &mut self.0 {
+            e.file = e.file.take().or_else(|| file.clone());
+        }
+        self
+    }
+}
+
+impl fmt::Display for GraphErrors {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, e) in self.0.iter().enumerate() {
+            if i > 0 {
+                f.write_str("\n")?;
+            }
+            write!(f, "{e}")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for GraphErrors {}

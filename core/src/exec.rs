@@ -1,0 +1,353 @@
+//! The executor: runs a plan, reusing cached results, running ready nodes concurrently,
+//! timing each node and honouring cancellation.
+
+use crate::cache::{CacheEntry, DiskCache, MemoryCache};
+use crate::ctx::{CancelToken, Event, NodeStatus, Observer, RunCtx};
+use crate::error::{GraphError, GraphErrors};
+use crate::graph::Graph;
+use crate::hash::{Hash, Hasher};
+use crate::io::Io;
+use crate::node::{Caching, DynNode, NodeError};
+use crate::params::ParamValues;
+use crate::plan::{make_plan, Plan};
+use crate::port::Value;
+use crate::registry::Registry;
+use crate::report::{peak_rss_bytes, NodeReport, RunReport};
+use std::collections::VecDeque;
+use std::sync::{mpsc, Arc, Mutex};
+use std::time::Instant;
+
+/// Holds the registry and the caches; runs graphs. Share it (`Arc<Engine>`) between threads.
+pub struct Engine {
+    registry: Registry,
+    memory: Mutex<MemoryCache>,
+    disk: Option<DiskCache>,
+    max_parallel: usize,
+}
+
+/// What to run and who watches.
+#[derive(Default)]
+pub struct RunOptions<'a> {
+    /// Output names to produce; `None` for all of the graph's outputs.
+    pub outputs: Option<Vec<String>>,
+    pub cancel: CancelToken,
+    pub observer: Option<&'a dyn Observer>,
+}
+
+pub struct RunResult {
+    /// Requested outputs by name.
+    pub outputs: Vec<(String, Value)>,
+    pub report: RunReport,
+}
+
+impl RunResult {
+    pub fn output(&self, name: &str) -> Option<&Value> {
+        self.outputs.iter().find(|(n, _)| n == name).map(|(_, v)| v)
+    }
+}
+
+#[derive(Debug)]
+pub enum RunError {
+    Graph(GraphErrors),
+    Node { id: String, kind: String, error: NodeError },
+    Cancelled,
+}
+
+impl std::fmt::Display for RunError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RunError::Graph(e) => write!(f, "{e}"),
+            RunError::Node { id, kind, error } => write!(f, "node \"{id}\" ({kind}) failed: {error}"),
+            RunError::Cancelled => f.write_str("run cancelled"),
+        }
+    }
+}
+
+impl std::error::Error for RunError {}
+
+impl From<GraphErrors> for RunError {
+    fn from(e: GraphErrors) -> Self {
+        RunError::Graph(e)
+    }
+}
+
+/// A node's parameters and cache key for this run.
+pub(crate) struct Prepared {
+    pub params: ParamValues,
+    pub key: Hash,
+}
+
+type Done = (usize, Result<CacheEntry, NodeError>, f64);
+
+impl Engine {
+    /// An engine with a 2 GiB memory cache, no disk cache, and as many concurrent nodes as cores.
+    pub fn new(registry: Registry) -> Self {
+        let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(2);
+        Engine { registry, memory: Mutex::new(MemoryCache::new(2 << 30)), disk: None, max_parallel: cores }
+    }
+    pub fn with_memory_budget(mut self, bytes: usize) -> Self {
+        self.memory = Mutex::new(MemoryCache::new(bytes));
+        self
+    }
+    pub fn with_disk_cache(mut self, dir: impl Into<std::path::PathBuf>) -> Self {
+        self.disk = Some(DiskCache::new(dir));
+        self
+    }
+    /// How many nodes may run at once (nodes also parallelise inside with rayon).
+    pub fn with_parallelism(mut self, n: usize) -> Self {
+        self.max_parallel = n.max(1);
+        self
+    }
+    pub fn registry(&self) -> &Registry {
+        &self.registry
+    }
+    pub fn disk(&self) -> Option<&DiskCache> {
+        self.disk.as_ref()
+    }
+    /// Drops every in-memory result.
+    pub fn clear_memory(&self) {
+        self.memory.lock().unwrap().clear();
+    }
+    pub fn memory_bytes(&self) -> usize {
+        self.memory.lock().unwrap().used_bytes()
+    }
+
+    fn kind_of(&self, graph: &Graph, i: usize) -> &Arc<dyn DynNode> {
+        self.registry.node(&graph.nodes[i].kind).expect("validated graph")
+    }
+
+    /// Resolves parameters and computes the cache key from the input fingerprints:
+    /// hash(KIND, VERSION, canonical params, input fingerprints). Input files hash by content.
+    pub(crate) fn prepare(&self, graph: &Graph, i: usize, inputs: &[Hash]) -> Result<Prepared, GraphError> {
+        let decl = &graph.nodes[i];
+        let kind = self.kind_of(graph, i);
+        let params = ParamValues::resolve(kind.schema(), &decl.params, &graph.base_dir)
+            .map_err(|missing| GraphError::new(format!("missing required parameter `{}`", missing.join("`, `"))).at(decl.pos).node(&decl.id))?;
+        let mut h = Hasher::new();
+        h.str("relume-key-v1").str(kind.kind()).u64(kind.version() as u64);
+        params.canonical_hash(kind.schema(), &mut h).map_err(|m| GraphError::new(m).at(decl.pos).node(&decl.id))?;
+        for (port, fp) in kind.ports().inputs.iter().zip(inputs) {
+            h.str(port.name).hash(fp);
+        }
+        Ok(Prepared { params, key: h.finish() })
+    }
+
+    /// Looks a key up in memory, then (for nodes that opt in) on disk.
+    pub(crate) fn lookup(&self, kind: &dyn DynNode, key: &Hash) -> Option<(Arc<CacheEntry>, NodeStatus)> {
+        if kind.caching() == Caching::Never {
+            return None;
+        }
+        if let Some(e) = self.memory.lock().unwrap().get(key) {
+            return Some((e, NodeStatus::CachedMemory));
+        }
+        if kind.caching() == Caching::Disk {
+            if let Some(e) = self.disk.as_ref().and_then(|d| d.get(key, &kind.ports().outputs, &self.registry)) {
+                let e = Arc::new(e);
+                self.memory.lock().unwrap().put(*key, e.clone());
+                return Some((e, NodeStatus::CachedDisk));
+            }
+        }
+        None
+    }
+
+    fn store(&self, kind: &dyn DynNode, key: Hash, entry: Arc<CacheEntry>) {
+        if kind.caching() == Caching::Never {
+            return;
+        }
+        if kind.caching() == Caching::Disk {
+            if let Some(d) = &self.disk {
+                // A failed write only costs a later recomputation.
+                let _ = d.put(&key, &entry, &kind.ports().outputs);
+            }
+        }
+        self.memory.lock().unwrap().put(key, entry);
+    }
+
+    /// Validates, plans and runs the graph.
+    pub fn run(&self, graph: &Graph, opts: &RunOptions) -> Result<RunResult, RunError> {
+        let start = Instant::now();
+        graph.validate(&self.registry)?;
+        let plan = make_plan(graph, &self.registry, opts.outputs.as_deref())?;
+        if let Some(o) = opts.observer {
+            o.event(&Event::Planned { nodes: plan.order.len() });
+        }
+        let mut state = RunState::new(graph, &plan);
+        let (tx, rx) = mpsc::channel::<Done>();
+        let mut first_error: Option<RunError> = None;
+
+        std::thread::scope(|scope| {
+            let mut ready: VecDeque<usize> = plan.order.iter().copied().filter(|&i| plan.sources[i].is_empty()).collect();
+            let mut to_run: VecDeque<(usize, Prepared)> = VecDeque::new();
+            let mut running = 0usize;
+            loop {
+                let stop = first_error.is_some() || opts.cancel.is_cancelled();
+                while let (false, Some(i)) = (stop, ready.pop_front()) {
+                    let t0 = Instant::now();
+                    let fps: Vec<Hash> = plan.sources[i].iter().map(|&(s, o)| state.values[s].as_ref().unwrap().outputs[o].fingerprint()).collect();
+                    let prepared = match self.prepare(graph, i, &fps) {
+                        Ok(p) => p,
+                        Err(e) => {
+                            first_error = Some(RunError::Graph(GraphErrors::one(e).with_file(&graph.file)));
+                            break;
+                        }
+                    };
+                    let kind = self.kind_of(graph, i);
+                    match self.lookup(kind.as_ref(), &prepared.key) {
+                        Some((entry, status)) => {
+                            let ms = t0.elapsed().as_secs_f64() * 1e3;
+                            if let Some(o) = opts.observer {
+                                o.event(&Event::Finished { id: &graph.nodes[i].id, kind: kind.kind(), status, wall_ms: ms });
+                            }
+                            ready.extend(state.complete(i, entry, status, prepared.key, ms));
+                        }
+                        None => to_run.push_back((i, prepared)),
+                    }
+                }
+                while running < self.max_parallel && first_error.is_none() && !opts.cancel.is_cancelled() {
+                    let Some((i, prepared)) = to_run.pop_front() else { break };
+                    running += 1;
+                    let inputs: Vec<Value> = plan.sources[i].iter().map(|&(s, o)| state.values[s].as_ref().unwrap().outputs[o].clone()).collect();
+                    state.keys[i] = prepared.key;
+                    let kind = self.kind_of(graph, i).clone();
+                    let id = graph.nodes[i].id.as_str();
+                    let (tx, cancel, observer) = (tx.clone(), &opts.cancel, opts.observer);
+                    scope.spawn(move || {
+                        let t0 = Instant::now();
+                        let result = run_node(kind.as_ref(), id, &prepared.params, &inputs, cancel, observer);
+                        let _ = tx.send((i, result, t0.elapsed().as_secs_f64() * 1e3));
+                    });
+                }
+                if running == 0 && (ready.is_empty() || first_error.is_some() || opts.cancel.is_cancelled()) {
+                    break;
+                }
+                if running == 0 {
+                    continue;
+                }
+                let (i, result, ms) = rx.recv().expect("node threads hold a sender");
+                running -= 1;
+                let kind = self.kind_of(graph, i);
+                let id = &graph.nodes[i].id;
+                match result {
+                    Ok(entry) => {
+                        let entry = Arc::new(entry);
+                        self.store(kind.as_ref(), state.keys[i], entry.clone());
+                        if let Some(o) = opts.observer {
+                            o.event(&Event::Finished { id, kind: kind.kind(), status: NodeStatus::Ran, wall_ms: ms });
+                        }
+                        let key = state.keys[i];
+                        ready.extend(state.complete(i, entry, NodeStatus::Ran, key, ms));
+                    }
+                    Err(NodeError::Cancelled) => {}
+                    Err(error) => {
+                        if let Some(o) = opts.observer {
+                            o.event(&Event::Failed { id, kind: kind.kind(), message: &error.to_string() });
+                        }
+                        first_error.get_or_insert(RunError::Node { id: id.clone(), kind: kind.kind().to_string(), error });
+                    }
+                }
+            }
+        });
+
+        if let Some(e) = first_error {
+            return Err(e);
+        }
+        if opts.cancel.is_cancelled() {
+            return Err(RunError::Cancelled);
+        }
+        let outputs = plan.outputs.iter().map(|(name, ni, oi)| (name.clone(), state.values[*ni].as_ref().unwrap().outputs[*oi].clone())).collect();
+        let mut report = state.report;
+        report.graph = graph.file.as_ref().map(|f| f.display().to_string()).unwrap_or_default();
+        report.outputs = plan.outputs.iter().map(|o| o.0.clone()).collect();
+        report.total_ms = start.elapsed().as_secs_f64() * 1e3;
+        report.memory_cache_bytes = self.memory_bytes();
+        report.peak_rss_bytes = peak_rss_bytes();
+        Ok(RunResult { outputs, report })
+    }
+
+    /// Plans the graph for `relume plan`.
+    pub fn plan(&self, graph: &Graph, outputs: Option<&[String]>) -> Result<Plan, GraphErrors> {
+        graph.validate(&self.registry)?;
+        make_plan(graph, &self.registry, outputs)
+    }
+}
+
+/// Runs one node, turning a panic into an error.
+fn run_node(kind: &dyn DynNode, id: &str, params: &ParamValues, inputs: &[Value], cancel: &CancelToken, observer: Option<&dyn Observer>) -> Result<CacheEntry, NodeError> {
+    if let Some(o) = observer {
+        o.event(&Event::Started { id, kind: kind.kind() });
+    }
+    let cx = RunCtx::new(id, cancel, observer);
+    let mut io = Io::new(kind.ports(), inputs);
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| kind.run(params, &mut io, &cx)));
+    match outcome {
+        Ok(Ok(())) => {
+            let outputs = io.finish()?;
+            let (metrics, notes) = cx.take();
+            Ok(CacheEntry { outputs, metrics, notes })
+        }
+        Ok(Err(e)) => Err(e),
+        Err(panic) => {
+            let msg = panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned()).unwrap_or_default();
+            Err(NodeError::failed(format!("panicked: {msg}")))
+        }
+    }
+}
+
+/// Book-keeping of one run.
+struct RunState<'g> {
+    graph: &'g Graph,
+    values: Vec<Option<Arc<CacheEntry>>>,
+    keys: Vec<Hash>,
+    waiting: Vec<usize>,
+    dependents: Vec<Vec<usize>>,
+    report: RunReport,
+}
+
+impl<'g> RunState<'g> {
+    fn new(graph: &'g Graph, plan: &Plan) -> Self {
+        let n = graph.nodes.len();
+        let mut dependents = vec![Vec::new(); n];
+        for &i in &plan.order {
+            for &(s, _) in &plan.sources[i] {
+                dependents[s].push(i);
+            }
+        }
+        let waiting = (0..n).map(|i| plan.sources[i].len()).collect();
+        RunState { graph, values: vec![None; n], keys: vec![Hash::default(); n], waiting, dependents, report: RunReport::default() }
+    }
+
+    /// Records a finished node; returns the nodes that became ready.
+    fn complete(&mut self, i: usize, entry: Arc<CacheEntry>, status: NodeStatus, key: Hash, ms: f64) -> Vec<usize> {
+        let decl = &self.graph.nodes[i];
+        self.report.nodes.push(NodeReport {
+            id: decl.id.clone(),
+            kind: decl.kind.clone(),
+            status: status.as_str(),
+            cache: match status {
+                NodeStatus::Ran => None,
+                NodeStatus::CachedMemory => Some("memory"),
+                NodeStatus::CachedDisk => Some("disk"),
+            },
+            wall_ms: ms,
+            bytes: entry.bytes(),
+            key: key.hex(),
+            metrics: entry.metrics.iter().cloned().collect(),
+            notes: entry.notes.clone(),
+        });
+        if status == NodeStatus::Ran {
+            self.report.ran += 1;
+        } else {
+            self.report.cached += 1;
+        }
+        self.keys[i] = key;
+        self.values[i] = Some(entry);
+        let mut now_ready = Vec::new();
+        for &d in &self.dependents[i] {
+            self.waiting[d] -= 1;
+            if self.waiting[d] == 0 {
+                now_ready.push(d);
+            }
+        }
+        now_ready
+    }
+}

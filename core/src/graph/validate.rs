@@ -1,0 +1,160 @@
+//! Checks a parsed graph against the registry: kinds, parameters, edge types, outputs, cycles.
+
+use super::Graph;
+use crate::error::{GraphError, GraphErrors};
+use crate::registry::Registry;
+use std::collections::HashMap;
+
+impl Graph {
+    /// Every problem a file can have that does not need running: unknown kinds, unknown,
+    /// missing or out-of-range parameters, edges naming nothing or joining different types,
+    /// inputs fed twice, outputs naming nothing, cycles, layout for unknown nodes.
+    pub fn validate(&self, reg: &Registry) -> Result<(), GraphErrors> {
+        let mut errs = Vec::new();
+        self.check_nodes(reg, &mut errs);
+        self.check_edges(reg, &mut errs);
+        self.check_outputs(reg, &mut errs);
+        if let Some(cycle) = self.find_cycle() {
+            let first = self.node(&cycle[0]).map(|n| n.pos).unwrap_or_default();
+            errs.push(GraphError::new(format!("the edges form a cycle: {} → {}", cycle.join(" → "), cycle[0])).at(first).node(&cycle[0]));
+        }
+        for (id, _) in &self.editor.positions {
+            if self.node(id).is_none() {
+                errs.push(GraphError::new("the editor section places a node that does not exist").node(id));
+            }
+        }
+        if errs.is_empty() {
+            Ok(())
+        } else {
+            errs.sort_by_key(|e| e.pos.map(|p| (p.line, p.col)).unwrap_or((u32::MAX, 0)));
+            Err(GraphErrors(errs).with_file(&self.file))
+        }
+    }
+
+    /// Inputs of node `id` that no edge feeds, as errors (needed before running it).
+    pub fn unconnected_inputs(&self, reg: &Registry, id: &str) -> Vec<GraphError> {
+        let Some(n) = self.node(id) else { return vec![] };
+        let Some(kind) = reg.node(&n.kind) else { return vec![] };
+        kind.ports()
+            .inputs
+            .iter()
+            .filter(|p| !self.edges.iter().any(|e| e.to.node == id && e.to.port == p.name))
+            .map(|p| GraphError::new(format!("input `{}` ({}) is not connected", p.name, p.ty.name)).at(n.pos).node(id))
+            .collect()
+    }
+
+    fn check_nodes(&self, reg: &Registry, errs: &mut Vec<GraphError>) {
+        for n in &self.nodes {
+            let Some(kind) = reg.node(&n.kind) else {
+                let hint = reg.suggest(&n.kind).map(|k| format!(" (did you mean \"{k}\"?)")).unwrap_or_default();
+                errs.push(GraphError::new(format!("unknown node kind \"{}\"{hint}; `relume nodes` lists them", n.kind)).at(n.pos).node(&n.id));
+                continue;
+            };
+            let schema = kind.schema();
+            for (name, v) in &n.params {
+                let pos = n.param_pos(name);
+                match schema.get(name) {
+                    None => {
+                        let names: Vec<_> = schema.0.iter().map(|p| p.name).collect();
+                        let has = if names.is_empty() { "no parameters".to_string() } else { format!("parameters: {}", names.join(", ")) };
+                        errs.push(GraphError::new(format!("unknown parameter for {} (it has {has})", n.kind)).at(pos).node(&n.id).param(name));
+                    }
+                    Some(spec) => {
+                        if let Err(m) = spec.check(v) {
+                            errs.push(GraphError::new(m).at(pos).node(&n.id).param(name));
+                        }
+                    }
+                }
+            }
+            for spec in schema.0.iter().filter(|s| s.default.is_none()) {
+                if n.param(spec.name).is_none() {
+                    errs.push(GraphError::new(format!("missing required parameter ({}: {})", spec.kind.type_name(), spec.help)).at(n.pos).node(&n.id).param(spec.name));
+                }
+            }
+        }
+    }
+
+    fn check_edges(&self, reg: &Registry, errs: &mut Vec<GraphError>) {
+        let mut fed: HashMap<(&str, &str), usize> = HashMap::new();
+        for (i, e) in self.edges.iter().enumerate() {
+            let from = self.port_type(reg, &e.from.node, &e.from.port, false);
+            let to = self.port_type(reg, &e.to.node, &e.to.port, true);
+            match (from, to) {
+                (Ok(Some(a)), Ok(Some(b))) if a != b => errs.push(
+                    GraphError::new(format!("edge {} → {} joins different types: output `{}` of \"{}\" is {a}, input `{}` of \"{}\" is {b}", e.from, e.to, e.from.port, e.from.node, e.to.port, e.to.node))
+                        .at(e.pos),
+                ),
+                (Err(m), _) | (_, Err(m)) => errs.push(GraphError::new(format!("edge {} → {}: {m}", e.from, e.to)).at(e.pos)),
+                _ => {}
+            }
+            if let Some(first) = fed.insert((&e.to.node, &e.to.port), i) {
+                errs.push(GraphError::new(format!("input {} is fed twice (also by {} at line {})", e.to, self.edges[first].from, self.edges[first].pos.line)).at(e.pos));
+            }
+        }
+    }
+
+    fn check_outputs(&self, reg: &Registry, errs: &mut Vec<GraphError>) {
+        for o in &self.outputs {
+            if let Err(m) = self.port_type(reg, &o.port.node, &o.port.port, false) {
+                errs.push(GraphError::new(format!("output \"{}\" names {}: {m}", o.name, o.port)).at(o.pos));
+            }
+        }
+    }
+
+    /// The type name of a port; `Ok(None)` when the node's kind is unknown (reported elsewhere).
+    fn port_type(&self, reg: &Registry, node: &str, port: &str, input: bool) -> Result<Option<&'static str>, String> {
+        let n = self.node(node).ok_or_else(|| format!("there is no node \"{node}\""))?;
+        let Some(kind) = reg.node(&n.kind) else { return Ok(None) };
+        let ports = if input { &kind.ports().inputs } else { &kind.ports().outputs };
+        match ports.iter().find(|p| p.name == port) {
+            Some(p) => Ok(Some(p.ty.name)),
+            None => {
+                let names: Vec<_> = ports.iter().map(|p| p.name).collect();
+                let dir = if input { "input" } else { "output" };
+                Err(format!("{} \"{node}\" has no {dir} `{port}` ({dir}s: {})", n.kind, if names.is_empty() { "none".into() } else { names.join(", ") }))
+            }
+        }
+    }
+
+    /// A cycle as a list of node ids, if the edges have one.
+    pub fn find_cycle(&self) -> Option<Vec<String>> {
+        let n = self.nodes.len();
+        let index: HashMap<&str, usize> = self.nodes.iter().enumerate().map(|(i, d)| (d.id.as_str(), i)).collect();
+        let mut succ = vec![Vec::new(); n];
+        for e in &self.edges {
+            if let (Some(&a), Some(&b)) = (index.get(e.from.node.as_str()), index.get(e.to.node.as_str())) {
+                succ[a].push(b);
+            }
+        }
+        // Iterative DFS with colours: 0 new, 1 on stack, 2 done.
+        let mut colour = vec![0u8; n];
+        for start in 0..n {
+            if colour[start] != 0 {
+                continue;
+            }
+            let mut stack = vec![(start, 0usize)];
+            colour[start] = 1;
+            while let Some(&mut (v, ref mut k)) = stack.last_mut() {
+                if *k < succ[v].len() {
+                    let w = succ[v][*k];
+                    *k += 1;
+                    match colour[w] {
+                        0 => {
+                            colour[w] = 1;
+                            stack.push((w, 0));
+                        }
+                        1 => {
+                            let from = stack.iter().position(|&(u, _)| u == w).unwrap();
+                            return Some(stack[from..].iter().map(|&(u, _)| self.nodes[u].id.clone()).collect());
+                        }
+                        _ => {}
+                    }
+                } else {
+                    colour[v] = 2;
+                    stack.pop();
+                }
+            }
+        }
+        None
+    }
+}

@@ -1,0 +1,36 @@
+//! relume-core: the data-flow node-graph framework under relume.
+//!
+//! Typed ports ([`PortValue`]), parameter schemas ([`Schema`]), an explicit [`Registry`],
+//! the RON graph format ([`Graph`]), a demand-driven planner ([`make_plan`]), a concurrent
+//! executor with an incremental cache ([`Engine`]) and the run report ([`RunReport`]).
+//! No rendering code lives here.
+
+pub mod cache;
+mod ctx;
+mod error;
+mod exec;
+mod explain;
+pub mod graph;
+mod hash;
+mod io;
+mod node;
+mod params;
+mod plan;
+mod port;
+mod registry;
+mod report;
+pub mod ron;
+
+pub use ctx::{CancelToken, Event, NodeStatus, Observer, RunCtx};
+pub use error::{GraphError, GraphErrors};
+pub use exec::{Engine, RunError, RunOptions, RunResult};
+pub use explain::{PlanAction, PlanLine};
+pub use graph::{Graph, FORMAT_VERSION};
+pub use hash::{Hash, Hasher};
+pub use io::Io;
+pub use node::{Caching, Documented, DynNode, Node, NodeError};
+pub use params::{ParamKind, ParamSpec, ParamValue, ParamValues, Params, Schema};
+pub use plan::{make_plan, Plan};
+pub use port::{PortDecl, PortTypeInfo, PortValue, Ports, Value};
+pub use registry::Registry;
+pub use report::{NodeReport, RunReport};

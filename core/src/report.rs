@@ -1,0 +1,78 @@
+//! The run report: per node time, cache status, bytes and metrics; written as JSON.
+
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+#[derive(Clone, Debug, Serialize)]
+pub struct NodeReport {
+    pub id: String,
+    pub kind: String,
+    /// "ran" or "cached".
+    pub status: &'static str,
+    /// "memory" or "disk" for cached nodes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cache: Option<&'static str>,
+    /// Time spent on this node in this run (cache lookup for cached nodes).
+    pub wall_ms: f64,
+    /// Bytes of the node's outputs.
+    pub bytes: usize,
+    /// Cache key (hex).
+    pub key: String,
+    /// Quality figures the node reported (non-finite values are written as null).
+    pub metrics: BTreeMap<String, f64>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
+}
+
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct RunReport {
+    pub graph: String,
+    pub total_ms: f64,
+    /// Needed nodes in the order they completed.
+    pub nodes: Vec<NodeReport>,
+    pub ran: usize,
+    pub cached: usize,
+    /// Outputs delivered.
+    pub outputs: Vec<String>,
+    /// Bytes held by the memory cache after the run.
+    pub memory_cache_bytes: usize,
+    /// Peak resident memory of the process so far (Linux), in bytes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peak_rss_bytes: Option<u64>,
+}
+
+impl RunReport {
+    pub fn node(&self, id: &str) -> Option<&NodeReport> {
+        self.nodes.iter().find(|n| n.id == id)
+    }
+
+    /// Ids of the nodes that ran (not cached), sorted.
+    pub fn ran_ids(&self) -> Vec<&str> {
+        let mut v: Vec<&str> = self.nodes.iter().filter(|n| n.status == "ran").map(|n| n.id.as_str()).collect();
+        v.sort_unstable();
+        v
+    }
+
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("report serialises")
+    }
+
+    /// A plain-text table for the terminal.
+    pub fn table(&self) -> String {
+        let mut s = format!("{:<20} {:<16} {:<7} {:>10} {:>12}  metrics\n", "node", "kind", "status", "ms", "bytes");
+        for n in &self.nodes {
+            let metrics: Vec<String> = n.metrics.iter().map(|(k, v)| format!("{k}={v:.6}")).collect();
+            s.push_str(&format!("{:<20} {:<16} {:<7} {:>10.2} {:>12}  {}\n", n.id, n.kind, n.status, n.wall_ms, n.bytes, metrics.join(" ")));
+        }
+        s.push_str(&format!("total {:.2} ms: {} ran, {} cached\n", self.total_ms, self.ran, self.cached));
+        s
+    }
+}
+
+/// Peak resident set size from /proc (None where unavailable).
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
