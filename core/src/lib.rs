@@ -19,6 +19,7 @@ mod plan;
 mod port;
 mod registry;
 mod report;
+mod standalone;
 pub mod ron;
 
 pub use ctx::{CancelToken, Event, NodeStatus, Observer, RunCtx};
@@ -34,3 +35,4 @@ pub use plan::{make_plan, Plan};
 pub use port::{PortDecl, PortTypeInfo, PortValue, Ports, Value};
 pub use registry::Registry;
 pub use report::{NodeReport, RunReport};
+pub use standalone::run_standalone;

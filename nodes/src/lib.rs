@@ -1,1 +1,22 @@
+//! relume-nodes: the stage nodes of relume's pipelines and the `relume` command line.
 
+pub mod cli;
+pub mod image;
+pub mod math;
+#[cfg(test)]
+pub(crate) mod testing;
+pub mod types;
+
+use relume_core::Registry;
+
+/// Registers every node kind of this crate.
+pub fn register_all(reg: &mut Registry) {
+    image::register(reg);
+}
+
+/// A registry with every node of this crate.
+pub fn registry() -> Registry {
+    let mut r = Registry::new();
+    register_all(&mut r);
+    r
+}

@@ -1,0 +1,123 @@
+//! Reading and writing image files (EXR linear; PNG sRGB-encoded). Shared by LoadImage,
+//! SaveImage and the command line.
+
+use crate::types::Image;
+use relume_core::graph::write_atomic;
+use std::io::Cursor;
+use std::path::Path;
+
+/// sRGB transfer function (linear → encoded), input clamped to [0, 1].
+pub fn srgb_encode(x: f32) -> f32 {
+    let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// sRGB decoding (encoded → linear).
+pub fn srgb_decode(x: f32) -> f32 {
+    if x <= 0.040_45 {
+        x / 12.92
+    } else {
+        ((x + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+fn ext(path: &Path) -> String {
+    path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default()
+}
+
+/// Reads an EXR (linear) or PNG (sRGB, decoded to linear) file.
+pub fn read_image(path: &Path) -> Result<Image, String> {
+    let e = ext(path);
+    if e != "exr" && e != "png" {
+        return Err(format!("{}: unsupported image type `.{e}` (relume reads .exr and .png)", path.display()));
+    }
+    let bytes = std::fs::read(path).map_err(|err| format!("cannot read {}: {err}", path.display()))?;
+    let format = if e == "exr" { image::ImageFormat::OpenExr } else { image::ImageFormat::Png };
+    let img = image::load_from_memory_with_format(&bytes, format).map_err(|err| format!("{}: not a readable {} file: {err}", path.display(), e.to_uppercase()))?;
+    let rgb = img.to_rgb32f();
+    let (w, h) = (rgb.width() as usize, rgb.height() as usize);
+    let decode = e == "png";
+    let pixels = rgb
+        .pixels()
+        .map(|p| {
+            let c = p.0;
+            if decode {
+                [srgb_decode(c[0]), srgb_decode(c[1]), srgb_decode(c[2])]
+            } else {
+                c
+            }
+        })
+        .collect();
+    Ok(Image { width: w, height: h, pixels })
+}
+
+/// Writes linear RGB as a 32-bit float EXR, atomically.
+pub fn write_exr(path: &Path, img: &Image) -> Result<(), String> {
+    let buf = image::Rgb32FImage::from_raw(img.width as u32, img.height as u32, img.as_floats().to_vec()).ok_or("image buffer size mismatch")?;
+    let mut out = Cursor::new(Vec::new());
+    image::DynamicImage::ImageRgb32F(buf).write_to(&mut out, image::ImageFormat::OpenExr).map_err(|e| format!("encoding {}: {e}", path.display()))?;
+    write_atomic(path, out.get_ref()).map_err(|e| format!("cannot write {}: {e}", path.display()))
+}
+
+/// Writes an 8-bit sRGB PNG of `img` (values clamped to [0, 1], NaN as 0), atomically.
+pub fn write_png(path: &Path, img: &Image) -> Result<(), String> {
+    let bytes: Vec<u8> = img.as_floats().iter().map(|&x| (srgb_encode(x) * 255.0 + 0.5) as u8).collect();
+    let buf = image::RgbImage::from_raw(img.width as u32, img.height as u32, bytes).ok_or("image buffer size mismatch")?;
+    let mut out = Cursor::new(Vec::new());
+    buf.write_to(&mut out, image::ImageFormat::Png).map_err(|e| format!("encoding {}: {e}", path.display()))?;
+    write_atomic(path, out.get_ref()).map_err(|e| format!("cannot write {}: {e}", path.display()))
+}
+
+/// Writes by extension (.exr or .png).
+pub fn write_image(path: &Path, img: &Image) -> Result<(), String> {
+    match ext(path).as_str() {
+        "exr" => write_exr(path, img),
+        "png" => write_png(path, img),
+        e => Err(format!("{}: unsupported image type `.{e}` (relume writes .exr and .png)", path.display())),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exr_round_trip_is_exact_and_png_is_within_quantisation() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = Image::from_fn(5, 3, |x, y| [x as f32 * 0.1, y as f32 * 0.3, 7.5]);
+        let exr = dir.path().join("a.exr");
+        write_image(&exr, &img).unwrap();
+        assert_eq!(read_image(&exr).unwrap(), img);
+        let png = dir.path().join("a.png");
+        let ldr = Image::from_fn(5, 3, |x, _| [x as f32 * 0.2, 0.5, 1.0]);
+        write_image(&png, &ldr).unwrap();
+        let back = read_image(&png).unwrap();
+        for (a, b) in back.as_floats().iter().zip(ldr.as_floats()) {
+            assert!((a - b).abs() < 0.01, "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn missing_and_malformed_files_name_the_path() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = read_image(&dir.path().join("none.exr")).unwrap_err();
+        assert!(e.contains("none.exr") && e.contains("cannot read"), "{e}");
+        let bad = dir.path().join("bad.exr");
+        std::fs::write(&bad, b"not an exr").unwrap();
+        assert!(read_image(&bad).unwrap_err().contains("not a readable EXR"));
+        assert!(read_image(&dir.path().join("x.jpg")).unwrap_err().contains("unsupported"));
+    }
+
+    #[test]
+    fn srgb_curves_invert() {
+        for i in 0..=100 {
+            let x = i as f32 / 100.0;
+            assert!((srgb_decode(srgb_encode(x)) - x).abs() < 1e-5);
+        }
+        assert_eq!(srgb_encode(f32::NAN), 0.0);
+    }
+}

@@ -1,0 +1,3 @@
+//! Shared math used by several nodes (one place for each piece).
+
+pub mod rng;
