@@ -1,1 +1,5 @@
-fn main(){}
+//! The `relume` command-line tool.
+
+fn main() {
+    std::process::exit(relume_nodes::cli::main());
+}

@@ -1,0 +1,38 @@
+//! Writing a run's outputs to files: images as EXR + tone-mapped PNG, metrics as JSON.
+
+use crate::image::io::{write_exr, write_png};
+use crate::image::tonemap::{tonemap_channel, Operator};
+use crate::types::{Image, Metrics};
+use relume_core::Value;
+use std::path::{Path, PathBuf};
+
+/// Writes every output it has a format for; returns the files written.
+pub(crate) fn write_outputs(dir: &Path, outputs: &[(String, Value)]) -> Result<Vec<PathBuf>, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    let mut files = Vec::new();
+    for (name, v) in outputs {
+        if let Some(img) = v.get::<Image>() {
+            let exr = dir.join(format!("{name}.exr"));
+            write_exr(&exr, img)?;
+            let png = dir.join(format!("{name}.png"));
+            write_png(&png, &preview(img))?;
+            files.extend([exr, png]);
+        } else if let Some(m) = v.get::<Metrics>() {
+            let json = dir.join(format!("{name}.json"));
+            relume_core::graph::write_atomic(&json, m.to_json().as_bytes()).map_err(|e| format!("cannot write {}: {e}", json.display()))?;
+            files.push(json);
+        } else {
+            eprintln!("note: output \"{name}\" ({}) has no file format; not written", v.type_name());
+        }
+    }
+    Ok(files)
+}
+
+/// The PNG preview: ACES at exposure 0 (an image already in [0, 1] is left as it is).
+fn preview(img: &Image) -> Image {
+    let ldr = img.as_floats().iter().all(|x| (0.0..=1.0).contains(x));
+    if ldr {
+        return img.clone();
+    }
+    Image { width: img.width, height: img.height, pixels: img.pixels.iter().map(|p| p.map(|x| tonemap_channel(x, 1.0, Operator::Aces))).collect() }
+}
