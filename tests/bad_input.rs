@@ -1,0 +1,122 @@
+//! Bad graph files (QUALITY.md §4): every message names the file, line, node and parameter
+//! it is about.
+
+use relume_core::Graph;
+
+/// Writes `text` as `bad.ron` in a temp folder, loads it, returns the error text.
+fn load_error(text: &str) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad.ron");
+    std::fs::write(&path, text).unwrap();
+    let e = Graph::load(&path, &relume_nodes::registry()).err().expect("the graph must be refused").to_string();
+    assert!(e.contains("bad.ron:"), "names the file: {e}");
+    e
+}
+
+const HEAD: &str = "Graph(\n    version: 1,\n    nodes: {\n";
+
+#[test]
+fn malformed_ron_names_the_line_and_column() {
+    let e = load_error(&format!("{HEAD}        \"a\": (kind: \"Tonemap\" params: ()),\n    }},\n)"));
+    assert!(e.contains("bad.ron:4:31: malformed RON: expected `,` or `)`"), "{e}");
+}
+
+#[test]
+fn an_unknown_node_kind_names_the_node_and_suggests_a_kind() {
+    let e = load_error(&format!("{HEAD}        \"t\": (kind: \"tonemap\", params: ()),\n    }},\n)"));
+    assert!(e.contains("bad.ron:4:9: node \"t\": unknown node kind \"tonemap\" (did you mean \"Tonemap\"?)"), "{e}");
+}
+
+#[test]
+fn an_unknown_parameter_names_node_parameter_and_the_valid_ones() {
+    let e = load_error(&format!("{HEAD}        \"blur\": (kind: \"GaussianBlur\", params: (sigma: 1.0,\n            radius: 3)),\n    }},\n)"));
+    assert!(e.contains("bad.ron:5:13: node \"blur\": parameter `radius`: unknown parameter for GaussianBlur (it has parameters: sigma, truncate)"), "{e}");
+}
+
+#[test]
+fn a_missing_required_parameter_names_node_and_parameter() {
+    let e = load_error(&format!("{HEAD}        \"img\": (kind: \"LoadImage\", params: ()),\n    }},\n)"));
+    assert!(e.contains("bad.ron:4:9: node \"img\": parameter `path`: missing required parameter"), "{e}");
+}
+
+#[test]
+fn an_out_of_range_value_names_the_range_and_unit() {
+    let e = load_error(&format!("{HEAD}        \"blur\": (kind: \"GaussianBlur\", params: (sigma: 500)),\n    }},\n)"));
+    assert!(e.contains("bad.ron:4:49: node \"blur\": parameter `sigma`: 500 is out of range [0, 256] px"), "{e}");
+    let e = load_error(&format!("{HEAD}        \"t\": (kind: \"Tonemap\", params: (operator: Filmic)),\n    }},\n)"));
+    assert!(e.contains("parameter `operator`: `Filmic` is not one of Clamp, Reinhard, Aces"), "{e}");
+    let e = load_error(&format!("{HEAD}        \"m\": (kind: \"MedianFilter\", params: (radius: 1.5)),\n    }},\n)"));
+    assert!(e.contains("parameter `radius`: expected an integer, found `1.5`"), "{e}");
+}
+
+#[test]
+fn an_edge_between_different_types_names_both_ends() {
+    let e = load_error(&format!(
+        "{HEAD}        \"e\": (kind: \"ImageError\", params: ()),\n        \"t\": (kind: \"Tonemap\", params: ()),\n    }},\n    edges: [\n        (\"e.metrics\", \"t.image\"),\n    ],\n)"
+    ));
+    assert!(e.contains("bad.ron:8:9: edge e.metrics → t.image joins different types: output `metrics` of \"e\" is Metrics, input `image` of \"t\" is Image"), "{e}");
+}
+
+#[test]
+fn a_cycle_lists_its_nodes() {
+    let e = load_error(&format!(
+        "{HEAD}        \"a\": (kind: \"Tonemap\", params: ()),\n        \"b\": (kind: \"GaussianBlur\", params: ()),\n    }},\n    edges: [(\"a.image\", \"b.image\"), (\"b.image\", \"a.image\")],\n)"
+    ));
+    assert!(e.contains("bad.ron:4:9: node \"a\": the edges form a cycle: a → b → a"), "{e}");
+}
+
+#[test]
+fn dangling_ports_name_the_missing_node_or_port() {
+    let e = load_error(&format!("{HEAD}        \"t\": (kind: \"Tonemap\", params: ()),\n    }},\n    edges: [(\"x.image\", \"t.image\")],\n)"));
+    assert!(e.contains("bad.ron:6:13: edge x.image → t.image: there is no node \"x\""), "{e}");
+    let e = load_error(&format!("{HEAD}        \"t\": (kind: \"Tonemap\", params: ()),\n        \"u\": (kind: \"Tonemap\", params: ()),\n    }},\n    edges: [(\"t.img\", \"u.image\")],\n)"));
+    assert!(e.contains("Tonemap \"t\" has no output `img` (outputs: image)"), "{e}");
+    let e = load_error(&format!("{HEAD}        \"t\": (kind: \"Tonemap\", params: ()),\n    }},\n    edges: [(\"t.image\", \"t\")],\n)"));
+    assert!(e.contains("\"t\" is not of the form \"node.port\""), "{e}");
+}
+
+#[test]
+fn an_unconnected_input_of_a_needed_node_is_refused_before_running() {
+    let g = Graph::parse("Graph(version: 1, nodes: {\n \"t\": (kind: \"Tonemap\", params: ()),\n}, outputs: { \"x\": \"t.image\" })", Some(std::path::Path::new("g.ron"))).unwrap();
+    let e = relume_tests::engine().run(&g, &Default::default()).err().unwrap().to_string();
+    assert!(e.contains("g.ron:2:2: node \"t\": input `image` (Image) is not connected"), "{e}");
+}
+
+#[test]
+fn outputs_that_name_nothing_are_refused() {
+    let e = load_error(&format!("{HEAD}        \"t\": (kind: \"TestPattern\", params: ()),\n    }},\n    outputs: {{\n        \"image\": \"t.picture\",\n        \"x\": \"nobody.image\",\n    }},\n)"));
+    assert!(e.contains("bad.ron:7:9: output \"image\" names t.picture: TestPattern \"t\" has no output `picture`"), "{e}");
+    assert!(e.contains("bad.ron:8:9: output \"x\" names nobody.image: there is no node \"nobody\""), "{e}");
+}
+
+#[test]
+fn a_missing_input_file_names_node_parameter_and_path_before_anything_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("g.ron");
+    std::fs::write(&path, "Graph(version: 1, nodes: {\n  \"img\": (kind: \"LoadImage\", params: (path: \"nope.exr\")),\n}, outputs: { \"x\": \"img.image\" })").unwrap();
+    let g = Graph::load(&path, &relume_nodes::registry()).unwrap();
+    let e = relume_tests::engine().run(&g, &Default::default()).err().unwrap().to_string();
+    assert!(e.contains("g.ron:2:3: node \"img\": parameter `path`: cannot read") && e.contains("nope.exr"), "{e}");
+}
+
+#[test]
+fn structural_mistakes_are_all_reported_in_one_go() {
+    let e = load_error("Graph(\n  version: 1,\n  nodes: {\n    \"a b\": (kind: \"Tonemap\"),\n    \"c\": (kind: 5),\n    \"d\": (kind: \"Tonemap\", colour: 1),\n  },\n  edgez: [],\n)");
+    let lines: Vec<&str> = e.lines().collect();
+    assert_eq!(lines.len(), 4, "{e}");
+    assert!(e.contains("4:5: node id \"a b\" may use only letters"), "{e}");
+    assert!(e.contains("5:17: node \"c\": `kind` must be a quoted node kind"), "{e}");
+    assert!(e.contains("6:28: node \"d\": unknown field `colour`"), "{e}");
+    assert!(e.contains("8:3: unknown field `edgez`"), "{e}");
+}
+
+#[test]
+fn bad_set_overrides_name_the_node_and_parameter() {
+    let reg = relume_nodes::registry();
+    let mut g = Graph::load(&relume_tests::graphs_dir().join("filters.ron"), &reg).unwrap();
+    let e = g.set_param_text(&reg, "blur.sigma", "-1").unwrap_err().to_string();
+    assert_eq!(e, "node \"blur\": parameter `sigma`: -1 is out of range [0, 256] px");
+    let e = g.set_param_text(&reg, "blur.size", "1").unwrap_err().to_string();
+    assert!(e.contains("GaussianBlur has no parameter `size` (it has: sigma, truncate)"), "{e}");
+    assert!(g.set_param_text(&reg, "nobody.sigma", "1").unwrap_err().to_string().contains("no node \"nobody\""));
+}

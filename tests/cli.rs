@@ -1,0 +1,80 @@
+//! The `relume` command line, in process: run twice (second run all cached), plan, check,
+//! nodes, and exit codes with messages a person can act on.
+
+use relume_nodes::cli::main_from;
+use relume_tests::graphs_dir;
+use std::path::Path;
+
+fn relume(args: &[&str]) -> i32 {
+    main_from(std::iter::once("relume").chain(args.iter().copied()))
+}
+
+fn report(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn running_image_error_twice_shows_every_node_cached_the_second_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |s: &str| dir.path().join(s).to_string_lossy().into_owned();
+    let graph = graphs_dir().join("image_error.ron").to_string_lossy().into_owned();
+    let args = |r: &str| vec!["run".to_string(), graph.clone(), "--out".into(), d("o"), "--report".into(), d(r), "--cache".into(), d("cache"), "--quiet".into()];
+    let a1 = args("r1.json");
+    assert_eq!(relume(&a1.iter().map(String::as_str).collect::<Vec<_>>()), 0);
+    let a2 = args("r2.json");
+    assert_eq!(relume(&a2.iter().map(String::as_str).collect::<Vec<_>>()), 0);
+    let (r1, r2) = (report(&dir.path().join("r1.json")), report(&dir.path().join("r2.json")));
+    for (r, want) in [(&r1, "ran"), (&r2, "cached")] {
+        let nodes = r["nodes"].as_array().unwrap();
+        assert_eq!(nodes.len(), 5);
+        for n in nodes {
+            assert_eq!(n["status"], want, "{n}");
+            for field in ["id", "kind", "wall_ms", "bytes", "metrics"] {
+                assert!(!n[field].is_null(), "{field} in {n}");
+            }
+        }
+        assert!(r["total_ms"].as_f64().unwrap() > 0.0);
+    }
+    let err = r2["nodes"].as_array().unwrap().iter().find(|n| n["id"] == "error").unwrap();
+    assert!(err["metrics"]["psnr_db"].as_f64().unwrap() > 15.0);
+    for f in ["render.exr", "render.png", "denoised.exr", "error_map.png", "metrics.json"] {
+        assert!(dir.path().join("o").join(f).is_file(), "{f}");
+    }
+}
+
+#[test]
+fn set_overrides_change_the_run_and_bad_ones_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let graph = graphs_dir().join("filters.ron");
+    let (g, o, r) = (graph.to_str().unwrap(), dir.path().join("o"), dir.path().join("r.json"));
+    let code = relume(&["run", g, "--set", "blur.sigma=2.5", "--set", "tonemap.operator=Clamp", "--out", o.to_str().unwrap(), "--report", r.to_str().unwrap(), "--no-disk-cache", "-q"]);
+    assert_eq!(code, 0);
+    assert!(o.join("image.png").is_file());
+    assert_eq!(relume(&["run", g, "--set", "blur.sigma=-3", "--no-disk-cache", "-q"]), 2);
+    assert_eq!(relume(&["run", g, "--set", "blur", "--no-disk-cache", "-q"]), 2);
+    assert_eq!(relume(&["run", g, "--output", "nothing", "--no-disk-cache", "-q"]), 2);
+}
+
+#[test]
+fn check_plan_and_nodes_succeed_and_a_broken_graph_exits_2() {
+    let g = graphs_dir().join("image_error.ron");
+    let g = g.to_str().unwrap();
+    assert_eq!(relume(&["check", g]), 0);
+    assert_eq!(relume(&["plan", g, "--no-disk-cache"]), 0);
+    assert_eq!(relume(&["nodes"]), 0);
+    assert_eq!(relume(&["nodes", "GaussianBlur"]), 0);
+    assert_eq!(relume(&["nodes", "NoSuchNode"]), 2);
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.ron");
+    std::fs::write(&bad, "Graph(version: 1, nodes: { \"a\": (kind: \"Nope\") })").unwrap();
+    assert_eq!(relume(&["check", bad.to_str().unwrap()]), 2);
+    assert_eq!(relume(&["run", dir.path().join("missing.ron").to_str().unwrap()]), 2);
+}
+
+#[test]
+fn a_node_failure_exits_1() {
+    let dir = tempfile::tempdir().unwrap();
+    let g = dir.path().join("g.ron");
+    std::fs::write(&g, r#"Graph(version: 1, nodes: { "a": (kind: "TestPattern", params: (width: 16384, height: 16384)) }, outputs: { "x": "a.image" })"#).unwrap();
+    assert_eq!(relume(&["run", g.to_str().unwrap(), "--no-disk-cache", "-q", "--out", dir.path().join("o").to_str().unwrap()]), 1);
+}

@@ -1,0 +1,50 @@
+//! Every graph in graphs/ runs, and its outputs are finite and sensible.
+
+use relume_core::{Graph, RunOptions};
+use relume_nodes::types::{Image, Metrics};
+use relume_tests::{all_graphs, engine, graphs_dir};
+
+#[test]
+fn every_graph_in_graphs_runs_and_its_outputs_are_finite() {
+    let reg = relume_nodes::registry();
+    let e = engine();
+    for path in all_graphs() {
+        let g = Graph::load(&path, &reg).unwrap_or_else(|err| panic!("{err}"));
+        let r = e.run(&g, &RunOptions::default()).unwrap_or_else(|err| panic!("{}: {err}", path.display()));
+        assert_eq!(r.outputs.len(), g.outputs.len(), "{}", path.display());
+        for (name, v) in &r.outputs {
+            if let Some(img) = v.get::<Image>() {
+                assert_eq!(img.nonfinite_pixels(), 0, "{}: {name}", path.display());
+            }
+            if let Some(m) = v.get::<Metrics>() {
+                assert!(m.get("mse").is_some_and(f64::is_finite), "{}: {name}", path.display());
+            }
+        }
+    }
+}
+
+#[test]
+fn the_median_filter_lowers_the_error_of_the_noisy_render_in_image_error_ron() {
+    let g = Graph::load(&graphs_dir().join("image_error.ron"), &relume_nodes::registry()).unwrap();
+    let r = engine().run(&g, &RunOptions::default()).unwrap();
+    let m = |name: &str| r.output(name).unwrap().get::<Metrics>().unwrap().clone();
+    let (raw, denoised) = (m("metrics"), m("metrics_denoised"));
+    // Uniform noise of amplitude 0.3 has variance 0.3²/12 = 0.0075 per channel.
+    assert!((raw.get("mse").unwrap() - 0.0075).abs() < 0.0005, "{raw:?}");
+    assert!(denoised.get("mse").unwrap() < 0.5 * raw.get("mse").unwrap(), "{denoised:?}");
+    assert!(denoised.get("psnr_db").unwrap() > raw.get("psnr_db").unwrap() + 3.0);
+    assert_eq!(r.report.node("error").unwrap().metrics["mse"], raw.get("mse").unwrap(), "the report carries the metrics");
+}
+
+#[test]
+fn the_filters_graph_denoises_its_checkerboard() {
+    let g = Graph::load(&graphs_dir().join("filters.ron"), &relume_nodes::registry()).unwrap();
+    let r = engine().run(&g, &RunOptions::default()).unwrap();
+    let m = r.output("metrics").unwrap().get::<Metrics>().unwrap();
+    // Noise of amplitude 0.4 alone has MSE 0.4²/12 ≈ 0.0133; the filters must not make it worse
+    // by more than the edge blur costs, and the error must be finite and positive.
+    let mse = m.get("mse").unwrap();
+    assert!(mse > 0.0 && mse < 0.03, "{mse}");
+    let img = r.output("image").unwrap().get::<Image>().unwrap();
+    assert!(img.as_floats().iter().all(|x| (0.0..=1.0).contains(x)), "tone-mapped values lie in [0, 1]");
+}
