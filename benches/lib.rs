@@ -1,1 +1,70 @@
+//! Graphs generated for the benchmarks.
 
+use relume_core::Graph;
+
+/// Nodes per layer of the generated graph.
+pub const WIDTH: usize = 10;
+
+/// A layered graph of `n` (a multiple of `WIDTH`) real image nodes on 16 × 16 images:
+/// layer 0 holds TestPattern sources; node j of layer l is, by (l + j) mod 4, a GaussianBlur,
+/// MedianFilter, Combine or Tonemap reading node j of layer l − 1 (and, for Combine, node
+/// j + 1 mod WIDTH too). Every node is needed; the last layer is the outputs.
+pub fn generated_graph(n: usize) -> Graph {
+    assert!(n.is_multiple_of(WIDTH) && n >= 2 * WIDTH);
+    let id = |l: usize, j: usize| format!("n{l}_{j}");
+    let mut nodes = String::new();
+    let mut edges = String::new();
+    for l in 0..n / WIDTH {
+        for j in 0..WIDTH {
+            let (kind, params) = if l == 0 {
+                ("TestPattern", format!("width: 16, height: 16, pattern: Checker, cell: 4, noise: 0.1, seed: {j}"))
+            } else {
+                match (l + j) % 4 {
+                    0 => ("GaussianBlur", format!("sigma: {}", 0.5 + (j % 3) as f64 * 0.25)),
+                    1 => ("MedianFilter", "radius: 1".to_string()),
+                    2 => ("Combine", "weight_a: 0.5, weight_b: 0.5".to_string()),
+                    _ => ("Tonemap", "exposure: 0.25".to_string()),
+                }
+            };
+            nodes += &format!("\"{}\": (kind: \"{kind}\", params: ({params})),\n", id(l, j));
+            if l > 0 {
+                let first = if kind == "Combine" { "a" } else { "image" };
+                edges += &format!("(\"{}.image\", \"{}.{first}\"),\n", id(l - 1, j), id(l, j));
+                if kind == "Combine" {
+                    edges += &format!("(\"{}.image\", \"{}.b\"),\n", id(l - 1, (j + 1) % WIDTH), id(l, j));
+                }
+            }
+        }
+    }
+    let last = n / WIDTH - 1;
+    let outputs: String = (0..WIDTH).map(|j| format!("\"o{j}\": \"{}.image\",", id(last, j))).collect();
+    let text = format!("Graph(version: 1, nodes: {{ {nodes} }}, edges: [ {edges} ], outputs: {{ {outputs} }})");
+    Graph::parse(&text, None).expect("generated graph parses")
+}
+
+/// The node whose parameter the "after one edit" benchmark changes: a GaussianBlur about two
+/// thirds of the way down.
+pub fn edit_node(n: usize) -> String {
+    let l = 2 * n / WIDTH / 3;
+    let j = (4 - l % 4) % 4;
+    format!("n{l}_{j}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use relume_core::{Engine, RunOptions};
+
+    #[test]
+    fn every_generated_node_is_needed_and_one_edit_reaches_a_part_of_the_graph() {
+        let reg = relume_nodes::registry();
+        let mut g = generated_graph(200);
+        g.validate(&reg).unwrap();
+        assert_eq!(g.node(&edit_node(200)).unwrap().kind, "GaussianBlur");
+        let e = Engine::new(reg);
+        assert_eq!(e.run(&g, &RunOptions::default()).unwrap().report.ran, 200);
+        g.set_param_text(e.registry(), &format!("{}.sigma", edit_node(200)), "2.0").unwrap();
+        let ran = e.run(&g, &RunOptions::default()).unwrap().report.ran;
+        assert!((10..100).contains(&ran), "{ran}");
+    }
+}

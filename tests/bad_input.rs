@@ -8,7 +8,7 @@ fn load_error(text: &str) -> String {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("bad.ron");
     std::fs::write(&path, text).unwrap();
-    let e = Graph::load(&path, &relume_nodes::registry()).err().expect("the graph must be refused").to_string();
+    let e = Graph::load(&path, &relume_nodes::registry()).expect_err("the graph must be refused").to_string();
     assert!(e.contains("bad.ron:"), "names the file: {e}");
     e
 }
@@ -29,8 +29,14 @@ fn an_unknown_node_kind_names_the_node_and_suggests_a_kind() {
 
 #[test]
 fn an_unknown_parameter_names_node_parameter_and_the_valid_ones() {
-    let e = load_error(&format!("{HEAD}        \"blur\": (kind: \"GaussianBlur\", params: (sigma: 1.0,\n            radius: 3)),\n    }},\n)"));
-    assert!(e.contains("bad.ron:5:13: node \"blur\": parameter `radius`: unknown parameter for GaussianBlur (it has parameters: sigma, truncate)"), "{e}");
+    let e =
+        load_error(&format!("{HEAD}        \"blur\": (kind: \"GaussianBlur\", params: (sigma: 1.0,\n            radius: 3)),\n    }},\n)"));
+    assert!(
+        e.contains(
+            "bad.ron:5:13: node \"blur\": parameter `radius`: unknown parameter for GaussianBlur (it has parameters: sigma, truncate)"
+        ),
+        "{e}"
+    );
 }
 
 #[test]
@@ -67,7 +73,8 @@ fn a_cycle_lists_its_nodes() {
 
 #[test]
 fn dangling_ports_name_the_missing_node_or_port() {
-    let e = load_error(&format!("{HEAD}        \"t\": (kind: \"Tonemap\", params: ()),\n    }},\n    edges: [(\"x.image\", \"t.image\")],\n)"));
+    let e =
+        load_error(&format!("{HEAD}        \"t\": (kind: \"Tonemap\", params: ()),\n    }},\n    edges: [(\"x.image\", \"t.image\")],\n)"));
     assert!(e.contains("bad.ron:6:13: edge x.image → t.image: there is no node \"x\""), "{e}");
     let e = load_error(&format!("{HEAD}        \"t\": (kind: \"Tonemap\", params: ()),\n        \"u\": (kind: \"Tonemap\", params: ()),\n    }},\n    edges: [(\"t.img\", \"u.image\")],\n)"));
     assert!(e.contains("Tonemap \"t\" has no output `img` (outputs: image)"), "{e}");
@@ -77,7 +84,11 @@ fn dangling_ports_name_the_missing_node_or_port() {
 
 #[test]
 fn an_unconnected_input_of_a_needed_node_is_refused_before_running() {
-    let g = Graph::parse("Graph(version: 1, nodes: {\n \"t\": (kind: \"Tonemap\", params: ()),\n}, outputs: { \"x\": \"t.image\" })", Some(std::path::Path::new("g.ron"))).unwrap();
+    let g = Graph::parse(
+        "Graph(version: 1, nodes: {\n \"t\": (kind: \"Tonemap\", params: ()),\n}, outputs: { \"x\": \"t.image\" })",
+        Some(std::path::Path::new("g.ron")),
+    )
+    .unwrap();
     let e = relume_tests::engine().run(&g, &Default::default()).err().unwrap().to_string();
     assert!(e.contains("g.ron:2:2: node \"t\": input `image` (Image) is not connected"), "{e}");
 }

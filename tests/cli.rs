@@ -18,7 +18,19 @@ fn running_image_error_twice_shows_every_node_cached_the_second_time() {
     let dir = tempfile::tempdir().unwrap();
     let d = |s: &str| dir.path().join(s).to_string_lossy().into_owned();
     let graph = graphs_dir().join("image_error.ron").to_string_lossy().into_owned();
-    let args = |r: &str| vec!["run".to_string(), graph.clone(), "--out".into(), d("o"), "--report".into(), d(r), "--cache".into(), d("cache"), "--quiet".into()];
+    let args = |r: &str| {
+        vec![
+            "run".to_string(),
+            graph.clone(),
+            "--out".into(),
+            d("o"),
+            "--report".into(),
+            d(r),
+            "--cache".into(),
+            d("cache"),
+            "--quiet".into(),
+        ]
+    };
     let a1 = args("r1.json");
     assert_eq!(relume(&a1.iter().map(String::as_str).collect::<Vec<_>>()), 0);
     let a2 = args("r2.json");
@@ -47,7 +59,20 @@ fn set_overrides_change_the_run_and_bad_ones_exit_2() {
     let dir = tempfile::tempdir().unwrap();
     let graph = graphs_dir().join("filters.ron");
     let (g, o, r) = (graph.to_str().unwrap(), dir.path().join("o"), dir.path().join("r.json"));
-    let code = relume(&["run", g, "--set", "blur.sigma=2.5", "--set", "tonemap.operator=Clamp", "--out", o.to_str().unwrap(), "--report", r.to_str().unwrap(), "--no-disk-cache", "-q"]);
+    let code = relume(&[
+        "run",
+        g,
+        "--set",
+        "blur.sigma=2.5",
+        "--set",
+        "tonemap.operator=Clamp",
+        "--out",
+        o.to_str().unwrap(),
+        "--report",
+        r.to_str().unwrap(),
+        "--no-disk-cache",
+        "-q",
+    ]);
     assert_eq!(code, 0);
     assert!(o.join("image.png").is_file());
     assert_eq!(relume(&["run", g, "--set", "blur.sigma=-3", "--no-disk-cache", "-q"]), 2);
@@ -75,6 +100,10 @@ fn check_plan_and_nodes_succeed_and_a_broken_graph_exits_2() {
 fn a_node_failure_exits_1() {
     let dir = tempfile::tempdir().unwrap();
     let g = dir.path().join("g.ron");
-    std::fs::write(&g, r#"Graph(version: 1, nodes: { "a": (kind: "TestPattern", params: (width: 16384, height: 16384)) }, outputs: { "x": "a.image" })"#).unwrap();
+    std::fs::write(
+        &g,
+        r#"Graph(version: 1, nodes: { "a": (kind: "TestPattern", params: (width: 16384, height: 16384)) }, outputs: { "x": "a.image" })"#,
+    )
+    .unwrap();
     assert_eq!(relume(&["run", g.to_str().unwrap(), "--no-disk-cache", "-q", "--out", dir.path().join("o").to_str().unwrap()]), 1);
 }

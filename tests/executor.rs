@@ -89,5 +89,8 @@ fn every_needed_node_reports_start_and_finish_and_cached_nodes_only_finish() {
     engine.run(&g, &opts).unwrap();
     engine.run(&g, &opts).unwrap();
     let events = rec.events.lock().unwrap().clone();
-    assert_eq!(events, ["planned 2", "started a", "finished a ran", "started b", "finished b ran", "planned 2", "finished a cached", "finished b cached"]);
+    assert_eq!(
+        events,
+        ["planned 2", "started a", "finished a ran", "started b", "finished b ran", "planned 2", "finished a cached", "finished b cached"]
+    );
 }

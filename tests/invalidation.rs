@@ -162,7 +162,8 @@ fn cache_keys_of_the_filters_graph_are_pinned() {
     // if the key scheme itself changed on purpose, update these values.
     let r = run(&engine(), &filters());
     let key = |id: &str| r.node(id).unwrap().key[..16].to_string();
-    let got: Vec<_> = ["clean", "noisy", "sum", "median", "blur", "error", "tonemap"].iter().map(|id| format!("{id}={}", key(id))).collect();
+    let got: Vec<_> =
+        ["clean", "noisy", "sum", "median", "blur", "error", "tonemap"].iter().map(|id| format!("{id}={}", key(id))).collect();
     assert_eq!(got, PINNED, "cache keys changed");
 }
 

@@ -9,7 +9,9 @@ use std::collections::{HashMap, HashSet};
 /// A random DAG: node i takes 0..=3 inputs from nodes before it.
 fn dag() -> impl Strategy<Value = (Vec<Vec<usize>>, Vec<usize>)> {
     (2usize..24).prop_flat_map(|n| {
-        let inputs = (0..n).map(|i| if i == 0 { Just(vec![]).boxed() } else { proptest::collection::vec(0..i, 0..=3.min(i)).boxed() }).collect::<Vec<_>>();
+        let inputs = (0..n)
+            .map(|i| if i == 0 { Just(vec![]).boxed() } else { proptest::collection::vec(0..i, 0..=3.min(i)).boxed() })
+            .collect::<Vec<_>>();
         (inputs, proptest::collection::vec(0..n, 1..4))
     })
 }

@@ -1,7 +1,10 @@
 //! Shared helpers for the integration tests: test-only node kinds that log what ran, and
 //! small utilities around graphs and reports.
 
-use relume_core::{Caching, Documented, Engine, Graph, Hash, Hasher, Io, Node, NodeError, ParamValues, Params, PortValue, Ports, Registry, RunCtx, RunOptions, RunReport, Schema};
+use relume_core::{
+    Caching, Documented, Engine, Graph, Hash, Hasher, Io, Node, NodeError, ParamValues, Params, PortValue, Ports, Registry, RunCtx,
+    RunOptions, RunReport, Schema,
+};
 use std::path::PathBuf;
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
@@ -13,7 +16,8 @@ pub fn graphs_dir() -> PathBuf {
 
 /// Every `*.ron` graph in `graphs/` (not the scenes).
 pub fn all_graphs() -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(graphs_dir()).unwrap().map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|e| e == "ron")).collect();
+    let mut v: Vec<PathBuf> =
+        std::fs::read_dir(graphs_dir()).unwrap().map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|e| e == "ron")).collect();
     v.sort();
     v
 }

@@ -41,12 +41,29 @@ impl NodeStatus {
 #[derive(Clone, Debug)]
 pub enum Event<'a> {
     /// The plan is made: `nodes` nodes are needed.
-    Planned { nodes: usize },
-    Started { id: &'a str, kind: &'a str },
+    Planned {
+        nodes: usize,
+    },
+    Started {
+        id: &'a str,
+        kind: &'a str,
+    },
     /// Fraction in [0, 1] of a node's own work.
-    Progress { id: &'a str, fraction: f32 },
-    Finished { id: &'a str, kind: &'a str, status: NodeStatus, wall_ms: f64 },
-    Failed { id: &'a str, kind: &'a str, message: &'a str },
+    Progress {
+        id: &'a str,
+        fraction: f32,
+    },
+    Finished {
+        id: &'a str,
+        kind: &'a str,
+        status: NodeStatus,
+        wall_ms: f64,
+    },
+    Failed {
+        id: &'a str,
+        kind: &'a str,
+        message: &'a str,
+    },
 }
 
 /// Receives run events; called from the coordinating thread and from node threads.
@@ -86,7 +103,7 @@ impl<'a> RunCtx<'a> {
     /// Reports `done` of `total` units of work (cheap: forwards at most 1000 steps).
     pub fn progress(&self, done: u64, total: u64) {
         let Some(obs) = self.observer else { return };
-        let permille = if total == 0 { 1000 } else { (done.min(total) * 1000) / total };
+        let permille = (done.min(total) * 1000).checked_div(total).unwrap_or(1000);
         if self.last_permille.swap(permille, Ordering::Relaxed) != permille {
             obs.event(&Event::Progress { id: self.id, fraction: permille as f32 / 1000.0 });
         }

@@ -121,8 +121,9 @@ impl Engine {
     pub(crate) fn prepare(&self, graph: &Graph, i: usize, inputs: &[Hash]) -> Result<Prepared, GraphError> {
         let decl = &graph.nodes[i];
         let kind = self.kind_of(graph, i);
-        let params = ParamValues::resolve(kind.schema(), &decl.params, &graph.base_dir)
-            .map_err(|missing| GraphError::new(format!("missing required parameter `{}`", missing.join("`, `"))).at(decl.pos).node(&decl.id))?;
+        let params = ParamValues::resolve(kind.schema(), &decl.params, &graph.base_dir).map_err(|missing| {
+            GraphError::new(format!("missing required parameter `{}`", missing.join("`, `"))).at(decl.pos).node(&decl.id)
+        })?;
         let mut h = Hasher::new();
         h.str("relume-key-v1").str(kind.kind()).u64(kind.version() as u64);
         params.canonical_hash(kind.schema(), &mut h).map_err(|m| GraphError::new(m).at(decl.pos).node(&decl.id))?;
@@ -183,7 +184,8 @@ impl Engine {
                 let stop = first_error.is_some() || opts.cancel.is_cancelled();
                 while let (false, Some(i)) = (stop, ready.pop_front()) {
                     let t0 = Instant::now();
-                    let fps: Vec<Hash> = plan.sources[i].iter().map(|&(s, o)| state.values[s].as_ref().unwrap().outputs[o].fingerprint()).collect();
+                    let fps: Vec<Hash> =
+                        plan.sources[i].iter().map(|&(s, o)| state.values[s].as_ref().unwrap().outputs[o].fingerprint()).collect();
                     let prepared = match self.prepare(graph, i, &fps) {
                         Ok(p) => p,
                         Err(e) => {
@@ -206,7 +208,8 @@ impl Engine {
                 while running < self.max_parallel && first_error.is_none() && !opts.cancel.is_cancelled() {
                     let Some((i, prepared)) = to_run.pop_front() else { break };
                     running += 1;
-                    let inputs: Vec<Value> = plan.sources[i].iter().map(|&(s, o)| state.values[s].as_ref().unwrap().outputs[o].clone()).collect();
+                    let inputs: Vec<Value> =
+                        plan.sources[i].iter().map(|&(s, o)| state.values[s].as_ref().unwrap().outputs[o].clone()).collect();
                     state.keys[i] = prepared.key;
                     let kind = self.kind_of(graph, i).clone();
                     let id = graph.nodes[i].id.as_str();
@@ -254,7 +257,8 @@ impl Engine {
         if opts.cancel.is_cancelled() {
             return Err(RunError::Cancelled);
         }
-        let outputs = plan.outputs.iter().map(|(name, ni, oi)| (name.clone(), state.values[*ni].as_ref().unwrap().outputs[*oi].clone())).collect();
+        let outputs =
+            plan.outputs.iter().map(|(name, ni, oi)| (name.clone(), state.values[*ni].as_ref().unwrap().outputs[*oi].clone())).collect();
         let mut report = state.report;
         report.graph = graph.file.as_ref().map(|f| f.display().to_string()).unwrap_or_default();
         report.outputs = plan.outputs.iter().map(|o| o.0.clone()).collect();
@@ -272,7 +276,14 @@ impl Engine {
 }
 
 /// Runs one node, turning a panic into an error.
-fn run_node(kind: &dyn DynNode, id: &str, params: &ParamValues, inputs: &[Value], cancel: &CancelToken, observer: Option<&dyn Observer>) -> Result<CacheEntry, NodeError> {
+fn run_node(
+    kind: &dyn DynNode,
+    id: &str,
+    params: &ParamValues,
+    inputs: &[Value],
+    cancel: &CancelToken,
+    observer: Option<&dyn Observer>,
+) -> Result<CacheEntry, NodeError> {
     if let Some(o) = observer {
         o.event(&Event::Started { id, kind: kind.kind() });
     }
@@ -287,7 +298,8 @@ fn run_node(kind: &dyn DynNode, id: &str, params: &ParamValues, inputs: &[Value]
         }
         Ok(Err(e)) => Err(e),
         Err(panic) => {
-            let msg = panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned()).unwrap_or_default();
+            let msg =
+                panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned()).unwrap_or_default();
             Err(NodeError::failed(format!("panicked: {msg}")))
         }
     }

@@ -38,7 +38,12 @@ impl Engine {
             let inputs: Option<Vec<Hash>> = plan.sources[i].iter().map(|&(s, o)| fps[s].as_ref().map(|f| f[o])).collect();
             let Some(inputs) = inputs else {
                 let up = plan.sources[i].iter().find(|&&(s, _)| fps[s].is_none()).map(|&(s, _)| graph.nodes[s].id.as_str()).unwrap_or("?");
-                lines.push(line(PlanAction::Run, format!("its input from \"{up}\" will be computed (if that reproduces identical bytes, this node is reused from the cache)")));
+                lines.push(line(
+                    PlanAction::Run,
+                    format!(
+                        "its input from \"{up}\" will be computed (if that reproduces identical bytes, this node is reused from the cache)"
+                    ),
+                ));
                 continue;
             };
             let prepared = self.prepare(graph, i, &inputs).map_err(|e| GraphErrors::one(e).with_file(&graph.file))?;
@@ -52,12 +57,20 @@ impl Engine {
                     let place = if status == crate::ctx::NodeStatus::CachedDisk { "disk" } else { "memory" };
                     lines.push(line(PlanAction::Cached, format!("result for key {} is in the {place} cache", prepared.key.short())));
                 }
-                None => lines.push(line(PlanAction::Run, format!("no cached result for key {} (first run, or a parameter, input or file changed)", prepared.key.short()))),
+                None => lines.push(line(
+                    PlanAction::Run,
+                    format!("no cached result for key {} (first run, or a parameter, input or file changed)", prepared.key.short()),
+                )),
             }
         }
         for (i, decl) in graph.nodes.iter().enumerate() {
             if !plan.needed[i] {
-                lines.push(PlanLine { id: decl.id.clone(), kind: decl.kind.clone(), action: PlanAction::Skip, reason: "not needed by the requested outputs".into() });
+                lines.push(PlanLine {
+                    id: decl.id.clone(),
+                    kind: decl.kind.clone(),
+                    action: PlanAction::Skip,
+                    reason: "not needed by the requested outputs".into(),
+                });
             }
         }
         Ok(lines)

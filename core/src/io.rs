@@ -24,7 +24,12 @@ impl<'a> Io<'a> {
 
     /// Sets output `name`; its type must be the declared one.
     pub fn set<T: PortValue>(&mut self, name: &str, value: T) -> Result<(), NodeError> {
-        let i = self.ports.outputs.iter().position(|p| p.name == name).ok_or_else(|| NodeError::failed(format!("node set undeclared output `{name}`")))?;
+        let i = self
+            .ports
+            .outputs
+            .iter()
+            .position(|p| p.name == name)
+            .ok_or_else(|| NodeError::failed(format!("node set undeclared output `{name}`")))?;
         if self.ports.outputs[i].ty.name != T::NAME {
             return Err(NodeError::failed(format!("output `{name}` is declared {}, node set {}", self.ports.outputs[i].ty.name, T::NAME)));
         }

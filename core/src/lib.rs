@@ -19,8 +19,8 @@ mod plan;
 mod port;
 mod registry;
 mod report;
-mod standalone;
 pub mod ron;
+mod standalone;
 
 pub use ctx::{CancelToken, Event, NodeStatus, Observer, RunCtx};
 pub use error::{GraphError, GraphErrors};

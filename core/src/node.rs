@@ -60,9 +60,15 @@ pub trait Node: Documented + Send + Sync + 'static {
 pub enum NodeError {
     Cancelled,
     /// A parameter's value cannot be used (beyond what the schema's range catches).
-    Param { name: String, msg: String },
+    Param {
+        name: String,
+        msg: String,
+    },
     /// An input cannot be used (sizes disagree, data is not finite, …).
-    Input { port: String, msg: String },
+    Input {
+        port: String,
+        msg: String,
+    },
     /// The node is declared but its algorithm is not finished.
     NotImplemented(&'static str),
     Failed(String),

@@ -7,8 +7,14 @@ use std::path::{Path, PathBuf};
 /// What a parameter holds and which values are allowed.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ParamKind {
-    Float { min: f64, max: f64 },
-    Int { min: i64, max: i64 },
+    Float {
+        min: f64,
+        max: f64,
+    },
+    Int {
+        min: i64,
+        max: i64,
+    },
     Bool,
     Text,
     /// A file the node reads; the cache key hashes its content, not just its name.
@@ -17,7 +23,10 @@ pub enum ParamKind {
     OutputFile,
     Enum(&'static [&'static str]),
     /// Three floats in `[min, max]` (a colour for the editor).
-    Rgb { min: f64, max: f64 },
+    Rgb {
+        min: f64,
+        max: f64,
+    },
     /// Three finite floats (a position or direction).
     Vec3,
 }
@@ -158,7 +167,9 @@ impl ParamSpec {
                 _ => Err(format!("expected `true` or `false`, found `{}`", v.to_text())),
             },
             ParamKind::Text | ParamKind::InputFile | ParamKind::OutputFile => match v {
-                ParamValue::Text(s) if s.is_empty() && self.kind != ParamKind::Text => Err("expected a file path, found an empty string".into()),
+                ParamValue::Text(s) if s.is_empty() && self.kind != ParamKind::Text => {
+                    Err("expected a file path, found an empty string".into())
+                }
                 ParamValue::Text(_) => Ok(v.clone()),
                 _ => Err(format!("expected a quoted string, found `{}`", v.to_text())),
             },

@@ -62,7 +62,15 @@ impl RunReport {
         let mut s = format!("{:<20} {:<16} {:<7} {:>10} {:>12}  metrics\n", "node", "kind", "status", "ms", "bytes");
         for n in &self.nodes {
             let metrics: Vec<String> = n.metrics.iter().map(|(k, v)| format!("{k}={v:.6}")).collect();
-            s.push_str(&format!("{:<20} {:<16} {:<7} {:>10.2} {:>12}  {}\n", n.id, n.kind, n.status, n.wall_ms, n.bytes, metrics.join(" ")));
+            s.push_str(&format!(
+                "{:<20} {:<16} {:<7} {:>10.2} {:>12}  {}\n",
+                n.id,
+                n.kind,
+                n.status,
+                n.wall_ms,
+                n.bytes,
+                metrics.join(" ")
+            ));
         }
         s.push_str(&format!("total {:.2} ms: {} ran, {} cached\n", self.total_ms, self.ran, self.cached));
         s

@@ -11,7 +11,12 @@ use std::path::Path;
 /// Checks `params` against the node's schema (as the graph loader does), fills defaults and
 /// runs the node on `inputs` (in declared order). Parameter problems come back as
 /// `NodeError::Param`.
-pub fn run_standalone<N: Node>(node: &N, params: &[(&str, ParamValue)], base_dir: &Path, inputs: &[Value]) -> Result<CacheEntry, NodeError> {
+pub fn run_standalone<N: Node>(
+    node: &N,
+    params: &[(&str, ParamValue)],
+    base_dir: &Path,
+    inputs: &[Value],
+) -> Result<CacheEntry, NodeError> {
     let schema = N::Params::schema();
     let mut explicit = Vec::new();
     for (name, v) in params {

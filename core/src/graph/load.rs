@@ -1,7 +1,7 @@
 //! From RON text to a `Graph` (structure only; `validate` checks it against the registry).
 
 use super::migrate::{upgrade, Migration, MIGRATIONS};
-use super::{is_valid_id, EditorSection, Edge, Graph, NodeDecl, Output, PortRef, FORMAT_VERSION};
+use super::{is_valid_id, Edge, EditorSection, Graph, NodeDecl, Output, PortRef, FORMAT_VERSION};
 use crate::error::{GraphError, GraphErrors};
 use crate::params::ParamValue;
 use crate::ron::{parse, Field, Ron, RonKind};
@@ -17,16 +17,25 @@ impl Graph {
     /// As `parse`, with an explicit list of migrations.
     pub fn parse_with(text: &str, file: Option<&Path>, migrations: &[Migration]) -> Result<Graph, GraphErrors> {
         let file_buf = file.map(Path::to_path_buf);
-        let mut doc = parse(text).map_err(|e| GraphErrors::one(GraphError::new(format!("malformed RON: {}", e.msg)).at(e.pos)).with_file(&file_buf))?;
+        let mut doc = parse(text)
+            .map_err(|e| GraphErrors::one(GraphError::new(format!("malformed RON: {}", e.msg)).at(e.pos)).with_file(&file_buf))?;
         let mut errs = Vec::new();
         let version = read_version(&doc).map_err(|e| GraphErrors::one(e).with_file(&file_buf))?;
         if version > FORMAT_VERSION {
-            let e = GraphError::new(format!("graph format version {version} is newer than this relume reads ({FORMAT_VERSION}); update relume")).at(doc.pos);
+            let e = GraphError::new(format!(
+                "graph format version {version} is newer than this relume reads ({FORMAT_VERSION}); update relume"
+            ))
+            .at(doc.pos);
             return Err(GraphErrors::one(e).with_file(&file_buf));
         }
-        upgrade(&mut doc, version, FORMAT_VERSION, migrations).map_err(|m| GraphErrors::one(GraphError::new(m).at(doc.pos)).with_file(&file_buf))?;
+        upgrade(&mut doc, version, FORMAT_VERSION, migrations)
+            .map_err(|m| GraphErrors::one(GraphError::new(m).at(doc.pos)).with_file(&file_buf))?;
 
-        let mut g = Graph { file: file_buf.clone(), base_dir: file.and_then(Path::parent).map(Path::to_path_buf).unwrap_or_default(), ..Graph::default() };
+        let mut g = Graph {
+            file: file_buf.clone(),
+            base_dir: file.and_then(Path::parent).map(Path::to_path_buf).unwrap_or_default(),
+            ..Graph::default()
+        };
         let fields = top_fields(&doc).map_err(|e| GraphErrors::one(e).with_file(&file_buf))?;
         let mut seen_nodes = false;
         for f in fields {
@@ -39,7 +48,9 @@ impl Graph {
                 "edges" => read_edges(&f.value, &mut g, &mut errs),
                 "outputs" => read_outputs(&f.value, &mut g, &mut errs),
                 "editor" => read_editor(&f.value, &mut g, &mut errs),
-                other => errs.push(GraphError::new(format!("unknown field `{other}` (a graph has: version, nodes, edges, outputs, editor)")).at(f.pos)),
+                other => errs.push(
+                    GraphError::new(format!("unknown field `{other}` (a graph has: version, nodes, edges, outputs, editor)")).at(f.pos),
+                ),
             }
         }
         if !seen_nodes {
@@ -55,14 +66,17 @@ impl Graph {
 
 fn top_fields(doc: &Ron) -> Result<&[Field], GraphError> {
     match &doc.kind {
-        RonKind::Struct(name, fields) if name.as_deref().map_or(true, |n| n == "Graph") => Ok(fields),
+        RonKind::Struct(name, fields) if name.as_deref().is_none_or(|n| n == "Graph") => Ok(fields),
         _ => Err(GraphError::new(format!("expected `Graph( version: …, nodes: {{…}}, … )`, found {}", doc.what())).at(doc.pos)),
     }
 }
 
 fn read_version(doc: &Ron) -> Result<u32, GraphError> {
     let fields = top_fields(doc)?;
-    let f = fields.iter().find(|f| f.name == "version").ok_or_else(|| GraphError::new("the graph has no `version` field (write `version: 1`)").at(doc.pos))?;
+    let f = fields
+        .iter()
+        .find(|f| f.name == "version")
+        .ok_or_else(|| GraphError::new("the graph has no `version` field (write `version: 1`)").at(doc.pos))?;
     match f.value.kind {
         RonKind::Int(v) if (0..=u32::MAX as i64).contains(&v) => Ok(v as u32),
         _ => Err(GraphError::new(format!("`version` must be a whole number, found {}", f.value.what())).at(f.value.pos)),
@@ -110,7 +124,9 @@ fn read_nodes(v: &Ron, g: &mut Graph, errs: &mut Vec<GraphError>) {
             match f.name.as_str() {
                 "kind" => match f.value.as_str() {
                     Some(s) => decl.kind = s.to_string(),
-                    None => errs.push(GraphError::new(format!("`kind` must be a quoted node kind, found {}", f.value.what())).at(f.value.pos).node(id)),
+                    None => errs.push(
+                        GraphError::new(format!("`kind` must be a quoted node kind, found {}", f.value.what())).at(f.value.pos).node(id),
+                    ),
                 },
                 "params" => match f.value.fields() {
                     Some(ps) => {
@@ -128,7 +144,11 @@ fn read_nodes(v: &Ron, g: &mut Graph, errs: &mut Vec<GraphError>) {
                             }
                         }
                     }
-                    None => errs.push(GraphError::new(format!("`params` must be `( name: value, … )`, found {}", f.value.what())).at(f.value.pos).node(id)),
+                    None => errs.push(
+                        GraphError::new(format!("`params` must be `( name: value, … )`, found {}", f.value.what()))
+                            .at(f.value.pos)
+                            .node(id),
+                    ),
                 },
                 other => errs.push(GraphError::new(format!("unknown field `{other}` (a node has: kind, params)")).at(f.pos).node(id)),
             }

@@ -15,7 +15,9 @@ pub const MIGRATIONS: &[Migration] = &[];
 /// Applies migrations until the document is at `target`.
 pub(crate) fn upgrade(doc: &mut Ron, mut version: u32, target: u32, migrations: &[Migration]) -> Result<(), String> {
     while version < target {
-        let m = migrations.iter().find(|m| m.from == version).ok_or_else(|| format!("graph format version {version} is not supported (this relume reads {target}, and no migration from {version} exists)"))?;
+        let m = migrations.iter().find(|m| m.from == version).ok_or_else(|| {
+            format!("graph format version {version} is not supported (this relume reads {target}, and no migration from {version} exists)")
+        })?;
         (m.apply)(doc).map_err(|e| format!("migrating from version {version}: {e}"))?;
         version += 1;
     }

@@ -111,7 +111,9 @@ impl Graph {
 
     /// Reads, parses and validates a graph file against the registry.
     pub fn load(path: &Path, registry: &Registry) -> Result<Graph, crate::GraphErrors> {
-        let text = std::fs::read_to_string(path).map_err(|e| crate::GraphErrors::one(GraphError::new(format!("cannot read graph: {e}"))).with_file(&Some(path.to_path_buf())))?;
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            crate::GraphErrors::one(GraphError::new(format!("cannot read graph: {e}"))).with_file(&Some(path.to_path_buf()))
+        })?;
         let g = Graph::parse(&text, Some(path))?;
         g.validate(registry)?;
         Ok(g)
@@ -120,7 +122,8 @@ impl Graph {
     /// Sets one parameter from `node.param` and a value written as RON (or bare text for
     /// string and file parameters), checking it against the schema.
     pub fn set_param_text(&mut self, registry: &Registry, assignment: &str, value: &str) -> Result<(), GraphError> {
-        let (id, name) = assignment.split_once('.').ok_or_else(|| GraphError::new(format!("`{assignment}` is not of the form node.param")))?;
+        let (id, name) =
+            assignment.split_once('.').ok_or_else(|| GraphError::new(format!("`{assignment}` is not of the form node.param")))?;
         let node = self.node(id).ok_or_else(|| GraphError::new(format!("no node \"{id}\" in the graph")))?;
         let kind = registry.node(&node.kind).ok_or_else(|| GraphError::new(format!("unknown node kind \"{}\"", node.kind)).node(id))?;
         let spec = kind.schema().get(name).ok_or_else(|| {
@@ -129,7 +132,13 @@ impl Graph {
         })?;
         let parsed = match crate::ron::parse_value(value).ok().and_then(|r| ParamValue::from_ron(&r).ok()) {
             Some(v) => v,
-            None if matches!(spec.kind, crate::params::ParamKind::Text | crate::params::ParamKind::InputFile | crate::params::ParamKind::OutputFile) => ParamValue::Text(value.to_string()),
+            None if matches!(
+                spec.kind,
+                crate::params::ParamKind::Text | crate::params::ParamKind::InputFile | crate::params::ParamKind::OutputFile
+            ) =>
+            {
+                ParamValue::Text(value.to_string())
+            }
             None => return Err(GraphError::new(format!("cannot read `{value}` as a value")).node(id).param(name)),
         };
         let checked = spec.check(&parsed).map_err(|m| GraphError::new(m).node(id).param(name))?;

@@ -47,7 +47,9 @@ impl Graph {
         for n in &self.nodes {
             let Some(kind) = reg.node(&n.kind) else {
                 let hint = reg.suggest(&n.kind).map(|k| format!(" (did you mean \"{k}\"?)")).unwrap_or_default();
-                errs.push(GraphError::new(format!("unknown node kind \"{}\"{hint}; `relume nodes` lists them", n.kind)).at(n.pos).node(&n.id));
+                errs.push(
+                    GraphError::new(format!("unknown node kind \"{}\"{hint}; `relume nodes` lists them", n.kind)).at(n.pos).node(&n.id),
+                );
                 continue;
             };
             let schema = kind.schema();
@@ -57,7 +59,9 @@ impl Graph {
                     None => {
                         let names: Vec<_> = schema.0.iter().map(|p| p.name).collect();
                         let has = if names.is_empty() { "no parameters".to_string() } else { format!("parameters: {}", names.join(", ")) };
-                        errs.push(GraphError::new(format!("unknown parameter for {} (it has {has})", n.kind)).at(pos).node(&n.id).param(name));
+                        errs.push(
+                            GraphError::new(format!("unknown parameter for {} (it has {has})", n.kind)).at(pos).node(&n.id).param(name),
+                        );
                     }
                     Some(spec) => {
                         if let Err(m) = spec.check(v) {
@@ -68,7 +72,12 @@ impl Graph {
             }
             for spec in schema.0.iter().filter(|s| s.default.is_none()) {
                 if n.param(spec.name).is_none() {
-                    errs.push(GraphError::new(format!("missing required parameter ({}: {})", spec.kind.type_name(), spec.help)).at(n.pos).node(&n.id).param(spec.name));
+                    errs.push(
+                        GraphError::new(format!("missing required parameter ({}: {})", spec.kind.type_name(), spec.help))
+                            .at(n.pos)
+                            .node(&n.id)
+                            .param(spec.name),
+                    );
                 }
             }
         }
@@ -81,14 +90,23 @@ impl Graph {
             let to = self.port_type(reg, &e.to.node, &e.to.port, true);
             match (from, to) {
                 (Ok(Some(a)), Ok(Some(b))) if a != b => errs.push(
-                    GraphError::new(format!("edge {} → {} joins different types: output `{}` of \"{}\" is {a}, input `{}` of \"{}\" is {b}", e.from, e.to, e.from.port, e.from.node, e.to.port, e.to.node))
-                        .at(e.pos),
+                    GraphError::new(format!(
+                        "edge {} → {} joins different types: output `{}` of \"{}\" is {a}, input `{}` of \"{}\" is {b}",
+                        e.from, e.to, e.from.port, e.from.node, e.to.port, e.to.node
+                    ))
+                    .at(e.pos),
                 ),
                 (Err(m), _) | (_, Err(m)) => errs.push(GraphError::new(format!("edge {} → {}: {m}", e.from, e.to)).at(e.pos)),
                 _ => {}
             }
             if let Some(first) = fed.insert((&e.to.node, &e.to.port), i) {
-                errs.push(GraphError::new(format!("input {} is fed twice (also by {} at line {})", e.to, self.edges[first].from, self.edges[first].pos.line)).at(e.pos));
+                errs.push(
+                    GraphError::new(format!(
+                        "input {} is fed twice (also by {} at line {})",
+                        e.to, self.edges[first].from, self.edges[first].pos.line
+                    ))
+                    .at(e.pos),
+                );
             }
         }
     }
@@ -111,7 +129,11 @@ impl Graph {
             None => {
                 let names: Vec<_> = ports.iter().map(|p| p.name).collect();
                 let dir = if input { "input" } else { "output" };
-                Err(format!("{} \"{node}\" has no {dir} `{port}` ({dir}s: {})", n.kind, if names.is_empty() { "none".into() } else { names.join(", ") }))
+                Err(format!(
+                    "{} \"{node}\" has no {dir} `{port}` ({dir}s: {})",
+                    n.kind,
+                    if names.is_empty() { "none".into() } else { names.join(", ") }
+                ))
             }
         }
     }

@@ -197,7 +197,8 @@ impl<'a> Parser<'a> {
         let mut s = String::new();
         while let Some(c) = self.peek() {
             let after_exp = matches!(s.chars().last(), Some('e' | 'E'));
-            if c.is_ascii_digit() || c == '.' || c == 'e' || c == 'E' || c == '_' || ((c == '-' || c == '+') && (s.is_empty() || after_exp)) {
+            if c.is_ascii_digit() || c == '.' || c == 'e' || c == 'E' || c == '_' || ((c == '-' || c == '+') && (s.is_empty() || after_exp))
+            {
                 if c != '_' {
                     s.push(c);
                 }

@@ -129,7 +129,11 @@ impl GraphArgs {
         if self.no_disk_cache {
             return engine;
         }
-        let dir = self.cache.clone().or_else(|| std::env::var_os("RELUME_CACHE").map(PathBuf::from)).unwrap_or_else(|| Path::new(".relume-cache").to_path_buf());
+        let dir = self
+            .cache
+            .clone()
+            .or_else(|| std::env::var_os("RELUME_CACHE").map(PathBuf::from))
+            .unwrap_or_else(|| Path::new(".relume-cache").to_path_buf());
         engine.with_disk_cache(dir)
     }
 

@@ -34,5 +34,9 @@ fn preview(img: &Image) -> Image {
     if ldr {
         return img.clone();
     }
-    Image { width: img.width, height: img.height, pixels: img.pixels.iter().map(|p| p.map(|x| tonemap_channel(x, 1.0, Operator::Aces))).collect() }
+    Image {
+        width: img.width,
+        height: img.height,
+        pixels: img.pixels.iter().map(|p| p.map(|x| tonemap_channel(x, 1.0, Operator::Aces))).collect(),
+    }
 }

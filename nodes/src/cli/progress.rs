@@ -23,7 +23,9 @@ impl Observer for Bars {
         match *e {
             Event::Planned { nodes } => {
                 let bar = self.multi.add(ProgressBar::new(nodes as u64));
-                bar.set_style(ProgressStyle::with_template("{prefix:>12} [{bar:30}] {pos}/{len} nodes {elapsed}").unwrap().progress_chars("=> "));
+                bar.set_style(
+                    ProgressStyle::with_template("{prefix:>12} [{bar:30}] {pos}/{len} nodes {elapsed}").unwrap().progress_chars("=> "),
+                );
                 bar.set_prefix("run");
                 *self.total.lock().unwrap() = Some(bar);
             }
@@ -31,7 +33,11 @@ impl Observer for Bars {
                 let mut nodes = self.nodes.lock().unwrap();
                 let bar = nodes.entry(id.to_string()).or_insert_with(|| {
                     let b = self.multi.add(ProgressBar::new(1000));
-                    b.set_style(ProgressStyle::with_template("{prefix:>12} [{bar:30}] {percent}% {elapsed} (eta {eta})").unwrap().progress_chars("=> "));
+                    b.set_style(
+                        ProgressStyle::with_template("{prefix:>12} [{bar:30}] {percent}% {elapsed} (eta {eta})")
+                            .unwrap()
+                            .progress_chars("=> "),
+                    );
                     b.set_prefix(id.to_string());
                     b
                 });

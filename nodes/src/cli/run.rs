@@ -15,7 +15,8 @@ pub(crate) fn run(reg: &Registry, a: &RunArgs) -> Result<(), CliError> {
     drop(bars);
     let files = write_outputs(&a.out, &result.outputs).map_err(CliError::run)?;
     if let Some(path) = &a.report {
-        relume_core::graph::write_atomic(path, result.report.to_json().as_bytes()).map_err(|e| CliError::run(format!("cannot write report {}: {e}", path.display())))?;
+        relume_core::graph::write_atomic(path, result.report.to_json().as_bytes())
+            .map_err(|e| CliError::run(format!("cannot write report {}: {e}", path.display())))?;
     }
     if !a.quiet {
         print!("{}", result.report.table());

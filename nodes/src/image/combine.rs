@@ -42,7 +42,8 @@ impl Node for Combine {
     fn run(&self, p: &CombineParams, io: &mut Io, _cx: &RunCtx) -> Result<(), NodeError> {
         let (a, b) = (io.input::<Image>("a")?, io.input::<Image>("b")?);
         a.check_same_size(b, "a", "b")?;
-        let pixels = a.pixels.par_iter().zip(&b.pixels).map(|(x, y)| std::array::from_fn(|c| p.weight_a * x[c] + p.weight_b * y[c])).collect();
+        let pixels =
+            a.pixels.par_iter().zip(&b.pixels).map(|(x, y)| std::array::from_fn(|c| p.weight_a * x[c] + p.weight_b * y[c])).collect();
         io.set("image", Image { width: a.width, height: a.height, pixels })
     }
 }
@@ -57,7 +58,8 @@ mod tests {
     fn weights_apply_and_sizes_must_agree() {
         let a = Image::from_fn(2, 2, |x, _| [x as f32; 3]);
         let b = Image::from_fn(2, 2, |_, _| [1.0; 3]);
-        let out: Image = first(&run_on(Combine, &[("weight_a", f(2.0)), ("weight_b", f(-1.0))], vec![Value::new(a.clone()), Value::new(b)]).unwrap());
+        let out: Image =
+            first(&run_on(Combine, &[("weight_a", f(2.0)), ("weight_b", f(-1.0))], vec![Value::new(a.clone()), Value::new(b)]).unwrap());
         assert_eq!(out.get(1, 0), [1.0; 3]);
         assert_eq!(out.get(0, 1), [-1.0; 3]);
         let small = Image::from_fn(1, 1, |_, _| [0.0; 3]);

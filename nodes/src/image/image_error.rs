@@ -50,7 +50,13 @@ pub fn error_metrics(x: &Image, r: &Image, peak: f64, epsilon: f64) -> Metrics {
     let count = n.max(1) as f64;
     let mse = se / count;
     let psnr = if mse > 0.0 { 10.0 * (peak * peak / mse).log10() } else { f64::INFINITY };
-    let l2 = if ref2 > 0.0 { 100.0 * (se / ref2).sqrt() } else if se == 0.0 { 0.0 } else { f64::INFINITY };
+    let l2 = if ref2 > 0.0 {
+        100.0 * (se / ref2).sqrt()
+    } else if se == 0.0 {
+        0.0
+    } else {
+        f64::INFINITY
+    };
     Metrics(vec![
         ("mse".into(), mse),
         ("rel_mse".into(), rel / count),

@@ -37,7 +37,8 @@ pub fn read_image(path: &Path) -> Result<Image, String> {
     }
     let bytes = std::fs::read(path).map_err(|err| format!("cannot read {}: {err}", path.display()))?;
     let format = if e == "exr" { image::ImageFormat::OpenExr } else { image::ImageFormat::Png };
-    let img = image::load_from_memory_with_format(&bytes, format).map_err(|err| format!("{}: not a readable {} file: {err}", path.display(), e.to_uppercase()))?;
+    let img = image::load_from_memory_with_format(&bytes, format)
+        .map_err(|err| format!("{}: not a readable {} file: {err}", path.display(), e.to_uppercase()))?;
     let rgb = img.to_rgb32f();
     let (w, h) = (rgb.width() as usize, rgb.height() as usize);
     let decode = e == "png";
@@ -57,9 +58,12 @@ pub fn read_image(path: &Path) -> Result<Image, String> {
 
 /// Writes linear RGB as a 32-bit float EXR, atomically.
 pub fn write_exr(path: &Path, img: &Image) -> Result<(), String> {
-    let buf = image::Rgb32FImage::from_raw(img.width as u32, img.height as u32, img.as_floats().to_vec()).ok_or("image buffer size mismatch")?;
+    let buf =
+        image::Rgb32FImage::from_raw(img.width as u32, img.height as u32, img.as_floats().to_vec()).ok_or("image buffer size mismatch")?;
     let mut out = Cursor::new(Vec::new());
-    image::DynamicImage::ImageRgb32F(buf).write_to(&mut out, image::ImageFormat::OpenExr).map_err(|e| format!("encoding {}: {e}", path.display()))?;
+    image::DynamicImage::ImageRgb32F(buf)
+        .write_to(&mut out, image::ImageFormat::OpenExr)
+        .map_err(|e| format!("encoding {}: {e}", path.display()))?;
     write_atomic(path, out.get_ref()).map_err(|e| format!("cannot write {}: {e}", path.display()))
 }
 

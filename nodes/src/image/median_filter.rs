@@ -34,7 +34,7 @@ pub fn median_filter(img: &Image, radius: usize) -> Image {
     out.par_chunks_mut(img.width).enumerate().for_each(|(y, row)| {
         let mut win = Vec::with_capacity(((2 * r + 1) * (2 * r + 1)) as usize);
         for (x, px) in row.iter_mut().enumerate() {
-            for c in 0..3 {
+            for (c, out_c) in px.iter_mut().enumerate() {
                 win.clear();
                 for dy in -r..=r {
                     let sy = (y as i64 + dy).clamp(0, h - 1);
@@ -45,7 +45,7 @@ pub fn median_filter(img: &Image, radius: usize) -> Image {
                 }
                 let mid = win.len() / 2;
                 win.select_nth_unstable_by(mid, f32::total_cmp);
-                px[c] = win[mid];
+                *out_c = win[mid];
             }
         }
     });
@@ -78,7 +78,15 @@ mod tests {
 
     #[test]
     fn removes_an_isolated_outlier_and_keeps_a_step_edge() {
-        let img = Image::from_fn(7, 7, |x, y| [if (x, y) == (3, 3) { 1e6 } else if x < 3 { 0.0 } else { 1.0 }; 3]);
+        let img = Image::from_fn(7, 7, |x, y| {
+            [if (x, y) == (3, 3) {
+                1e6
+            } else if x < 3 {
+                0.0
+            } else {
+                1.0
+            }; 3]
+        });
         let out: Image = first(&run_on(MedianFilter, &[("radius", i(1))], vec![Value::new(img)]).unwrap());
         assert_eq!(out.get(3, 3), [1.0; 3]);
         assert_eq!(out.get(1, 5), [0.0; 3]);

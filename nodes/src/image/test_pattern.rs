@@ -103,7 +103,9 @@ mod tests {
 
     #[test]
     fn noise_is_seeded_and_bounded() {
-        let run = |seed| -> Image { first(&run_on(TestPattern, &[("pattern", id("Constant")), ("noise", f(0.2)), ("seed", i(seed))], vec![]).unwrap()) };
+        let run = |seed| -> Image {
+            first(&run_on(TestPattern, &[("pattern", id("Constant")), ("noise", f(0.2)), ("seed", i(seed))], vec![]).unwrap())
+        };
         assert_eq!(run(3), run(3));
         assert_ne!(run(3), run(4));
         assert!(run(3).as_floats().iter().all(|x| (0.9..=1.1).contains(x)));

@@ -118,7 +118,8 @@ mod tests {
     fn extreme_values_give_finite_output() {
         let img = Image::from_fn(4, 1, |x, _| [[f32::NAN, f32::INFINITY, -5.0, 1e30][x]; 3]);
         for op in OPERATORS {
-            let out: Image = first(&run_on(Tonemap, &[("operator", id(op)), ("exposure", f(20.0))], vec![Value::new(img.clone())]).unwrap());
+            let out: Image =
+                first(&run_on(Tonemap, &[("operator", id(op)), ("exposure", f(20.0))], vec![Value::new(img.clone())]).unwrap());
             assert!(out.as_floats().iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)), "{op}: {:?}", out.pixels);
             assert_eq!(out.pixels[0], [0.0; 3]);
             assert_eq!(out.pixels[1], [1.0; 3]);

@@ -18,7 +18,9 @@ impl Image {
     pub fn try_new(width: usize, height: usize) -> Result<Image, NodeError> {
         let bytes = width.checked_mul(height).and_then(|n| n.checked_mul(12));
         match bytes {
-            Some(b) if b <= MAX_IMAGE_BYTES && width > 0 && height > 0 => Ok(Image { width, height, pixels: vec![[0.0; 3]; width * height] }),
+            Some(b) if b <= MAX_IMAGE_BYTES && width > 0 && height > 0 => {
+                Ok(Image { width, height, pixels: vec![[0.0; 3]; width * height] })
+            }
             Some(0) => Err(NodeError::failed(format!("an image of {width} × {height} pixels is empty"))),
             _ => Err(NodeError::failed(format!(
                 "an image of {width} × {height} pixels needs {:.1} GiB, over the {} GiB limit",

@@ -1,0 +1,47 @@
+//! Per-graph benchmarks on a generated 200-node graph: cold (nothing cached), warm
+//! (everything cached: the framework's own overhead) and after one parameter edit.
+
+use relume_benches::{edit_node, generated_graph};
+use relume_core::{Engine, RunOptions};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+const N: usize = 200;
+
+fn main() {
+    divan::main();
+}
+
+#[divan::bench(sample_count = 20)]
+fn cold(bencher: divan::Bencher) {
+    let g = generated_graph(N);
+    bencher
+        .with_inputs(|| Engine::new(relume_nodes::registry()))
+        .bench_local_values(|engine| engine.run(&g, &RunOptions::default()).unwrap().report.ran);
+}
+
+#[divan::bench(sample_count = 200)]
+fn warm(bencher: divan::Bencher) {
+    let g = generated_graph(N);
+    let engine = Engine::new(relume_nodes::registry());
+    engine.run(&g, &RunOptions::default()).unwrap();
+    bencher.bench_local(|| {
+        let r = engine.run(&g, &RunOptions::default()).unwrap();
+        assert_eq!(r.report.ran, 0);
+        r.report.cached
+    });
+}
+
+#[divan::bench(sample_count = 50)]
+fn after_one_edit(bencher: divan::Bencher) {
+    let mut g = generated_graph(N);
+    let engine = Engine::new(relume_nodes::registry());
+    engine.run(&g, &RunOptions::default()).unwrap();
+    let node = edit_node(N);
+    let step = AtomicU64::new(0);
+    bencher.bench_local(|| {
+        // A new sigma every time, so the edit is never found in the cache.
+        let k = step.fetch_add(1, Ordering::Relaxed);
+        g.set_param_text(engine.registry(), &format!("{node}.sigma"), &format!("{}", 1.0 + k as f64 * 1e-6)).unwrap();
+        engine.run(&g, &RunOptions::default()).unwrap().report.ran
+    });
+}
