@@ -131,3 +131,45 @@ fn bad_set_overrides_name_the_node_and_parameter() {
     assert!(e.contains("GaussianBlur has no parameter `size` (it has: sigma, truncate)"), "{e}");
     assert!(g.set_param_text(&reg, "nobody.sigma", "1").unwrap_err().to_string().contains("no node \"nobody\""));
 }
+
+mod never_panics {
+    use proptest::prelude::*;
+    use relume_core::Graph;
+
+    fn valid_text() -> String {
+        std::fs::read_to_string(relume_tests::graphs_dir().join("filters.ron")).unwrap()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+
+        /// Arbitrary text: an error or a graph, never a panic.
+        #[test]
+        fn the_loader_survives_arbitrary_text(text in "\\PC{0,200}") {
+            if let Ok(g) = Graph::parse(&text, None) {
+                let _ = g.validate(&relume_nodes::registry());
+            }
+        }
+
+        /// A valid graph with a byte range deleted or replaced: an error that names a
+        /// position, or a graph, never a panic.
+        #[test]
+        fn the_loader_survives_damaged_graphs(start in 0usize..2000, len in 0usize..40, junk in "[(){}\\[\\]\":,. a-z0-9-]{0,8}") {
+            let text = valid_text();
+            let start = start.min(text.len());
+            let end = (start + len).min(text.len());
+            if !text.is_char_boundary(start) || !text.is_char_boundary(end) {
+                return Ok(());
+            }
+            let damaged = format!("{}{}{}", &text[..start], junk, &text[end..]);
+            match Graph::parse(&damaged, None) {
+                Ok(g) => {
+                    if let Err(e) = g.validate(&relume_nodes::registry()) {
+                        prop_assert!(!e.0.is_empty());
+                    }
+                }
+                Err(e) => prop_assert!(e.0.iter().all(|x| x.pos.is_some()), "{}", e),
+            }
+        }
+    }
+}

@@ -38,3 +38,46 @@ fn the_binary_exits_2_with_the_file_and_line_on_a_bad_graph() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("bad.ron:2:48: node \"b\": parameter `sigma`: 1000000000.0 is out of range [0, 256] px"), "{err}");
 }
+
+#[test]
+fn two_processes_can_share_one_disk_cache() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |report: &str| {
+        Command::new(env!("CARGO_BIN_EXE_relume"))
+            .arg("run")
+            .arg(graphs().join("image_error.ron"))
+            .args(["--quiet", "--out"])
+            .arg(dir.path().join(format!("o-{report}")))
+            .arg("--report")
+            .arg(dir.path().join(report))
+            .arg("--cache")
+            .arg(dir.path().join("cache"))
+            .spawn()
+            .unwrap()
+    };
+    // Two processes write the same entries at the same time.
+    let (mut a, mut b) = (run("a.json"), run("b.json"));
+    assert!(a.wait().unwrap().success() && b.wait().unwrap().success());
+    // A third finds every entry whole.
+    assert!(run("c.json").wait().unwrap().success());
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("c.json")).unwrap()).unwrap();
+    let nodes = report["nodes"].as_array().unwrap();
+    assert_eq!(nodes.len(), 5);
+    assert!(nodes.iter().all(|n| n["status"] == "cached"), "{report}");
+    let leftovers: Vec<_> = walk(&dir.path().join("cache")).into_iter().filter(|p| p.to_string_lossy().ends_with(".tmp")).collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+}
+
+fn walk(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .flat_map(|e| {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                walk(&p)
+            } else {
+                vec![p]
+            }
+        })
+        .collect()
+}
