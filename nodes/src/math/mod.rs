@@ -1,3 +1,5 @@
 //! Shared math used by several nodes (one place for each piece).
 
+pub mod frame;
 pub mod rng;
+pub mod sampling;
