@@ -1,6 +1,8 @@
 //! What a running node sees besides its data: cancellation, progress, metrics and notes.
 
+use crate::hash::Hash;
 use crate::node::NodeError;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -78,12 +80,21 @@ pub struct RunCtx<'a> {
     pub(crate) observer: Option<&'a dyn Observer>,
     pub(crate) metrics: Mutex<Vec<(String, f64)>>,
     pub(crate) notes: Mutex<Vec<String>>,
+    pub(crate) deps: Mutex<Vec<(PathBuf, Hash)>>,
     last_permille: AtomicU64,
 }
 
 impl<'a> RunCtx<'a> {
     pub fn new(id: &'a str, cancel: &'a CancelToken, observer: Option<&'a dyn Observer>) -> Self {
-        RunCtx { id, cancel, observer, metrics: Mutex::default(), notes: Mutex::default(), last_permille: AtomicU64::new(u64::MAX) }
+        RunCtx {
+            id,
+            cancel,
+            observer,
+            metrics: Mutex::default(),
+            notes: Mutex::default(),
+            deps: Mutex::default(),
+            last_permille: AtomicU64::new(u64::MAX),
+        }
     }
 
     /// The node's id in the graph.
@@ -119,7 +130,14 @@ impl<'a> RunCtx<'a> {
         self.notes.lock().unwrap().push(text.into());
     }
 
-    pub(crate) fn take(self) -> (Vec<(String, f64)>, Vec<String>) {
-        (self.metrics.into_inner().unwrap(), self.notes.into_inner().unwrap())
+    /// Records a file the node read that is not one of its file parameters (a mesh named in a
+    /// scene file): the cached result is reused only while the file keeps this content.
+    /// `content_hash` is `Hash::of_bytes` of the file's bytes as the node read them.
+    pub fn depends_on_file(&self, path: &Path, content_hash: Hash) {
+        self.deps.lock().unwrap().push((path.to_path_buf(), content_hash));
+    }
+
+    pub(crate) fn take(self) -> (Vec<(String, f64)>, Vec<String>, Vec<(PathBuf, Hash)>) {
+        (self.metrics.into_inner().unwrap(), self.notes.into_inner().unwrap(), self.deps.into_inner().unwrap())
     }
 }

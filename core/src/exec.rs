@@ -138,11 +138,17 @@ impl Engine {
         if kind.caching() == Caching::Never {
             return None;
         }
-        if let Some(e) = self.memory.lock().unwrap().get(key) {
-            return Some((e, NodeStatus::CachedMemory));
+        let in_memory = self.memory.lock().unwrap().get(key);
+        if let Some(e) = in_memory {
+            if e.deps_unchanged() {
+                return Some((e, NodeStatus::CachedMemory));
+            }
+            self.memory.lock().unwrap().remove(key);
         }
         if kind.caching() == Caching::Disk {
-            if let Some(e) = self.disk.as_ref().and_then(|d| d.get(key, &kind.ports().outputs, &self.registry)) {
+            let found =
+                self.disk.as_ref().and_then(|d| d.get(key, &kind.ports().outputs, &self.registry)).filter(CacheEntry::deps_unchanged);
+            if let Some(e) = found {
                 let e = Arc::new(e);
                 self.memory.lock().unwrap().put(*key, e.clone());
                 return Some((e, NodeStatus::CachedDisk));
@@ -293,8 +299,8 @@ fn run_node(
     match outcome {
         Ok(Ok(())) => {
             let outputs = io.finish()?;
-            let (metrics, notes) = cx.take();
-            Ok(CacheEntry { outputs, metrics, notes })
+            let (metrics, notes, deps) = cx.take();
+            Ok(CacheEntry { outputs, metrics, notes, deps })
         }
         Ok(Err(e)) => Err(e),
         Err(panic) => {

@@ -33,6 +33,6 @@ pub fn run_standalone<N: Node>(
     let mut io = Io::new(&ports, inputs);
     node.run(&N::Params::from_values(&values), &mut io, &cx)?;
     let outputs = io.finish()?;
-    let (metrics, notes) = cx.take();
-    Ok(CacheEntry { outputs, metrics, notes })
+    let (metrics, notes, deps) = cx.take();
+    Ok(CacheEntry { outputs, metrics, notes, deps })
 }

@@ -3,6 +3,7 @@
 pub mod cli;
 pub mod image;
 pub mod math;
+pub mod scene;
 #[cfg(test)]
 pub(crate) mod testing;
 pub mod types;
@@ -12,6 +13,7 @@ use relume_core::Registry;
 /// Registers every node kind of this crate.
 pub fn register_all(reg: &mut Registry) {
     image::register(reg);
+    scene::register(reg);
 }
 
 /// A registry with every node of this crate.

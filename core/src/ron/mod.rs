@@ -5,6 +5,7 @@
 //! positions; writing is done by `graph::save` in one canonical layout so that a file relume
 //! saved loads and saves back byte-identical.
 
+pub mod fields;
 mod parse;
 mod write;
 

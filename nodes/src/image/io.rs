@@ -29,15 +29,25 @@ fn ext(path: &Path) -> String {
     path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default()
 }
 
-/// Reads an EXR (linear) or PNG (sRGB, decoded to linear) file.
+/// Reads an EXR or Radiance HDR (linear) or PNG (sRGB, decoded to linear) file.
 pub fn read_image(path: &Path) -> Result<Image, String> {
-    let e = ext(path);
-    if e != "exr" && e != "png" {
-        return Err(format!("{}: unsupported image type `.{e}` (relume reads .exr and .png)", path.display()));
+    if !matches!(ext(path).as_str(), "exr" | "hdr" | "png") {
+        return decode_image(path, &[]);
     }
     let bytes = std::fs::read(path).map_err(|err| format!("cannot read {}: {err}", path.display()))?;
-    let format = if e == "exr" { image::ImageFormat::OpenExr } else { image::ImageFormat::Png };
-    let img = image::load_from_memory_with_format(&bytes, format)
+    decode_image(path, &bytes)
+}
+
+/// Decodes image bytes; `path` gives the type (by extension) and names the file in messages.
+pub fn decode_image(path: &Path, bytes: &[u8]) -> Result<Image, String> {
+    let e = ext(path);
+    let format = match e.as_str() {
+        "exr" => image::ImageFormat::OpenExr,
+        "hdr" => image::ImageFormat::Hdr,
+        "png" => image::ImageFormat::Png,
+        _ => return Err(format!("{}: unsupported image type `.{e}` (relume reads .exr, .hdr and .png)", path.display())),
+    };
+    let img = image::load_from_memory_with_format(bytes, format)
         .map_err(|err| format!("{}: not a readable {} file: {err}", path.display(), e.to_uppercase()))?;
     let rgb = img.to_rgb32f();
     let (w, h) = (rgb.width() as usize, rgb.height() as usize);

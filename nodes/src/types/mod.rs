@@ -3,7 +3,9 @@
 mod image;
 mod material;
 mod metrics;
+mod scene;
 
 pub use self::image::{Image, MAX_IMAGE_BYTES};
 pub use material::{Material, Medium};
 pub use metrics::Metrics;
+pub use scene::{Camera, EnvMap, Environment, Light, Object, Scene};

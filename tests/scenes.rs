@@ -1,0 +1,106 @@
+//! The canonical scenes load exactly as SCENES.md gives them.
+
+use glam::Vec3;
+use relume_nodes::scene::format::load_scene_file;
+use relume_nodes::types::{Environment, Light, Material, Scene};
+use relume_tests::graphs_dir;
+
+fn load(name: &str) -> (Scene, Vec<String>) {
+    let l = load_scene_file(&graphs_dir().join("scenes").join(format!("{name}.ron"))).unwrap_or_else(|e| panic!("{e}"));
+    (l.scene, l.notes)
+}
+
+fn object<'a>(s: &'a Scene, name: &str) -> &'a relume_nodes::types::Object {
+    s.objects.iter().find(|o| o.name == name).unwrap_or_else(|| panic!("no {name}"))
+}
+
+#[test]
+fn cornell_has_the_eight_mitsuba_objects_and_a_light_facing_down() {
+    let (s, _) = load("cornell");
+    let names: Vec<_> = s.objects.iter().map(|o| o.name.as_str()).collect();
+    assert_eq!(names, ["floor", "ceiling", "back", "green-wall", "red-wall", "small-box", "large-box", "light"]);
+    let light = object(&s, "light");
+    assert_eq!(light.emission, Vec3::new(18.387, 13.9873, 6.75357));
+    assert_eq!(light.material, Material::Lambert { albedo: Vec3::new(0.885809, 0.698859, 0.666422) });
+    for t in light.triangles.clone() {
+        assert!(s.normal_area(t as usize).0.y < -0.99, "the light faces down");
+    }
+    assert_eq!(object(&s, "red-wall").material, Material::Lambert { albedo: Vec3::new(0.570068, 0.043014, 0.044371) });
+    assert_eq!((s.camera.fov_deg, s.camera.width, s.camera.height), (39.3077, 256, 256));
+    assert_eq!(s.camera.origin, Vec3::new(0.0, 0.0, 3.9));
+    // Walls face into the box: the floor's normal points up.
+    assert!(s.normal_area(object(&s, "floor").triangles.start as usize).0.y > 0.99);
+}
+
+#[test]
+fn cornell_bunny_places_the_bunny_on_the_floor_with_dynamic_materials() {
+    let (s, _) = load("cornell-bunny");
+    let bunny = object(&s, "bunny");
+    assert!(bunny.dynamic);
+    assert_eq!(bunny.material, Material::BlinnPhong { kd: Vec3::splat(0.2), ks: Vec3::splat(0.4), exponent: 180.0 });
+    assert!(s.objects.iter().all(|o| o.name != "small-box" && o.name != "large-box"));
+    assert!(object(&s, "floor").dynamic && !object(&s, "red-wall").dynamic);
+    let lo = bunny.triangles.clone().flat_map(|t| s.corners(t as usize)).fold(f32::INFINITY, |m, p| m.min(p.y));
+    assert!((lo - -1.0).abs() < 0.02, "bunny rests on the floor at y = -1: lowest point {lo}");
+    assert!(bunny.triangles.len() > 69_000);
+}
+
+#[test]
+fn ring_envlit_and_glass_load_with_their_lights() {
+    let (ring, _) = load("ring");
+    assert_eq!(ring.lights, vec![Light::Point { position: Vec3::new(-3.0, 1.2, 0.0), intensity: Vec3::splat(40.0) }]);
+    let (env, _) = load("envlit");
+    let Some(Environment::Map(m)) = &env.environment else { panic!("envlit has a map") };
+    assert_eq!((m.width, m.height), (512, 256));
+    let sun = m.eval(Vec3::new(0.663, 0.643, 0.383).normalize());
+    assert!(sun.max_element() > 1000.0, "the sun is where SCENES.md says: {sun}");
+    let (glass, _) = load("glass");
+    assert!(matches!(object(&glass, "glass").material, Material::Dielectric { ior, medium: None } if ior == 1.5));
+    assert_eq!(object(&glass, "light").emission, Vec3::splat(400.0));
+}
+
+#[test]
+fn scene_errors_name_the_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let cam = "camera: (origin: (0, 0, 3), target: (0, 0, 0), up: (0, 1, 0), fov: 40, width: 8, height: 8)";
+    write("tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    let err = |text: String| load_scene_file(&write("s.ron", &text)).err().unwrap();
+    let e = err(format!("Scene({cam},\n shapes: [Obj(path: \"tri.obj\",\n material: \"gold\")])"));
+    assert!(e.contains("s.ron:3:12: unknown material \"gold\""), "{e}");
+    let e = err(format!("Scene({cam},\n shapes: [Obj(path: \"missing.obj\", material: \"m\")], materials: {{}})"));
+    assert!(e.contains("s.ron:2:") && e.contains("unknown material"), "{e}");
+    let e = err(format!(
+        "Scene({cam},\n materials: {{ \"m\": Lambert(albedo: 0.5) }},\n shapes: [Obj(path: \"missing.obj\", material: \"m\")])"
+    ));
+    assert!(e.contains("s.ron:3:21: cannot read") && e.contains("missing.obj"), "{e}");
+    write("nan.obj", "v 0 0 0\nv 1 0 0\nv 0 nan 0\nf 1 2 3\n");
+    let e =
+        err(format!("Scene({cam},\n materials: {{ \"m\": Lambert(albedo: 0.5) }},\n shapes: [Obj(path: \"nan.obj\", material: \"m\")])"));
+    assert!(e.contains("nan.obj:3: `v` has a non-finite value"), "{e}");
+    write("bad.obj", "v 0 0 0\nv 1 0 0\nf 1 2 9\n");
+    let e =
+        err(format!("Scene({cam},\n materials: {{ \"m\": Lambert(albedo: 0.5) }},\n shapes: [Obj(path: \"bad.obj\", material: \"m\")])"));
+    assert!(e.contains("bad.obj:3: face index 9"), "{e}");
+    let e = err(format!("Scene({cam},\n materials: {{ \"m\": Lambert(albedo: 0.5) }},\n shapes: [Obj(path: \"tri.obj\", material: \"m\")],\n environment: Map(path: \"sky.hdr\"))"));
+    assert!(e.contains("s.ron:4:") && e.contains("sky.hdr"), "{e}");
+    let e = err(format!("Scene({cam},\n materials: {{ \"m\": BlinnPhong(kd: 0.7, ks: 0.5, exponent: 10) }},\n shapes: [])"));
+    assert!(e.contains("s.ron:2:") && e.contains("exceeds 1"), "{e}");
+    let e = err(format!("Scene({cam},\n materials: {{ \"m\": Plastic(x: 1) }},\n shapes: [])"));
+    assert!(e.contains("s.ron:2:20: unknown material `Plastic`"), "{e}");
+}
+
+#[test]
+fn degenerate_triangles_are_dropped_and_counted() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("m.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\nf 1 1 1\n").unwrap();
+    std::fs::write(dir.path().join("s.ron"), "Scene(camera: (origin: (0, 0, 3), target: (0, 0, 0), up: (0, 1, 0), fov: 40, width: 8, height: 8), materials: { \"m\": Lambert(albedo: 0.5) }, shapes: [Obj(path: \"m.obj\", material: \"m\")], lights: [Point(position: (0, 0, 1), intensity: 1)])").unwrap();
+    let l = load_scene_file(&dir.path().join("s.ron")).unwrap();
+    assert_eq!(l.scene.triangles.len(), 1);
+    assert_eq!(l.notes, ["2 zero-area triangles dropped"]);
+    assert!(l.scene.normals.iter().all(|n| n.is_finite()));
+}
