@@ -1,6 +1,7 @@
 //! relume-nodes: the stage nodes of relume's pipelines and the `relume` command line.
 
 pub mod cli;
+pub mod geometry;
 pub mod image;
 pub mod math;
 pub mod scene;
@@ -14,6 +15,7 @@ use relume_core::Registry;
 pub fn register_all(reg: &mut Registry) {
     image::register(reg);
     scene::register(reg);
+    geometry::register(reg);
 }
 
 /// A registry with every node of this crate.

@@ -34,3 +34,22 @@ pub fn i(x: i64) -> ParamValue {
 pub fn id(s: &str) -> ParamValue {
     ParamValue::Ident(s.into())
 }
+
+/// Small scenes built in code for unit tests.
+pub mod test_scene {
+    use crate::scene::builder::SceneBuilder;
+    use crate::types::{Light, Material, Scene};
+    use glam::Vec3;
+
+    /// Three spheres over a floor quad under a point light.
+    pub fn spheres() -> Scene {
+        let grey = Material::Lambert { albedo: Vec3::splat(0.5) };
+        SceneBuilder::new(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 40.0, 16, 16)
+            .sphere("a", Vec3::new(-0.8, 0.0, 0.0), 0.5, grey, Vec3::ZERO, false)
+            .sphere("b", Vec3::new(0.7, 0.3, -0.5), 0.6, grey, Vec3::ZERO, false)
+            .sphere("c", Vec3::new(0.0, -0.6, 0.8), 0.3, grey, Vec3::ZERO, false)
+            .quad("floor", Vec3::new(-2.0, -1.0, 2.0), Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -4.0), grey, Vec3::ZERO)
+            .light(Light::Point { position: Vec3::new(0.0, 2.0, 1.0), intensity: Vec3::splat(5.0) })
+            .build()
+    }
+}

@@ -1,6 +1,7 @@
 //! Scenes: the file format, OBJ loading, analytic shapes, environment maps, and the
 //! LoadScene node.
 
+pub mod builder;
 pub mod envmap;
 pub mod format;
 pub mod load_scene;

@@ -1,0 +1,37 @@
+//! The surface point a ray hit: position, geometric and shading normals, object.
+
+use super::accel::Hit;
+use crate::types::Scene;
+use glam::Vec3;
+
+#[derive(Clone, Copy, Debug)]
+pub struct Surface {
+    pub p: Vec3,
+    /// Geometric normal from the winding (front side).
+    pub ng: Vec3,
+    /// Interpolated shading normal, on the same side as `ng`.
+    pub ns: Vec3,
+    pub object: u32,
+    pub tri: u32,
+    pub area: f32,
+}
+
+impl Surface {
+    pub fn at(scene: &Scene, hit: &Hit, o: Vec3, d: Vec3) -> Surface {
+        let t = hit.tri as usize;
+        let (ng, area) = scene.normal_area(t);
+        let [i0, i1, i2] = scene.triangles[t].map(|i| i as usize);
+        let b0 = 1.0 - hit.b1 - hit.b2;
+        let ns = (scene.normals[i0] * b0 + scene.normals[i1] * hit.b1 + scene.normals[i2] * hit.b2).try_normalize().unwrap_or(ng);
+        let ns = if ns.dot(ng) < 0.0 { -ns } else { ns };
+        let p = o + d * hit.t;
+        Surface { p, ng, ns, object: scene.tri_object[t], tri: hit.tri, area }
+    }
+
+    /// A ray origin just off the surface on the side `dir` leaves to, with an offset scaled by
+    /// the scene size `eps` (QUALITY.md: self-intersection epsilon scaled to scene size).
+    pub fn spawn(&self, dir: Vec3, eps: f32) -> Vec3 {
+        let side = if dir.dot(self.ng) >= 0.0 { 1.0 } else { -1.0 };
+        self.p + self.ng * (side * eps * (1.0 + self.p.abs().max_element()))
+    }
+}
