@@ -1,9 +1,11 @@
-//! The `relume` command line: run, plan, check, nodes.
+//! The `relume` command line: run, plan, check, nodes, sweep.
 
 mod catalog;
 mod outputs;
+mod plot;
 mod progress;
 mod run;
+mod sweep;
 
 use clap::{Args, Parser, Subcommand};
 use relume_core::{Graph, Registry};
@@ -29,6 +31,9 @@ enum Cmd {
         /// Show only this kind.
         kind: Option<String>,
     },
+    /// Run a graph once per combination of --vary values (one engine, cache shared) and write
+    /// error against time as CSV and a log-log plot, optionally with a --baseline curve.
+    Sweep(sweep::SweepArgs),
 }
 
 #[derive(Args, Clone)]
@@ -103,6 +108,7 @@ where
         Cmd::Plan(a) => run::plan(&reg, &a),
         Cmd::Check(a) => run::check(&reg, &a),
         Cmd::Nodes { kind } => catalog::print(&reg, kind.as_deref()),
+        Cmd::Sweep(a) => sweep::sweep(&reg, &a),
     };
     match result {
         Ok(()) => 0,

@@ -1,0 +1,447 @@
+//! `relume sweep`: runs a graph once per combination of parameter values, all through one
+//! engine so every variant reuses what earlier ones computed, and writes error against time
+//! as CSV and as a log-log plot, optionally next to a baseline's convergence curve (an integer
+//! parameter such as a path tracer's samples per pixel at 1, 2, 4, …).
+
+use super::plot::{plot_log_log, Axes, Curve};
+use super::{progress::Bars, CliError, GraphArgs};
+use clap::Args;
+use plotters::style::RGBColor;
+use relume_core::{Graph, Observer, ParamKind, Registry, RunError, RunOptions, RunReport};
+use std::collections::BTreeSet;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub(crate) struct SweepArgs {
+    #[command(flatten)]
+    g: GraphArgs,
+    /// Values to sweep: --vary node.param=a,b,c (repeatable; every combination runs, the first
+    /// --vary changing slowest). Tuples keep their commas: --vary clean.color=(1,0,0),(0,1,0).
+    #[arg(long = "vary", value_name = "NODE.PARAM=A,B,..", required_unless_present = "baseline")]
+    varies: Vec<String>,
+    /// Also run this integer parameter at 1, 2, 4, … up to --baseline-max (the --vary
+    /// parameters at their graph values): the baseline's own error-vs-time curve.
+    #[arg(long, value_name = "NODE.PARAM")]
+    baseline: Option<String>,
+    /// Largest baseline value.
+    #[arg(long, value_name = "N", default_value_t = 256)]
+    baseline_max: i64,
+    /// Folder for the CSV and the plot.
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+    /// CSV file (default: OUT/sweep.csv).
+    #[arg(long)]
+    csv: Option<PathBuf>,
+    /// Plot file, PNG (default: the CSV's path with extension .png, i.e. OUT/sweep.png).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Error metric on the plot's y axis.
+    #[arg(long, default_value = "rel_mse")]
+    metric: String,
+    /// Node whose metric is plotted (default: the first node, in graph order, reporting it).
+    #[arg(long, value_name = "NODE")]
+    error_node: Option<String>,
+    /// No progress bars and no table.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+/// Which curve a row belongs to.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Series {
+    Method,
+    Baseline,
+}
+
+impl Series {
+    fn as_str(self) -> &'static str {
+        match self {
+            Series::Method => "method",
+            Series::Baseline => "baseline",
+        }
+    }
+}
+
+/// One graph to run: the base graph with some parameters changed.
+struct Variant {
+    series: Series,
+    /// `node.param=value` of what was changed, space-separated.
+    label: String,
+    /// The values changed (for the plot's point labels).
+    short: String,
+    graph: Graph,
+}
+
+/// One measured variant.
+struct Row {
+    series: Series,
+    label: String,
+    short: String,
+    /// Value of each parameter column, as canonical RON text.
+    params: Vec<String>,
+    time_ms: f64,
+    report: RunReport,
+}
+
+/// `--vary node.param=a,b,c` split up.
+struct Vary {
+    target: String,
+    values: Vec<String>,
+}
+
+pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
+    let base = a.g.load(reg)?;
+    let varies = a.varies.iter().map(|s| parse_vary(s)).collect::<Result<Vec<_>, _>>()?;
+    let mut variants = method_variants(reg, &base, &varies)?;
+    let mut columns: Vec<String> = varies.iter().map(|v| v.target.clone()).collect();
+    if let Some(b) = &a.baseline {
+        variants.extend(baseline_variants(reg, &base, b, a.baseline_max)?);
+        if !columns.contains(b) {
+            columns.push(b.clone());
+        }
+    }
+    if let Some(id) = &a.error_node {
+        if base.node(id).is_none() {
+            let ids: Vec<&str> = base.nodes.iter().map(|n| n.id.as_str()).collect();
+            return Err(CliError::graph(format!("--error-node {id}: no node \"{id}\" in the graph (it has: {})", ids.join(", "))));
+        }
+    }
+
+    let engine = a.g.engine(reg);
+    let mut rows: Vec<Row> = Vec::with_capacity(variants.len());
+    let mut error_node: Option<String> = None;
+    let count = variants.len();
+    for (i, v) in variants.into_iter().enumerate() {
+        if !a.quiet {
+            eprintln!("sweep {}/{count}: {} {}", i + 1, v.series.as_str(), v.label);
+        }
+        let bars = (!a.quiet).then(Bars::new);
+        let opts = RunOptions { outputs: a.g.requested(), observer: bars.as_ref().map(|b| b as &dyn Observer), ..Default::default() };
+        let result = engine.run(&v.graph, &opts).map_err(|e| {
+            let msg = format!("{} variant {}: {e}", v.series.as_str(), v.label);
+            match e {
+                RunError::Graph(_) => CliError::graph(msg),
+                _ => CliError::run(msg),
+            }
+        })?;
+        drop(bars);
+        if error_node.is_none() {
+            // Every variant has the same nodes and outputs: the first run tells whether the
+            // metric exists, before the rest of the sweep is spent.
+            error_node = Some(find_error_node(&base, &result.report, &a.metric, a.error_node.as_deref())?);
+        }
+        let params = columns.iter().map(|c| param_text(reg, &v.graph, c)).collect();
+        let time_ms = result.report.nodes.iter().filter(|n| n.status == "ran").fold(0.0, |t, n| t + n.wall_ms);
+        rows.push(Row { series: v.series, label: v.label, short: v.short, params, time_ms, report: result.report });
+    }
+    let error_node = error_node.expect("a sweep runs at least one variant");
+
+    let csv_path = a.csv.clone().unwrap_or_else(|| a.out.join("sweep.csv"));
+    let plot_path = a.plot.clone().unwrap_or_else(|| csv_path.with_extension("png"));
+    let csv = write_csv(&base, &columns, &rows);
+    if let Some(dir) = csv_path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| CliError::run(format!("cannot create {}: {e}", dir.display())))?;
+    }
+    relume_core::graph::write_atomic(&csv_path, csv.as_bytes())
+        .map_err(|e| CliError::run(format!("cannot write {}: {e}", csv_path.display())))?;
+
+    let metric_of = |r: &Row| r.report.node(&error_node).and_then(|n| n.metrics.get(&a.metric).copied()).unwrap_or(f64::NAN);
+    let curve = |series: Series, name: String, color: RGBColor| Curve {
+        name,
+        color,
+        points: rows.iter().filter(|r| r.series == series).map(|r| (r.time_ms, metric_of(r), r.short.clone())).collect(),
+    };
+    let mut curves = Vec::new();
+    if !varies.is_empty() {
+        let name = format!("method ({})", columns[..varies.len()].join(", "));
+        curves.push(curve(Series::Method, name, RGBColor(31, 119, 180)));
+    }
+    if let Some(b) = &a.baseline {
+        curves.push(curve(Series::Baseline, format!("baseline ({b} = 1, 2, 4, …)"), RGBColor(214, 39, 40)));
+    }
+    let title = a.g.graph.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_else(|| a.g.graph.display().to_string());
+    let axes = Axes {
+        title,
+        x_label: "time (ms): wall time of the nodes that ran, cached nodes cost 0".into(),
+        y_label: format!("{}{} of node \"{error_node}\"", a.metric, unit_of(&a.metric)),
+    };
+    let warnings = plot_log_log(&plot_path, &axes, &curves).map_err(CliError::run)?;
+    for w in warnings {
+        eprintln!("warning: {w}");
+    }
+    if rows.iter().any(|r| r.time_ms <= 0.0) && !a.quiet {
+        eprintln!(
+            "note: variants whose nodes all came from the cache cost 0 ms; to time every variant from scratch use --no-disk-cache or a fresh --cache folder"
+        );
+    }
+
+    if !a.quiet {
+        print!("{}", table(&rows, &error_node, &a.metric));
+        println!("wrote {}", csv_path.display());
+        println!("wrote {}", plot_path.display());
+    }
+    Ok(())
+}
+
+/// Splits `node.param=a,b,c` at commas outside brackets and quotes.
+fn parse_vary(s: &str) -> Result<Vary, CliError> {
+    let (target, list) = s.split_once('=').ok_or_else(|| CliError::graph(format!("--vary {s}: expected node.param=a,b,c")))?;
+    let target = target.trim();
+    if !target.contains('.') {
+        return Err(CliError::graph(format!("--vary {s}: `{target}` is not of the form node.param")));
+    }
+    let values = split_top_level(list);
+    if values.iter().all(|v| v.is_empty()) {
+        return Err(CliError::graph(format!("--vary {s}: no values given (expected {target}=a,b,c)")));
+    }
+    if values.iter().any(|v| v.is_empty()) {
+        return Err(CliError::graph(format!("--vary {s}: an empty value in the list")));
+    }
+    Ok(Vary { target: target.to_string(), values })
+}
+
+fn split_top_level(list: &str) -> Vec<String> {
+    let (mut out, mut cur, mut depth, mut quoted) = (Vec::new(), String::new(), 0i32, false);
+    let mut chars = list.chars();
+    while let Some(c) = chars.next() {
+        match c {
+            '"' => quoted = !quoted,
+            '\\' if quoted => {
+                cur.push(c);
+                if let Some(n) = chars.next() {
+                    cur.push(n);
+                }
+                continue;
+            }
+            '(' | '[' | '{' if !quoted => depth += 1,
+            ')' | ']' | '}' if !quoted => depth -= 1,
+            ',' if !quoted && depth == 0 => {
+                out.push(cur.trim().to_string());
+                cur.clear();
+                continue;
+            }
+            _ => {}
+        }
+        cur.push(c);
+    }
+    out.push(cur.trim().to_string());
+    out
+}
+
+/// The cartesian product of the --vary lists, first list outermost.
+fn method_variants(reg: &Registry, base: &Graph, varies: &[Vary]) -> Result<Vec<Variant>, CliError> {
+    if varies.is_empty() {
+        return Ok(Vec::new());
+    }
+    let mut out = Vec::new();
+    let mut idx = vec![0usize; varies.len()];
+    loop {
+        let mut graph = base.clone();
+        let (mut label, mut short) = (Vec::new(), Vec::new());
+        for (v, &i) in varies.iter().zip(&idx) {
+            let value = &v.values[i];
+            graph.set_param_text(reg, &v.target, value).map_err(|e| CliError::graph(format!("--vary {}={value}: {e}", v.target)))?;
+            label.push(format!("{}={value}", v.target));
+            short.push(value.clone());
+        }
+        out.push(Variant { series: Series::Method, label: label.join(" "), short: short.join(", "), graph });
+        // Odometer: the last list turns fastest.
+        let mut k = varies.len();
+        loop {
+            if k == 0 {
+                return Ok(out);
+            }
+            k -= 1;
+            idx[k] += 1;
+            if idx[k] < varies[k].values.len() {
+                break;
+            }
+            idx[k] = 0;
+        }
+    }
+}
+
+/// The base graph with the integer parameter `target` at 1, 2, 4, … ≤ `max`.
+fn baseline_variants(reg: &Registry, base: &Graph, target: &str, max: i64) -> Result<Vec<Variant>, CliError> {
+    let flag = format!("--baseline {target}");
+    let (id, name) = target.split_once('.').ok_or_else(|| CliError::graph(format!("{flag}: expected node.param")))?;
+    let node = base.node(id).ok_or_else(|| CliError::graph(format!("{flag}: no node \"{id}\" in the graph")))?;
+    let kind = reg.node(&node.kind).ok_or_else(|| CliError::graph(format!("{flag}: unknown node kind \"{}\"", node.kind)))?;
+    let spec = kind.schema().get(name).ok_or_else(|| {
+        let names: Vec<_> = kind.schema().0.iter().map(|p| p.name).collect();
+        CliError::graph(format!("{flag}: {} has no parameter `{name}` (it has: {})", node.kind, names.join(", ")))
+    })?;
+    if !matches!(spec.kind, ParamKind::Int { .. }) {
+        return Err(CliError::graph(format!("{flag}: the baseline parameter must be an integer; `{name}` is {}", spec.kind.type_name())));
+    }
+    if max < 1 {
+        return Err(CliError::graph(format!("--baseline-max {max}: must be at least 1")));
+    }
+    let mut out = Vec::new();
+    let mut n = 1i64;
+    while n <= max {
+        let mut graph = base.clone();
+        graph
+            .set_param_text(reg, target, &n.to_string())
+            .map_err(|e| CliError::graph(format!("{flag} at {n}: {e} (lower --baseline-max)")))?;
+        out.push(Variant { series: Series::Baseline, label: format!("{target}={n}"), short: n.to_string(), graph });
+        n = match n.checked_mul(2) {
+            Some(m) => m,
+            None => break,
+        };
+    }
+    Ok(out)
+}
+
+/// A parameter's value in `graph` (its schema default when the graph leaves it out).
+fn param_text(reg: &Registry, graph: &Graph, target: &str) -> String {
+    let Some((id, name)) = target.split_once('.') else { return String::new() };
+    let Some(node) = graph.node(id) else { return String::new() };
+    if let Some(v) = node.param(name) {
+        return v.to_text();
+    }
+    reg.node(&node.kind).and_then(|k| k.schema().get(name)).and_then(|s| s.default.as_ref()).map(|v| v.to_text()).unwrap_or_default()
+}
+
+/// The node whose `metric` is plotted: `wanted`, checked, or the first in graph order
+/// reporting it. A metric nobody reports is an error that lists the ones that exist.
+fn find_error_node(graph: &Graph, report: &RunReport, metric: &str, wanted: Option<&str>) -> Result<String, CliError> {
+    let available = || {
+        let all: Vec<String> =
+            in_graph_order(graph, report).iter().flat_map(|n| n.metrics.keys().map(move |m| format!("{}.{m}", n.id))).collect();
+        if all.is_empty() {
+            "no node reports any metric".to_string()
+        } else {
+            format!("metrics reported: {}", all.join(", "))
+        }
+    };
+    match wanted {
+        Some(id) => match report.node(id) {
+            Some(n) if n.metrics.contains_key(metric) => Ok(id.to_string()),
+            Some(_) => Err(CliError::graph(format!("--metric {metric}: node \"{id}\" does not report it ({})", available()))),
+            None => Err(CliError::graph(format!("--error-node {id}: the node is not needed for the requested outputs"))),
+        },
+        None => in_graph_order(graph, report)
+            .into_iter()
+            .find(|n| n.metrics.contains_key(metric))
+            .map(|n| n.id.clone())
+            .ok_or_else(|| CliError::graph(format!("--metric {metric}: no node reports it ({})", available()))),
+    }
+}
+
+/// The report's nodes in the graph file's order (the report lists them as they completed).
+fn in_graph_order<'r>(graph: &Graph, report: &'r RunReport) -> Vec<&'r relume_core::NodeReport> {
+    graph.nodes.iter().filter_map(|d| report.node(&d.id)).collect()
+}
+
+/// A unit suffix for the axis label, from the metric's name.
+fn unit_of(metric: &str) -> &'static str {
+    if metric.ends_with("_db") {
+        " (dB)"
+    } else if metric.ends_with("_percent") {
+        " (%)"
+    } else if metric.starts_with("rel_") {
+        " (relative, no unit)"
+    } else {
+        ""
+    }
+}
+
+/// `series,variant,<params>,time_ms,total_ms,<node.metric>…,ms:<node>…`.
+fn write_csv(graph: &Graph, columns: &[String], rows: &[Row]) -> String {
+    // Metric and node columns: every one any row has, in graph order (metrics by name).
+    let mut metrics: Vec<(String, String)> = Vec::new();
+    let mut nodes: Vec<String> = Vec::new();
+    for d in &graph.nodes {
+        let mut names = BTreeSet::new();
+        let mut seen = false;
+        for r in rows {
+            if let Some(n) = r.report.node(&d.id) {
+                seen = true;
+                names.extend(n.metrics.keys().cloned());
+            }
+        }
+        metrics.extend(names.into_iter().map(|m| (d.id.clone(), m)));
+        if seen {
+            nodes.push(d.id.clone());
+        }
+    }
+    let mut header: Vec<String> = vec!["series".into(), "variant".into()];
+    header.extend(columns.iter().cloned());
+    header.extend(["time_ms".to_string(), "total_ms".to_string()]);
+    header.extend(metrics.iter().map(|(n, m)| format!("{n}.{m}")));
+    header.extend(nodes.iter().map(|n| format!("ms:{n}")));
+    let mut out = csv_line(&header);
+    for r in rows {
+        let mut cells: Vec<String> = vec![r.series.as_str().into(), r.label.clone()];
+        cells.extend(r.params.iter().cloned());
+        cells.push(format!("{:.4}", r.time_ms));
+        cells.push(format!("{:.4}", r.report.total_ms));
+        for (n, m) in &metrics {
+            cells.push(r.report.node(n).and_then(|n| n.metrics.get(m)).map(|v| v.to_string()).unwrap_or_default());
+        }
+        for n in &nodes {
+            // Time spent running the node in this variant; 0 when it came from the cache.
+            cells.push(
+                r.report.node(n).map(|n| if n.status == "ran" { format!("{:.4}", n.wall_ms) } else { "0".to_string() }).unwrap_or_default(),
+            );
+        }
+        out.push_str(&csv_line(&cells));
+    }
+    out
+}
+
+fn csv_line(cells: &[String]) -> String {
+    let quoted: Vec<String> = cells
+        .iter()
+        .map(|c| if c.contains([',', '"', '\n', '\r']) { format!("\"{}\"", c.replace('"', "\"\"")) } else { c.clone() })
+        .collect();
+    quoted.join(",") + "\n"
+}
+
+/// The rows as a terminal table.
+fn table(rows: &[Row], error_node: &str, metric: &str) -> String {
+    let width = rows.iter().map(|r| r.label.len()).max().unwrap_or(0).max(7);
+    let col = format!("{error_node}.{metric}");
+    let mut s =
+        format!("{:<8} {:<width$} {:>10} {:>10} {:>4} {:>6} {:>14}\n", "series", "variant", "time_ms", "total_ms", "ran", "cached", col);
+    for r in rows {
+        let m = r.report.node(error_node).and_then(|n| n.metrics.get(metric)).map(|v| format!("{v:.6e}")).unwrap_or_default();
+        s.push_str(&format!(
+            "{:<8} {:<width$} {:>10.2} {:>10.2} {:>4} {:>6} {:>14}\n",
+            r.series.as_str(),
+            r.label,
+            r.time_ms,
+            r.report.total_ms,
+            r.report.ran,
+            r.report.cached,
+            m
+        ));
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn value_lists_split_at_top_level_commas_only() {
+        assert_eq!(split_top_level("0.5, 1,2"), ["0.5", "1", "2"]);
+        assert_eq!(split_top_level("(1,0,0),(0, 1, 0)"), ["(1,0,0)", "(0, 1, 0)"]);
+        assert_eq!(split_top_level("\"a,b\",c"), ["\"a,b\"", "c"]);
+    }
+
+    #[test]
+    fn vary_needs_a_target_and_non_empty_values() {
+        assert!(parse_vary("blur.sigma=1,2").is_ok());
+        for bad in ["blur.sigma", "blur.sigma=", "blur.sigma=1,,2", "sigma=1"] {
+            assert_eq!(parse_vary(bad).err().map(|e| e.code), Some(2), "{bad}");
+        }
+    }
+
+    #[test]
+    fn csv_cells_with_commas_or_quotes_are_quoted() {
+        assert_eq!(csv_line(&["a".into(), "(1, 2)".into(), "x\"y".into()]), "a,\"(1, 2)\",\"x\"\"y\"\n");
+    }
+}

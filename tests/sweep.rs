@@ -1,0 +1,181 @@
+//! `relume sweep`, in process: the CSV's rows and columns, the PNG plot, a generic integer
+//! baseline, cache reuse between variants (a repeated variant costs 0 ms) and exit code 2
+//! for input a person can correct.
+
+use relume_nodes::cli::main_from;
+use relume_nodes::image::io::read_image;
+use relume_tests::graphs_dir;
+use std::path::Path;
+
+fn relume(args: &[&str]) -> i32 {
+    main_from(std::iter::once("relume").chain(args.iter().copied()))
+}
+
+/// The CSV as a header and rows of cells (no cell here contains a comma).
+fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines().map(|l| l.split(',').map(String::from).collect::<Vec<_>>());
+    let header = lines.next().expect("a header line");
+    let rows: Vec<Vec<String>> = lines.collect();
+    for r in &rows {
+        assert_eq!(r.len(), header.len(), "row {r:?} against header {header:?}");
+    }
+    (header, rows)
+}
+
+fn col(header: &[String], name: &str) -> usize {
+    header.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name} in {header:?}"))
+}
+
+fn num(s: &str) -> f64 {
+    s.parse().unwrap_or_else(|_| panic!("`{s}` is not a number"))
+}
+
+fn filters() -> String {
+    graphs_dir().join("filters.ron").to_string_lossy().into_owned()
+}
+
+#[test]
+fn sweeping_blur_sigma_writes_three_method_rows_with_different_errors_and_a_png_plot() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    let g = filters();
+    let code = relume(&["sweep", &g, "--vary", "blur.sigma=0.5,1,2", "--out", out.to_str().unwrap(), "--no-disk-cache", "-q"]);
+    assert_eq!(code, 0);
+
+    let (header, rows) = read_csv(&out.join("sweep.csv"));
+    assert_eq!(&header[..5], ["series", "variant", "blur.sigma", "time_ms", "total_ms"]);
+    for name in ["error.mse", "error.rel_mse", "error.psnr_db", "error.l2_percent", "ms:clean", "ms:blur", "ms:error"] {
+        col(&header, name);
+    }
+    assert_eq!(rows.len(), 3);
+    let (sigma, rel, time) = (col(&header, "blur.sigma"), col(&header, "error.rel_mse"), col(&header, "time_ms"));
+    let sigmas: Vec<f64> = rows.iter().map(|r| num(&r[sigma])).collect();
+    assert_eq!(sigmas, [0.5, 1.0, 2.0]);
+    for r in &rows {
+        assert_eq!(r[0], "method");
+        assert!(num(&r[time]) > 0.0, "blur and everything below it ran: {r:?}");
+    }
+    let rels: Vec<f64> = rows.iter().map(|r| num(&r[rel])).collect();
+    assert!(rels.iter().all(|v| v.is_finite() && *v > 0.0), "{rels:?}");
+    assert!(rels[0] != rels[1] && rels[1] != rels[2] && rels[0] != rels[2], "{rels:?}");
+    // The first variant ran the sources; later ones took them from the cache.
+    let (ms_clean, ms_blur) = (col(&header, "ms:clean"), col(&header, "ms:blur"));
+    assert!(num(&rows[0][ms_clean]) > 0.0);
+    assert_eq!(num(&rows[1][ms_clean]), 0.0);
+    assert!(num(&rows[1][ms_blur]) > 0.0);
+
+    // Decoded with the image crate (through relume's own PNG reader).
+    let img = read_image(&out.join("sweep.png")).expect("the plot decodes");
+    assert_eq!((img.width, img.height), (1024, 720));
+    let first = img.pixels[0];
+    assert!(img.pixels.iter().any(|p| *p != first), "the plot is not a single colour");
+}
+
+#[test]
+fn a_baseline_on_an_integer_parameter_adds_rows_at_doubling_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("s.csv");
+    let plot = dir.path().join("plots/s.png");
+    let g = filters();
+    let code = relume(&[
+        "sweep",
+        &g,
+        "--vary",
+        "blur.sigma=0.5,1.5",
+        "--baseline",
+        "median.radius",
+        "--baseline-max",
+        "4",
+        "--csv",
+        csv.to_str().unwrap(),
+        "--plot",
+        plot.to_str().unwrap(),
+        "--no-disk-cache",
+        "-q",
+    ]);
+    assert_eq!(code, 0);
+    let (header, rows) = read_csv(&csv);
+    let (radius, sigma) = (col(&header, "median.radius"), col(&header, "blur.sigma"));
+    let series: Vec<&str> = rows.iter().map(|r| r[0].as_str()).collect();
+    assert_eq!(series, ["method", "method", "baseline", "baseline", "baseline"]);
+    let radii: Vec<&str> = rows[2..].iter().map(|r| r[radius].as_str()).collect();
+    assert_eq!(radii, ["1", "2", "4"]);
+    let variants: Vec<&str> = rows[2..].iter().map(|r| r[1].as_str()).collect();
+    assert_eq!(variants, ["median.radius=1", "median.radius=2", "median.radius=4"]);
+    // The baseline keeps the varied parameter at its graph value (0.8 in filters.ron), and
+    // the method rows keep the baseline parameter at its graph value (1).
+    for r in &rows[2..] {
+        assert_eq!(num(&r[sigma]), 0.8);
+    }
+    for r in &rows[..2] {
+        assert_eq!(r[radius], "1");
+    }
+    assert!(plot.is_file());
+}
+
+#[test]
+fn a_variant_repeated_in_one_sweep_costs_zero_ms_because_every_node_is_cached() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    let g = filters();
+    let code = relume(&["sweep", &g, "--vary", "blur.sigma=1,1", "--out", out.to_str().unwrap(), "--no-disk-cache", "-q"]);
+    assert_eq!(code, 0);
+    let (header, rows) = read_csv(&out.join("sweep.csv"));
+    assert_eq!(rows.len(), 2);
+    let (time, rel) = (col(&header, "time_ms"), col(&header, "error.rel_mse"));
+    assert!(num(&rows[0][time]) > 0.0);
+    // Exactly zero: no node ran (times are written with four decimals; a run costs far more).
+    assert_eq!(rows[1][time], "0.0000", "the repeat ran nothing: {:?}", rows[1]);
+    assert_eq!(num(&rows[1][time]), 0.0);
+    assert_eq!(rows[0][rel], rows[1][rel], "cached metrics are the same figures");
+    for (h, cell) in header.iter().zip(&rows[1]) {
+        if h.starts_with("ms:") {
+            assert_eq!(num(cell), 0.0, "{h}");
+        }
+    }
+    // The plot leaves the 0 ms point out (log axis) and still gets written.
+    assert!(out.join("sweep.png").is_file());
+}
+
+#[test]
+fn a_disk_cache_shared_between_two_sweeps_makes_the_second_one_cost_nothing_new() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let g = filters();
+    for csv in ["a.csv", "b.csv"] {
+        let csv = dir.path().join(csv);
+        let args = ["sweep", &g, "--vary", "blur.sigma=0.7,1.3", "--csv", csv.to_str().unwrap(), "--cache", cache.to_str().unwrap(), "-q"];
+        assert_eq!(relume(&args), 0);
+    }
+    let (header, a) = read_csv(&dir.path().join("a.csv"));
+    let (_, b) = read_csv(&dir.path().join("b.csv"));
+    let (time, ms_blur) = (col(&header, "time_ms"), col(&header, "ms:blur"));
+    assert!(a.iter().all(|r| num(&r[ms_blur]) > 0.0));
+    // Blur, median and error come from disk; only the memory-cached sources re-run, once.
+    assert!(b.iter().all(|r| num(&r[ms_blur]) == 0.0), "{b:?}");
+    assert_eq!(num(&b[1][time]), 0.0, "{b:?}");
+}
+
+#[test]
+fn unknown_nodes_params_metrics_and_empty_lists_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    let o = out.to_str().unwrap();
+    let g = filters();
+    let sweep = |extra: &[&str]| {
+        let mut args = vec!["sweep", g.as_str(), "--out", o, "--no-disk-cache", "-q"];
+        args.extend_from_slice(extra);
+        relume(&args)
+    };
+    assert_eq!(sweep(&["--vary", "nosuch.sigma=1,2"]), 2);
+    assert_eq!(sweep(&["--vary", "blur.nosuch=1,2"]), 2);
+    assert_eq!(sweep(&["--vary", "blur.sigma="]), 2);
+    assert_eq!(sweep(&["--vary", "blur.sigma=1,-2"]), 2, "out of range");
+    assert_eq!(sweep(&["--vary", "blur.sigma=1", "--metric", "nosuch"]), 2);
+    assert_eq!(sweep(&["--vary", "blur.sigma=1", "--error-node", "blur"]), 2, "blur reports no rel_mse");
+    assert_eq!(sweep(&["--vary", "blur.sigma=1", "--baseline", "blur.sigma"]), 2, "not an integer parameter");
+    assert_eq!(sweep(&["--vary", "blur.sigma=1", "--baseline", "median.radius", "--baseline-max", "64"]), 2, "radius ≤ 16");
+    assert_eq!(sweep(&[]), 2, "neither --vary nor --baseline");
+    assert!(!out.join("sweep.csv").exists(), "nothing written for bad input");
+}
