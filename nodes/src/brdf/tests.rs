@@ -629,3 +629,26 @@ fn dielectric_is_delta_with_zero_eval_and_pdf_and_rough_hints_are_sane() {
     let h = albedo_hint(&ct(0.2, 0.8, 0.3, 0.04));
     assert!(h.x > 0.2 && h.x < 0.3, "{h}");
 }
+
+#[test]
+fn lobe_choice_follows_the_luminance_of_kd_against_ks() {
+    // Far from a near-mirror lobe only the diffuse part of the mixture density remains, so
+    // pdf = P_d cos θi / π with P_d = Y(kd) / (Y(kd) + Y(ks)).
+    let kd = Vec3::new(0.6, 0.1, 0.1);
+    let ks = Vec3::new(0.05, 0.2, 0.05);
+    let y = |c: Vec3| 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
+    let pd = y(kd) / (y(kd) + y(ks));
+    let (wo, wi) = (dir(30.0, 0.0), dir(50.0, 2.5));
+    for m in [Material::BlinnPhong { kd, ks, exponent: 1e4 }, Material::CookTorrance { kd, ks, roughness: 0.001, f0: 0.5 }] {
+        let p = pdf(&m, wo, wi);
+        let expect = pd * wi.z / std::f32::consts::PI;
+        assert!((p - expect).abs() < 1e-5 * expect, "{m:?}: {p} vs {expect}");
+        // And the fraction of samples drawn from the diffuse lobe is P_d: those have
+        // pdf ≈ P_d cos θi / π < 1, while the near-mirror lobe's samples have pdf ≫ 1 (the
+        // two groups overlap with probability < 1 %).
+        let count = 20_000;
+        let diffuse = (0..count).filter_map(|i| sample(&m, wo, u2(21, i), uniform(21, i, 2))).filter(|s| s.pdf < 2.0).count();
+        let frac = diffuse as f32 / count as f32;
+        assert!((frac - pd).abs() < 0.015, "{m:?}: {frac} vs {pd}");
+    }
+}
