@@ -78,6 +78,20 @@ mod tests {
     }
 
     #[test]
+    fn exact_fresnel_matches_textbook_glass_values_and_loses_p_light_at_brewster() {
+        // Glass (η = 1.5) at 45°: R_s = 0.0920, R_p = 0.00847, F = 0.0502.
+        let (f, _) = fresnel_dielectric(45f32.to_radians().cos(), 1.5);
+        assert!((f - 0.050_24).abs() < 1e-4, "{f}");
+        // At Brewster's angle tan θ = η only s-polarised light reflects:
+        // F = R_s / 2 = ((1 − η²) / (1 + η²))² / 2.
+        for eta in [1.333f32, 1.5, 2.4] {
+            let (f, _) = fresnel_dielectric(eta.atan().cos(), eta);
+            let expect = ((1.0 - eta * eta) / (1.0 + eta * eta)).powi(2) / 2.0;
+            assert!((f - expect).abs() < 1e-5, "eta {eta}: {f} vs {expect}");
+        }
+    }
+
+    #[test]
     fn schlick_runs_from_f0_at_normal_incidence_to_one_at_grazing() {
         for f0 in [0.0, 0.04, 0.5, 1.0] {
             assert!((schlick(f0, 1.0) - f0).abs() < 1e-12);
