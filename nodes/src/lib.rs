@@ -1,5 +1,6 @@
 //! relume-nodes: the stage nodes of relume's pipelines and the `relume` command line.
 
+pub mod brdf;
 pub mod cli;
 pub mod geometry;
 pub mod image;
