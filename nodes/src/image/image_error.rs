@@ -1,14 +1,26 @@
 //! ImageError node.
 
+use crate::image::io::srgb_encode;
+use crate::math::ssim::ssim;
 use crate::types::{Image, Metrics};
 use relume_core::{node_doc, Caching, Io, Node, NodeError, ParamValues, Params, Ports, RunCtx, Schema};
 
 node_doc! {
     /// Error of an image against a reference of the same size, into the run report:
     /// MSE (mean over pixels and channels of (x − r)²), relative MSE (mean of
-    /// (x − r)² / (r² + ε)), PSNR = 10 log10(peak² / MSE) in dB, and the theses' L2 % =
-    /// 100 · ‖x − r‖₂ / ‖r‖₂. Pixels where either image is not finite are left out of every
-    /// figure and counted in `nonfinite_pixels`. Also outputs the per-pixel squared-error map.
+    /// (x − r)² / (r² + ε)), PSNR = 10 log10(peak² / MSE) in dB, the theses' L2 % =
+    /// 100 · ‖x − r‖₂ / ‖r‖₂, and two perceptual figures of the images as a display shows them
+    /// (linear / `peak` clamped to [0, 1], sRGB-encoded, as in a PNG): `flip`, the mean of
+    /// NVIDIA's LDR-ꟻLIP error map (Andersson et al. 2020, `nv-flip` crate, 67 pixels per degree,
+    /// 8-bit input; 0 = identical, 1 = maximal; the crate has no HDR-ꟻLIP, so differences above
+    /// `peak` are not seen), which models what a viewer sees flipping between the two, so it
+    /// punishes a brightness shift as much as blotches and forgives pixel-scale noise; and
+    /// `ssim`, mean SSIM (Wang et al. 2004; 11 × 11 Gaussian window, σ = 1.5, K1 = 0.01,
+    /// K2 = 0.03, L = 1) of the Rec. 709 luma, 1 = identical, which punishes lost structure
+    /// more than a brightness shift. Pixels where either image is not finite are left out of
+    /// every figure and counted in `nonfinite_pixels` (ꟻLIP gets the same finite value in
+    /// both images there; SSIM's windows skip them). Also outputs the per-pixel squared-error
+    /// map.
     pub struct ImageError;
 }
 
@@ -21,7 +33,7 @@ impl Params for ImageErrorParams {
     fn schema() -> Schema {
         Schema::new()
             .float("peak", 1.0, 1e-6, 1e6)
-            .help("signal peak used by PSNR")
+            .help("signal peak: PSNR's peak, and the linear value ꟻLIP shows as display white")
             .float("epsilon", 1e-2, 1e-8, 1.0)
             .help("ε in relative MSE's denominator (r² + ε), keeps dark pixels from dominating")
     }
@@ -62,13 +74,61 @@ pub fn error_metrics(x: &Image, r: &Image, peak: f64, epsilon: f64) -> Metrics {
         ("rel_mse".into(), rel / count),
         ("psnr_db".into(), psnr),
         ("l2_percent".into(), l2),
+        ("flip".into(), flip_mean(x, r, peak)),
+        ("ssim".into(), ssim(x, r, peak)),
         ("nonfinite_pixels".into(), bad as f64),
     ])
 }
 
+/// Mean LDR-ꟻLIP error of `x` against `r` (same size) over the pixels where both are finite,
+/// each shown as a PNG would show it (`x / peak` clamped to [0, 1], sRGB, 8 bits); 0 when no
+/// pixel is left to compare.
+pub fn flip_mean(x: &Image, r: &Image, peak: f64) -> f64 {
+    let (Ok(w), Ok(h)) = (u32::try_from(x.width), u32::try_from(x.height)) else { return f64::NAN };
+    if x.pixels.is_empty() {
+        return 0.0;
+    }
+    let scale = (1.0 / peak) as f32;
+    let to8 = |p: [f32; 3]| p.map(|c| (srgb_encode(c * scale) * 255.0 + 0.5) as u8);
+    let (mut xb, mut rb, mut ok) = (Vec::with_capacity(x.pixels.len() * 3), Vec::with_capacity(x.pixels.len() * 3), Vec::new());
+    for (a, b) in x.pixels.iter().zip(&r.pixels) {
+        let finite = |p: &[f32; 3]| p.iter().all(|c| c.is_finite());
+        let good = finite(a) && finite(b);
+        // Where one side is not finite, both get the other side's value (or black) so that
+        // ꟻLIP's spatial filters see no difference there.
+        let (a, b) = if good {
+            (*a, *b)
+        } else {
+            let fill = if finite(b) {
+                *b
+            } else if finite(a) {
+                *a
+            } else {
+                [0.0; 3]
+            };
+            (fill, fill)
+        };
+        xb.extend(to8(a));
+        rb.extend(to8(b));
+        ok.push(good);
+    }
+    let map = nv_flip::flip(
+        nv_flip::FlipImageRgb8::with_data(w, h, &rb),
+        nv_flip::FlipImageRgb8::with_data(w, h, &xb),
+        nv_flip::DEFAULT_PIXELS_PER_DEGREE,
+    )
+    .to_vec();
+    let (sum, n) = map.iter().zip(&ok).filter(|(_, &g)| g).fold((0.0f64, 0usize), |(s, n), (&e, _)| (s + e as f64, n + 1));
+    if n == 0 {
+        0.0
+    } else {
+        sum / n as f64
+    }
+}
+
 impl Node for ImageError {
     const KIND: &'static str = "ImageError";
-    const VERSION: u32 = 1;
+    const VERSION: u32 = 2;
     const CATEGORY: &'static str = "quality";
     const CACHING: Caching = Caching::Disk;
     type Params = ImageErrorParams;
@@ -96,6 +156,7 @@ impl Node for ImageError {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::rng::uniform;
     use crate::testing::run_full;
     use relume_core::Value;
     use std::path::Path;
@@ -121,7 +182,100 @@ mod tests {
         assert_eq!(m.get("nonfinite_pixels"), Some(2.0));
         assert!((m.get("mse").unwrap() - 0.25).abs() < 1e-12);
         assert_eq!(m.get("l2_percent"), Some(f64::INFINITY), "zero reference: L2 % is unbounded");
-        assert_eq!(e.metrics.len(), 5);
+        assert_eq!(e.metrics.len(), 7);
         assert_eq!(e.notes.len(), 1);
+    }
+
+    /// A smooth, unclipped test scene (values in [0.15, 0.75]) with an edge through it.
+    fn scene() -> Image {
+        Image::from_fn(64, 48, |x, y| {
+            let (t, s) = (x as f32 / 63.0, y as f32 / 47.0);
+            let edge = if x + y > 56 { 0.15 } else { 0.0 };
+            [0.15 + 0.4 * t + edge, 0.2 + 0.3 * s + edge, 0.35 + 0.2 * t * s]
+        })
+    }
+
+    /// `img` plus zero-mean uniform noise of standard deviation `sd` in every channel.
+    fn with_noise(img: &Image, sd: f32, seed: u64) -> Image {
+        let mut out = img.clone();
+        for (i, p) in out.pixels.iter_mut().enumerate() {
+            for (c, v) in p.iter_mut().enumerate() {
+                *v += sd * 12f32.sqrt() * (uniform(seed, i as u64, c as u32) - 0.5);
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn identical_images_have_zero_flip() {
+        let a = scene();
+        assert_eq!(flip_mean(&a, &a, 1.0), 0.0);
+        assert_eq!(error_metrics(&a, &a, 1.0, 0.01).get("flip"), Some(0.0));
+    }
+
+    #[test]
+    fn flip_grows_with_the_noise_level() {
+        let r = scene();
+        let f: Vec<f64> = [0.01, 0.03, 0.1].iter().map(|&sd| flip_mean(&with_noise(&r, sd, 5), &r, 1.0)).collect();
+        assert!(f[0] > 0.0 && f[0] < f[1] && f[1] < f[2], "{f:?}");
+        assert!(f[2] < 1.0, "{f:?}");
+    }
+
+    #[test]
+    fn flip_forgives_pixel_noise_more_than_blotches_of_equal_mse() {
+        let r = scene();
+        let fine = with_noise(&r, 0.05, 9);
+        let a = error_metrics(&fine, &r, 1.0, 0.01).get("mse").unwrap().sqrt() as f32;
+        // ±a in 8 × 8 cells: the same MSE, at a scale the eye resolves.
+        let blotchy = Image::from_fn(r.width, r.height, |x, y| {
+            let s = if uniform(3, (x / 8 + 100 * (y / 8)) as u64, 0) < 0.5 { a } else { -a };
+            r.get(x, y).map(|c| c + s)
+        });
+        let mse_blotchy = error_metrics(&blotchy, &r, 1.0, 0.01).get("mse").unwrap();
+        assert!((mse_blotchy / (a * a) as f64 - 1.0).abs() < 1e-3, "equal MSE");
+        let (f_fine, f_blotchy) = (flip_mean(&fine, &r, 1.0), flip_mean(&blotchy, &r, 1.0));
+        assert!(f_fine < 0.75 * f_blotchy, "fine {f_fine} vs blotchy {f_blotchy}");
+    }
+
+    #[test]
+    fn a_constant_shift_hurts_less_than_noise_of_equal_mse_in_ssim_but_not_in_flip() {
+        let r = scene();
+        let noisy = with_noise(&r, 0.05, 9);
+        let m_noise = error_metrics(&noisy, &r, 1.0, 0.01);
+        let shift = m_noise.get("mse").unwrap().sqrt() as f32;
+        let shifted = Image::from_fn(r.width, r.height, |x, y| r.get(x, y).map(|c| c + shift));
+        let m_shift = error_metrics(&shifted, &r, 1.0, 0.01);
+        assert!((m_shift.get("mse").unwrap() / m_noise.get("mse").unwrap() - 1.0).abs() < 1e-3, "equal MSE");
+        let (s_noise, s_shift) = (m_noise.get("ssim").unwrap(), m_shift.get("ssim").unwrap());
+        assert!(1.0 - s_shift < 0.25 * (1.0 - s_noise), "ssim: shift {s_shift} vs noise {s_noise}");
+        // ꟻLIP shows what flipping between the images reveals: the shift, more than the noise.
+        let (f_noise, f_shift) = (m_noise.get("flip").unwrap(), m_shift.get("flip").unwrap());
+        assert!(f_shift > f_noise, "flip: shift {f_shift} vs noise {f_noise}");
+    }
+
+    #[test]
+    fn one_pixel_and_three_by_three_images_give_finite_flip() {
+        for (w, h) in [(1, 1), (3, 3), (1, 5)] {
+            let r = Image::from_fn(w, h, |x, y| [0.2 + 0.1 * x as f32, 0.3 + 0.05 * y as f32, 0.5]);
+            let x = Image::from_fn(w, h, |x, y| r.get(x, y).map(|c| c * 1.5));
+            let f = flip_mean(&x, &r, 1.0);
+            assert!(f.is_finite() && f > 0.0 && f <= 1.0, "{w}×{h}: {f}");
+            assert_eq!(flip_mean(&r, &r, 1.0), 0.0);
+        }
+    }
+
+    #[test]
+    fn nonfinite_pixels_are_left_out_of_flip() {
+        let r = scene();
+        let mut x = r.clone();
+        x.pixels[100] = [f32::NAN, 0.5, 0.5];
+        let mut r2 = r.clone();
+        r2.pixels[200] = [f32::INFINITY; 3];
+        let m = error_metrics(&x, &r2, 1.0, 0.01);
+        assert_eq!(m.get("flip"), Some(0.0), "the two bad pixels are excluded and leave no trace on their neighbours");
+        assert!((m.get("ssim").unwrap() - 1.0).abs() < 1e-12);
+        assert_eq!(m.get("nonfinite_pixels"), Some(2.0));
+        let all_nan = Image::from_fn(3, 3, |_, _| [f32::NAN; 3]);
+        assert_eq!(flip_mean(&all_nan, &all_nan, 1.0), 0.0, "nothing left to compare");
     }
 }

@@ -1,4 +1,4 @@
-//! Image nodes: file I/O, tone mapping, filters, error figures.
+//! Image nodes: file I/O, tone mapping, filters, error figures and the z-test.
 
 pub mod combine;
 pub mod gaussian_blur;
@@ -9,6 +9,7 @@ pub mod median_filter;
 pub mod save_image;
 pub mod test_pattern;
 pub mod tonemap;
+pub mod z_test;
 
 use relume_core::Registry;
 
@@ -21,4 +22,5 @@ pub fn register(reg: &mut Registry) {
     reg.add(median_filter::MedianFilter);
     reg.add(test_pattern::TestPattern);
     reg.add(combine::Combine);
+    reg.add(z_test::ZTest);
 }

@@ -3,3 +3,4 @@
 pub mod frame;
 pub mod rng;
 pub mod sampling;
+pub mod ssim;
