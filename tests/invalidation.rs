@@ -168,11 +168,11 @@ fn cache_keys_of_the_filters_graph_are_pinned() {
 }
 
 const PINNED: [&str; 7] = [
-    "clean=8af529d86611e056",
-    "noisy=fc210eae9643f72f",
-    "sum=57216d0a6f7039fd",
-    "median=08f97dddce1ac07c",
-    "blur=51655662c57e99ec",
-    "error=7a2f086fc8b6cc15",
-    "tonemap=e021b6f815c0d4e4",
+    "clean=8985c21ab8a2d0b1",
+    "noisy=af35dfb8813909b6",
+    "sum=344c49eccbb51a7f",
+    "median=98dff486cefc3563",
+    "blur=2a33fffc116ca9bc",
+    "error=a6ef978e3ac9b0c2",
+    "tonemap=4a6debb6a8ed526c",
 ];

@@ -168,3 +168,11 @@ pub fn test_registry(log: &Log) -> Registry {
     r.add(Mix::<0>(log.clone())).add(Mix::<1>(log.clone())).add(Mix::<2>(log.clone())).add(Mix::<3>(log.clone()));
     r
 }
+
+/// The cornell scene at 32 × 32 (for tests that trace it).
+pub fn small_cornell() -> relume_nodes::types::Scene {
+    let mut s = relume_nodes::scene::format::load_scene_file(&graphs_dir().join("scenes/cornell.ron")).unwrap().scene;
+    s.camera.width = 32;
+    s.camera.height = 32;
+    s
+}

@@ -5,6 +5,7 @@ pub mod cli;
 pub mod geometry;
 pub mod image;
 pub mod math;
+pub mod reference;
 pub mod scene;
 #[cfg(test)]
 pub(crate) mod testing;
@@ -17,6 +18,7 @@ pub fn register_all(reg: &mut Registry) {
     image::register(reg);
     scene::register(reg);
     geometry::register(reg);
+    reference::register(reg);
 }
 
 /// A registry with every node of this crate.

@@ -22,7 +22,11 @@ impl Surface {
         let (ng, area) = scene.normal_area(t);
         let [i0, i1, i2] = scene.triangles[t].map(|i| i as usize);
         let b0 = 1.0 - hit.b1 - hit.b2;
-        let ns = (scene.normals[i0] * b0 + scene.normals[i1] * hit.b1 + scene.normals[i2] * hit.b2).try_normalize().unwrap_or(ng);
+        let ns = if scene.normals.is_empty() {
+            ng
+        } else {
+            (scene.normals[i0] * b0 + scene.normals[i1] * hit.b1 + scene.normals[i2] * hit.b2).try_normalize().unwrap_or(ng)
+        };
         let ns = if ns.dot(ng) < 0.0 { -ns } else { ns };
         let p = o + d * hit.t;
         Surface { p, ng, ns, object: scene.tri_object[t], tri: hit.tri, area }

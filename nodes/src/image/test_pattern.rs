@@ -60,7 +60,7 @@ impl Params for TestPatternParams {
 
 impl Node for TestPattern {
     const KIND: &'static str = "TestPattern";
-    const VERSION: u32 = 1;
+    const VERSION: u32 = 2;
     const CATEGORY: &'static str = "image";
     const CACHING: Caching = Caching::Memory;
     type Params = TestPatternParams;

@@ -11,7 +11,9 @@ pub fn mix64(mut x: u64) -> u64 {
 
 /// Uniform in [0, 1) for stream `seed`, index `i`, dimension `dim`.
 pub fn uniform(seed: u64, i: u64, dim: u32) -> f32 {
-    let h = mix64(mix64(seed ^ 0xA076_1D64_78BD_642F).wrapping_add(i).wrapping_mul(0x2545_F491_4F6C_DD1D) ^ dim as u64);
+    // Each input passes through its own full mixing round, so that ids differing only in
+    // their high bits (pixel << 32 | sample) give independent streams.
+    let h = mix64(mix64(mix64(seed ^ 0xA076_1D64_78BD_642F) ^ i) ^ (dim as u64).wrapping_mul(0x2545_F491_4F6C_DD1D));
     (h >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
 }
 

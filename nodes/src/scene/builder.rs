@@ -40,6 +40,7 @@ impl SceneBuilder {
         let s = &mut self.scene;
         let base = s.positions.len() as u32;
         let normals = normals.unwrap_or_else(|| vertex_normals(&positions, &tris));
+        assert!(s.normals.len() == s.positions.len(), "add meshes before flat_shading()");
         s.positions.extend(positions);
         s.normals.extend(normals);
         let start = s.triangles.len() as u32;
@@ -73,6 +74,13 @@ impl SceneBuilder {
 
     pub fn environment(mut self, e: Environment) -> Self {
         self.scene.environment = Some(e);
+        self
+    }
+
+    /// Drops the shading normals: every triangle is shaded with its geometric normal
+    /// (interpolated normals on a tessellated surface do not conserve energy exactly).
+    pub fn flat_shading(mut self) -> Self {
+        self.scene.normals.clear();
         self
     }
 

@@ -15,14 +15,24 @@ node_doc! {
 
 pub struct LoadSceneParams {
     pub path: PathBuf,
+    pub width: usize,
+    pub height: usize,
 }
 
 impl Params for LoadSceneParams {
     fn schema() -> Schema {
-        Schema::new().input_file("path").help("scene file (.ron), relative to the graph file")
+        Schema::new()
+            .input_file("path")
+            .help("scene file (.ron), relative to the graph file")
+            .int("width", 0, 0, 16384)
+            .unit("px")
+            .help("image width; 0 keeps the scene file's camera")
+            .int("height", 0, 0, 16384)
+            .unit("px")
+            .help("image height; 0 keeps the scene file's camera")
     }
     fn from_values(v: &ParamValues) -> Self {
-        LoadSceneParams { path: v.path("path") }
+        LoadSceneParams { path: v.path("path"), width: v.int("width") as usize, height: v.int("height") as usize }
     }
 }
 
@@ -45,9 +55,16 @@ impl Node for LoadScene {
         for n in loaded.notes {
             cx.note(n);
         }
-        let s = &loaded.scene;
+        let mut scene = loaded.scene;
+        if p.width > 0 {
+            scene.camera.width = p.width;
+        }
+        if p.height > 0 {
+            scene.camera.height = p.height;
+        }
+        let s = &scene;
         cx.metric("triangles", s.triangles.len() as f64);
         cx.metric("objects", s.objects.len() as f64);
-        io.set("scene", loaded.scene)
+        io.set("scene", scene)
     }
 }

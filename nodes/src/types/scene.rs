@@ -61,7 +61,8 @@ pub struct Object {
 pub struct Scene {
     pub objects: Vec<Object>,
     pub positions: Vec<Vec3>,
-    /// Per-vertex shading normals (same length as positions).
+    /// Per-vertex shading normals (same length as positions), or empty for flat shading
+    /// (the geometric normal everywhere).
     pub normals: Vec<Vec3>,
     /// Per-vertex UVs, empty when the meshes have none.
     pub uvs: Vec<Vec2>,

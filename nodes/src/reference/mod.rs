@@ -1,0 +1,12 @@
+//! The reference path tracer and what it is built from.
+
+pub mod camera;
+pub mod integrator;
+pub mod lights;
+pub mod path_trace;
+
+use relume_core::Registry;
+
+pub fn register(reg: &mut Registry) {
+    reg.add(path_trace::PathTrace);
+}
