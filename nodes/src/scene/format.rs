@@ -20,7 +20,7 @@
 
 use super::envmap::Sky;
 use super::obj::load_obj;
-use super::shapes::{sphere, vertex_normals};
+use super::shapes::{crease_normals, sphere};
 use crate::image::io::decode_image;
 use crate::types::{Camera, EnvMap, Environment, Light, Material, Medium, Object, Scene};
 use glam::{Mat3, Mat4, Vec2, Vec3};
@@ -159,6 +159,9 @@ impl Builder {
         let dynamic = f.opt("dynamic").map(|d| bool_of(d, "dynamic")).transpose()?.unwrap_or(false);
         let name = f.opt("name").map(|n| str_of(n, "name")).transpose()?.map(str::to_string);
         let transform = f.opt("transform").map(read_transform).transpose()?.unwrap_or(Mat4::IDENTITY);
+        // Normals are smoothed across edges flatter than this angle and kept sharp across
+        // steeper ones (a box stays flat-shaded, a scanned bunny smooth).
+        let crease = f.opt("crease_angle").map(|c| f64_in(c, "crease_angle", 0.0, 180.0)).transpose()?.unwrap_or(30.0) as f32;
         match kind {
             "Obj" => {
                 let pv = f.req("path")?;
@@ -193,20 +196,10 @@ impl Builder {
                     let mat = material
                         .or(m.material)
                         .ok_or_else(|| at(v, format!("object \"{}\" has no material (give `material:` or a usemtl)", m.name)))?;
-                    let normals = vertex_normals(&m.positions, &m.triangles);
-                    let uvs = (m.uvs.len() == m.positions.len()).then_some(m.uvs);
+                    let (pos, normals, tris, origin) = crease_normals(&m.positions, &m.triangles, crease);
+                    let uvs = (m.uvs.len() == m.positions.len()).then(|| origin.iter().map(|&i| m.uvs[i as usize]).collect());
                     let obj_name = name.clone().unwrap_or(m.name);
-                    self.push_object(
-                        obj_name,
-                        mat,
-                        emission.unwrap_or(m.emission),
-                        dynamic,
-                        &transform,
-                        m.positions,
-                        normals,
-                        uvs,
-                        m.triangles,
-                    );
+                    self.push_object(obj_name, mat, emission.unwrap_or(m.emission), dynamic, &transform, pos, normals, uvs, tris);
                 }
             }
             _ => {
@@ -228,7 +221,19 @@ impl Builder {
                 );
             }
         }
-        f.finish(&["path", "name", "material", "emission", "dynamic", "transform", "exclude", "center", "radius", "rings"])?;
+        f.finish(&[
+            "path",
+            "name",
+            "material",
+            "emission",
+            "dynamic",
+            "transform",
+            "exclude",
+            "crease_angle",
+            "center",
+            "radius",
+            "rings",
+        ])?;
         Ok(())
     }
 

@@ -54,6 +54,67 @@ pub fn vertex_normals(pos: &[Vec3], tris: &[[u32; 3]]) -> Vec<Vec3> {
     acc.into_iter().map(|n| n.try_normalize().unwrap_or(Vec3::Y)).collect()
 }
 
+/// Vertex normals that stay sharp across creases: each triangle corner averages (angle
+/// weighted) only the faces around its vertex whose normals lie within `crease_deg` of the
+/// triangle's own. Vertices are split where corners end up with different normals. Returns
+/// (positions, normals, triangles, original vertex of each new vertex).
+pub fn crease_normals(pos: &[Vec3], tris: &[[u32; 3]], crease_deg: f32) -> (Vec<Vec3>, Vec<Vec3>, Vec<[u32; 3]>, Vec<u32>) {
+    let cos_crease = crease_deg.to_radians().cos();
+    let face: Vec<Vec3> = tris
+        .iter()
+        .map(|t| (pos[t[1] as usize] - pos[t[0] as usize]).cross(pos[t[2] as usize] - pos[t[0] as usize]).normalize_or_zero())
+        .collect();
+    let angle = |t: &[u32; 3], k: usize| {
+        let p = t.map(|i| pos[i as usize]);
+        let e1 = (p[(k + 1) % 3] - p[k]).normalize_or_zero();
+        let e2 = (p[(k + 2) % 3] - p[k]).normalize_or_zero();
+        e1.dot(e2).clamp(-1.0, 1.0).acos()
+    };
+    let mut incident: Vec<Vec<(u32, u8)>> = vec![Vec::new(); pos.len()];
+    for (f, t) in tris.iter().enumerate() {
+        for k in 0..3 {
+            incident[t[k] as usize].push((f as u32, k as u8));
+        }
+    }
+    let mut out_pos = Vec::with_capacity(pos.len());
+    let mut out_nrm: Vec<Vec3> = Vec::with_capacity(pos.len());
+    let mut origin = Vec::with_capacity(pos.len());
+    let mut out_tris = tris.to_vec();
+    for (v, inc) in incident.iter().enumerate() {
+        // Distinct corner normals at this vertex, each becoming one output vertex.
+        let mut made: Vec<(Vec3, u32)> = Vec::new();
+        for &(f, k) in inc {
+            let nf = face[f as usize];
+            let mut n = Vec3::ZERO;
+            for &(g, kg) in inc {
+                let ng = face[g as usize];
+                if nf != Vec3::ZERO && ng.dot(nf) >= cos_crease {
+                    n += ng * angle(&tris[g as usize], kg as usize);
+                }
+            }
+            let n = n.try_normalize().unwrap_or(if nf != Vec3::ZERO { nf } else { Vec3::Y });
+            let idx = match made.iter().find(|(m, _)| m.dot(n) > 1.0 - 1e-6) {
+                Some(&(_, i)) => i,
+                None => {
+                    let i = out_pos.len() as u32;
+                    out_pos.push(pos[v]);
+                    out_nrm.push(n);
+                    origin.push(v as u32);
+                    made.push((n, i));
+                    i
+                }
+            };
+            out_tris[f as usize][k as usize] = idx;
+        }
+        if inc.is_empty() {
+            out_pos.push(pos[v]);
+            out_nrm.push(Vec3::Y);
+            origin.push(v as u32);
+        }
+    }
+    (out_pos, out_nrm, out_tris, origin)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -72,6 +133,33 @@ mod tests {
         let exact = 4.0 * std::f32::consts::PI * 0.25;
         assert!((area - exact).abs() / exact < 0.002, "{area} vs {exact}");
         assert!(nrm.iter().all(|n| (n.length() - 1.0).abs() < 1e-5));
+    }
+
+    #[test]
+    fn crease_normals_keep_a_cube_flat_and_a_sphere_smooth() {
+        // A unit cube with 8 shared corners: every face must get its own flat normal.
+        let p: Vec<Vec3> = (0..8).map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32)).collect();
+        let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        let tris: Vec<[u32; 3]> = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
+        let (pos, nrm, t2, origin) = crease_normals(&p, &tris, 30.0);
+        assert_eq!(pos.len(), 24, "each corner is split into its three faces");
+        for t in &t2 {
+            let fp = t.map(|i| pos[i as usize]);
+            let f = (fp[1] - fp[0]).cross(fp[2] - fp[0]).normalize();
+            for &i in t {
+                assert!((nrm[i as usize] - f).length() < 1e-6);
+                assert_eq!(pos[i as usize], p[origin[i as usize] as usize]);
+            }
+        }
+        let (sp, _, st) = sphere(Vec3::ZERO, 1.0, 32, 64);
+        let (pos, nrm, _, _) = crease_normals(&sp, &st, 30.0);
+        assert!(pos.len() <= sp.len(), "a smooth sphere is not split");
+        // Away from the poles and the seam (whose corners see faces on one side only) the
+        // normals are
+        // close to the radial direction.
+        for (p, n) in pos.iter().zip(&nrm).filter(|(p, _)| p.y.abs() < 0.99) {
+            assert!(p.normalize().dot(*n) > 0.998, "{p} {n}");
+        }
     }
 
     #[test]
