@@ -68,3 +68,14 @@ mod tests {
         assert!((10..100).contains(&ran), "{ran}");
     }
 }
+
+/// A canonical scene from `graphs/scenes/`, optionally at another resolution.
+pub fn scene(name: &str, size: Option<usize>) -> relume_nodes::types::Scene {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../graphs/scenes").join(format!("{name}.ron"));
+    let mut s = relume_nodes::scene::format::load_scene_file(&path).expect("scene loads").scene;
+    if let Some(n) = size {
+        s.camera.width = n;
+        s.camera.height = n;
+    }
+    s
+}

@@ -176,3 +176,29 @@ const PINNED: [&str; 7] = [
     "error=a6ef978e3ac9b0c2",
     "tonemap=4a6debb6a8ed526c",
 ];
+
+#[test]
+fn editing_a_mesh_named_inside_a_scene_file_reruns_the_scene_loader_and_what_follows() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir_all(dir.path().join("scenes")).unwrap();
+    std::fs::create_dir_all(dir.path().join("assets/cornell")).unwrap();
+    for f in ["scenes/cornell.ron", "assets/cornell/cornell_box.obj", "assets/cornell/cornell_box.mtl"] {
+        std::fs::copy(graphs_dir().join(f), dir.path().join(f)).unwrap();
+    }
+    let text = r#"Graph(version: 1, nodes: {
+        "scene": (kind: "LoadScene", params: (path: "scenes/cornell.ron", width: 8, height: 8)),
+        "bvh": (kind: "BuildBvh", params: ()),
+        "pt": (kind: "PathTrace", params: (spp: 2, max_depth: 2)),
+    }, edges: [("scene.scene", "bvh.scene"), ("scene.scene", "pt.scene"), ("bvh.accel", "pt.accel")],
+    outputs: { "image": "pt.image" })"#;
+    std::fs::write(dir.path().join("g.ron"), text).unwrap();
+    let g = Graph::load(&dir.path().join("g.ron"), &relume_nodes::registry()).unwrap();
+    let e = engine();
+    assert_eq!(ran(&run(&e, &g)), ["bvh", "pt", "scene"]);
+    assert!(ran(&run(&e, &g)).is_empty());
+    // A colour in the MTL changes: the scene's content changes, so everything re-runs.
+    let mtl = dir.path().join("assets/cornell/cornell_box.mtl");
+    let text = std::fs::read_to_string(&mtl).unwrap().replace("Kd 0.570068", "Kd 0.470068");
+    std::fs::write(&mtl, text).unwrap();
+    assert_eq!(ran(&run(&e, &g)), ["bvh", "pt", "scene"]);
+}

@@ -149,3 +149,44 @@ impl Node for PathTrace {
         io.set("variance", var)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::accel::BuildQuality;
+    use crate::testing::test_scene;
+
+    fn params(spp: u32, max_depth: i32) -> PathTraceParams {
+        PathTraceParams { spp, max_depth, rr_depth: 5, seed: 1 }
+    }
+
+    #[test]
+    fn max_depth_one_sees_only_emitters_and_more_depth_adds_light() {
+        let scene = test_scene::spheres();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let sum = |d| render(&scene, &accel, &params(4, d), None).unwrap().0.as_floats().iter().map(|&x| x as f64).sum::<f64>();
+        let (one, two, three) = (sum(1), sum(2), sum(3));
+        assert_eq!(one, 0.0, "no emitter is visible: a point light only");
+        assert!(two > 0.0 && three > two, "{two} {three}");
+    }
+
+    #[test]
+    fn variance_shrinks_as_samples_grow_and_is_zero_for_one_sample() {
+        let scene = test_scene::spheres();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let var = |spp| render(&scene, &accel, &params(spp, 3), None).unwrap().1.as_floats().iter().map(|&x| x as f64).sum::<f64>();
+        assert_eq!(var(1), 0.0);
+        let (v4, v64) = (var(4), var(64));
+        assert!(v64 < v4 / 4.0, "variance of the mean falls like 1/n: {v4} → {v64}");
+    }
+
+    #[test]
+    fn a_cancelled_render_stops_with_cancelled() {
+        let scene = test_scene::spheres();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let cancel = relume_core::CancelToken::new();
+        cancel.cancel();
+        let cx = RunCtx::new("t", &cancel, None);
+        assert_eq!(render(&scene, &accel, &params(4, 3), Some(&cx)).err(), Some(NodeError::Cancelled));
+    }
+}

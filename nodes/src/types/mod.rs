@@ -3,9 +3,11 @@
 mod image;
 mod material;
 mod metrics;
+mod points;
 mod scene;
 
 pub use self::image::{Image, MAX_IMAGE_BYTES};
 pub use material::{Material, Medium};
 pub use metrics::Metrics;
+pub use points::SurfacePoints;
 pub use scene::{Camera, EnvMap, Environment, Light, Object, Scene};
