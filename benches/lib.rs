@@ -50,6 +50,17 @@ pub fn edit_node(n: usize) -> String {
     format!("n{l}_{j}")
 }
 
+/// A canonical scene from `graphs/scenes/`, optionally at another resolution.
+pub fn scene(name: &str, size: Option<usize>) -> relume_nodes::types::Scene {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../graphs/scenes").join(format!("{name}.ron"));
+    let mut s = relume_nodes::scene::format::load_scene_file(&path).expect("scene loads").scene;
+    if let Some(n) = size {
+        s.camera.width = n;
+        s.camera.height = n;
+    }
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -67,15 +78,4 @@ mod tests {
         let ran = e.run(&g, &RunOptions::default()).unwrap().report.ran;
         assert!((10..100).contains(&ran), "{ran}");
     }
-}
-
-/// A canonical scene from `graphs/scenes/`, optionally at another resolution.
-pub fn scene(name: &str, size: Option<usize>) -> relume_nodes::types::Scene {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../graphs/scenes").join(format!("{name}.ron"));
-    let mut s = relume_nodes::scene::format::load_scene_file(&path).expect("scene loads").scene;
-    if let Some(n) = size {
-        s.camera.width = n;
-        s.camera.height = n;
-    }
-    s
 }

@@ -234,3 +234,30 @@ fn index_one_glass_is_invisible() {
     let (b, _) = trace(&with(true), 4, 1);
     assert_eq!(a, b);
 }
+
+#[test]
+fn a_spot_light_lights_inside_its_cone_only() {
+    let scene = SceneBuilder::new(Vec3::new(0.0, 3.0, 0.01), Vec3::ZERO, 60.0, 32, 32)
+        .quad("floor", Vec3::new(-2.0, 0.0, 2.0), Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -4.0), lambert(0.5), Vec3::ZERO)
+        .light(Light::Spot {
+            position: Vec3::new(0.0, 1.0, 0.0),
+            direction: -Vec3::Y,
+            intensity: Vec3::splat(5.0),
+            cos_inner: 20f32.to_radians().cos(),
+            cos_outer: 25f32.to_radians().cos(),
+        })
+        .build();
+    let (m, _) = trace(&scene, 4, 2);
+    let rays = CameraRays::new(&scene.camera);
+    for (x, y) in [(16, 16), (2, 2), (30, 16)] {
+        let (o, d) = rays.ray(x as f32 + 0.5, y as f32 + 0.5);
+        let p = o + d * (-o.y / d.y);
+        let angle = (p.x * p.x + p.z * p.z).sqrt().atan2(1.0).to_degrees();
+        let v = m.get(x, y)[0];
+        if angle < 19.0 {
+            assert!(v > 0.0, "inside the beam at {angle}°");
+        } else if angle > 26.0 {
+            assert_eq!(v, 0.0, "outside the cutoff at {angle}°");
+        }
+    }
+}

@@ -73,6 +73,9 @@ pub trait Observer: Send + Sync {
     fn event(&self, e: &Event<'_>);
 }
 
+/// What a run recorded besides its outputs: metrics, notes, file dependencies.
+pub(crate) type Recorded = (Vec<(String, f64)>, Vec<String>, Vec<(PathBuf, Hash)>);
+
 /// Handed to `Node::run`.
 pub struct RunCtx<'a> {
     pub(crate) id: &'a str,
@@ -137,7 +140,7 @@ impl<'a> RunCtx<'a> {
         self.deps.lock().unwrap().push((path.to_path_buf(), content_hash));
     }
 
-    pub(crate) fn take(self) -> (Vec<(String, f64)>, Vec<String>, Vec<(PathBuf, Hash)>) {
+    pub(crate) fn take(self) -> Recorded {
         (self.metrics.into_inner().unwrap(), self.notes.into_inner().unwrap(), self.deps.into_inner().unwrap())
     }
 }
