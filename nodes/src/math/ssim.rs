@@ -119,25 +119,7 @@ mod tests {
     use super::*;
     use crate::math::rng::uniform;
 
-    /// A smooth, unclipped scene (values in [0.15, 0.75]) with an edge through it.
-    fn scene() -> Image {
-        Image::from_fn(64, 48, |x, y| {
-            let (t, s) = (x as f32 / 63.0, y as f32 / 47.0);
-            let edge = if x + y > 56 { 0.15 } else { 0.0 };
-            [0.15 + 0.4 * t + edge, 0.2 + 0.3 * s + edge, 0.35 + 0.2 * t * s]
-        })
-    }
-
-    /// `img` plus zero-mean uniform noise of standard deviation `sd` in every channel.
-    fn with_noise(img: &Image, sd: f32, seed: u64) -> Image {
-        let mut out = img.clone();
-        for (i, p) in out.pixels.iter_mut().enumerate() {
-            for (c, v) in p.iter_mut().enumerate() {
-                *v += sd * 12f32.sqrt() * (uniform(seed, i as u64, c as u32) - 0.5);
-            }
-        }
-        out
-    }
+    use crate::testing::images::{scene, with_noise};
 
     fn mse(a: &Image, b: &Image) -> f64 {
         let d = a.as_floats().iter().zip(b.as_floats()).map(|(x, y)| ((x - y) as f64).powi(2));
