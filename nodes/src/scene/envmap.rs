@@ -105,17 +105,30 @@ impl Sky {
     pub fn bake(&self) -> Result<EnvMap, String> {
         let (w, h) = (self.width, (self.width / 2).max(1));
         let sun = self.sun_direction.normalize_or_zero();
-        let cos_sun = self.sun_radius_deg.to_radians().cos();
+        let sun_radius = self.sun_radius_deg.to_radians();
+        // A texel spans at most this angle from its centre (at the equator).
+        let texel_reach = std::f32::consts::PI / h as f32 * 1.5;
         let texels = (0..w * h)
             .map(|i| {
-                let uv = Vec2::new(((i % w) as f32 + 0.5) / w as f32, ((i / w) as f32 + 0.5) / h as f32);
-                let d = uv_to_dir(uv);
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                let d = uv_to_dir(Vec2::new((x + 0.5) / w as f32, (y + 0.5) / h as f32));
                 let base = if d.y < 0.0 { self.ground } else { self.horizon.lerp(self.zenith, d.y.sqrt()) };
-                if sun != Vec3::ZERO && d.dot(sun) >= cos_sun {
-                    base + self.sun_radiance
-                } else {
-                    base
+                if sun == Vec3::ZERO || d.dot(sun).clamp(-1.0, 1.0).acos() > sun_radius + texel_reach {
+                    return base;
                 }
+                // The sun may be smaller than a texel: weight it by the covered fraction of the
+                // texel's solid angle (16 × 16 sub-samples, weighted by sin θ) so that its power
+                // does not depend on the map's resolution.
+                let (mut covered, mut total) = (0.0f32, 0.0f32);
+                for k in 0..256 {
+                    let uv = Vec2::new((x + ((k % 16) as f32 + 0.5) / 16.0) / w as f32, (y + ((k / 16) as f32 + 0.5) / 16.0) / h as f32);
+                    let weight = (PI * uv.y).sin();
+                    total += weight;
+                    if uv_to_dir(uv).dot(sun) >= sun_radius.cos() {
+                        covered += weight;
+                    }
+                }
+                base + self.sun_radiance * (covered / total.max(f32::MIN_POSITIVE))
             })
             .collect();
         EnvMap::new(w, h, texels)
@@ -168,6 +181,18 @@ mod tests {
         assert!(EnvMap::new(2, 1, vec![Vec3::ONE, Vec3::splat(f32::NAN)]).unwrap_err().contains("(1, 0)"));
     }
 
+    fn sky_like(s: &Sky) -> Sky {
+        Sky {
+            zenith: Vec3::ONE,
+            horizon: Vec3::ONE,
+            ground: Vec3::ONE,
+            sun_direction: s.sun_direction,
+            sun_radiance: s.sun_radiance,
+            sun_radius_deg: s.sun_radius_deg,
+            width: s.width,
+        }
+    }
+
     #[test]
     fn the_sky_has_its_sun_where_it_was_put() {
         let sky = Sky {
@@ -182,5 +207,22 @@ mod tests {
         let env = sky.bake().unwrap();
         assert!(env.eval(Vec3::new(0.0, 1.0, -1.0).normalize()).x > 999.0);
         assert_eq!(env.eval(-Vec3::Y), Vec3::splat(0.05));
+        // The sun's power (radiance × solid angle) does not depend on the map's resolution,
+        // even when the sun is smaller than a texel.
+        let power = |width| {
+            let m = Sky { width, ..sky_like(&sky) }.bake().unwrap();
+            let (w, h) = (m.width, m.height);
+            (0..w * h)
+                .map(|i| {
+                    let (t0, t1) = (PI * (i / w) as f32 / h as f32, PI * (i / w + 1) as f32 / h as f32);
+                    (m.texels[i].x - 1.0).max(0.0) as f64 * (2.0 * PI / w as f32 * (t0.cos() - t1.cos())) as f64
+                })
+                .sum::<f64>()
+        };
+        let exact = 1000.0 * 2.0 * std::f64::consts::PI * (1.0 - 3f64.to_radians().cos());
+        for width in [64, 256, 1024] {
+            let p = power(width);
+            assert!((p - exact).abs() < 0.03 * exact, "width {width}: {p} vs {exact}");
+        }
     }
 }

@@ -469,3 +469,36 @@ fn read_transform(v: &Ron) -> Result<Mat4, LoadError> {
     }
     Ok(m)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_radiance_hdr_environment_and_a_procedural_sky_load() {
+        let dir = tempfile::tempdir().unwrap();
+        let texels: Vec<image::Rgb<f32>> = (0..8 * 4).map(|i| image::Rgb([i as f32 * 0.5, 1.0, 2.0])).collect();
+        let f = std::fs::File::create(dir.path().join("sky.hdr")).unwrap();
+        image::codecs::hdr::HdrEncoder::new(f).encode(&texels, 8, 4).unwrap();
+        std::fs::write(dir.path().join("tri.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        let head = "Scene(camera: (origin: (0, 0, 3), target: (0, 0, 0), up: (0, 1, 0), fov: 40, width: 8, height: 8), materials: { \"m\": Lambert(albedo: 0.5) }, shapes: [Obj(path: \"tri.obj\", material: \"m\")],";
+        std::fs::write(dir.path().join("a.ron"), format!("{head} environment: Map(path: \"sky.hdr\", scale: 2))")).unwrap();
+        let s = load_scene_file(&dir.path().join("a.ron")).unwrap();
+        let Some(Environment::Map(m)) = &s.scene.environment else { panic!("a map") };
+        assert_eq!((m.width, m.height), (8, 4));
+        let top_left = m.texels[0];
+        assert!((top_left - Vec3::new(0.0, 2.0, 4.0)).length() < 0.05, "scaled by 2: {top_left}");
+        assert!(s.files.iter().any(|(p, _)| p.ends_with("sky.hdr")), "the map is a cache dependency");
+        std::fs::write(
+            dir.path().join("b.ron"),
+            format!(
+                "{head} environment: Sky(zenith: (0.1, 0.2, 0.6), horizon: 1, sun_radiance: 1000, sun_direction: (0, 1, 1), width: 64))"
+            ),
+        )
+        .unwrap();
+        let s = load_scene_file(&dir.path().join("b.ron")).unwrap();
+        let Some(Environment::Map(m)) = &s.scene.environment else { panic!("a baked sky") };
+        let brightest = m.texels.iter().map(|t| t.x).fold(0.0, f32::max);
+        assert!(brightest > 10.0, "the sun is baked in even when smaller than a texel: {brightest}");
+    }
+}
