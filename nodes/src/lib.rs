@@ -5,6 +5,7 @@ pub mod cli;
 pub mod geometry;
 pub mod image;
 pub mod math;
+pub mod pbgi;
 pub mod reference;
 pub mod scene;
 #[cfg(test)]
@@ -19,6 +20,7 @@ pub fn register_all(reg: &mut Registry) {
     scene::register(reg);
     geometry::register(reg);
     reference::register(reg);
+    pbgi::register(reg);
 }
 
 /// A registry with every node of this crate.
