@@ -182,3 +182,13 @@ pub(crate) fn sample_mixture(
     }
     Some(BsdfSample { wi, f, pdf: p, delta: false })
 }
+
+/// The diffuse reflectance kd of a material (what point-based GI carries between surfaces);
+/// zero for dielectrics.
+pub fn diffuse_albedo(m: &Material) -> Vec3 {
+    match *m {
+        Material::Lambert { albedo } => albedo,
+        Material::BlinnPhong { kd, .. } | Material::CookTorrance { kd, .. } => kd,
+        Material::Dielectric { .. } => Vec3::ZERO,
+    }
+}

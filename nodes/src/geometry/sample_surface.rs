@@ -13,7 +13,8 @@ node_doc! {
     /// dart throwing over area-CDF candidates (8 per requested point) with a grid, keeping a
     /// point only if no kept point lies within r = sqrt(A / (count π)) · 0.75; it keeps fewer
     /// than `count` points and says how many. Each point carries position, shading normal, the
-    /// radius of the disk of area A / n it stands for, object and material.
+    /// radius of the disk of area A / n it stands for, object and material. Emissive objects
+    /// are left out unless `emitters` is set.
     pub struct SampleSurface;
 }
 
@@ -27,6 +28,8 @@ pub struct SampleSurfaceParams {
     pub method: Method,
     pub count: usize,
     pub seed: u64,
+    /// Sample emissive objects too (PBGI leaves them out: direct lighting handles them).
+    pub emitters: bool,
 }
 
 impl Params for SampleSurfaceParams {
@@ -39,10 +42,12 @@ impl Params for SampleSurfaceParams {
             .help("points requested")
             .int("seed", 0, 0, i64::from(u32::MAX))
             .help("random seed")
+            .bool("emitters", false)
+            .help("also sample emissive objects (lights); off for PBGI, whose direct pass handles them")
     }
     fn from_values(v: &ParamValues) -> Self {
         let method = if v.variant("method") == "PoissonDisk" { Method::PoissonDisk } else { Method::AreaCdf };
-        SampleSurfaceParams { method, count: v.int("count") as usize, seed: v.int("seed") as u64 }
+        SampleSurfaceParams { method, count: v.int("count") as usize, seed: v.int("seed") as u64, emitters: v.bool("emitters") }
     }
 }
 
@@ -56,7 +61,8 @@ pub fn sample_surface(scene: &Scene, p: &SampleSurfaceParams) -> Result<SurfaceP
             format!("{candidates} points need {:.1} GiB, over the {} GiB limit", bytes as f64 / (1u64 << 30) as f64, MAX_IMAGE_BYTES >> 30),
         ));
     }
-    let areas: Vec<f32> = (0..scene.triangles.len()).map(|t| scene.normal_area(t).1).collect();
+    let included = |t: usize| p.emitters || scene.objects[scene.tri_object[t] as usize].emission == Vec3::ZERO;
+    let areas: Vec<f32> = (0..scene.triangles.len()).map(|t| if included(t) { scene.normal_area(t).1 } else { 0.0 }).collect();
     let dist = Distribution1D::new(&areas);
     let total: f64 = areas.iter().map(|&a| a as f64).sum();
     if total <= 0.0 {
@@ -144,7 +150,7 @@ mod tests {
     use crate::testing::test_scene;
 
     fn params(method: Method, count: usize, seed: u64) -> SampleSurfaceParams {
-        SampleSurfaceParams { method, count, seed }
+        SampleSurfaceParams { method, count, seed, emitters: true }
     }
 
     #[test]

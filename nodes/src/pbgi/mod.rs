@@ -1,5 +1,11 @@
 //! Point-based global illumination (PIPELINES.md pipeline 4; [P] chapters 2–3).
 
+pub mod gbuffer;
+pub mod shade_direct;
+
 use relume_core::Registry;
 
-pub fn register(_reg: &mut Registry) {}
+pub fn register(reg: &mut Registry) {
+    reg.add(shade_direct::ShadeDirect);
+    reg.add(gbuffer::GBuffer);
+}

@@ -33,6 +33,9 @@ pub struct LightSample {
 pub struct LightSampler {
     items: Vec<Item>,
     choice: Distribution1D,
+    /// Choice among area lights and the environment only (for callers that handle delta
+    /// lights exactly), with the item index of each choice.
+    extended: Option<(Distribution1D, Vec<usize>)>,
     /// Item index of every scene triangle (u32::MAX for triangles that do not emit).
     tri_item: Vec<u32>,
     env_item: Option<usize>,
@@ -82,11 +85,19 @@ impl LightSampler {
             weights.push(4.0 * PI * PI * r * r * env_lum);
         }
         let choice = Distribution1D::new(&weights);
-        LightSampler { items, choice, tri_item, env_item }
+        let ext: Vec<usize> = (0..items.len()).filter(|&i| !matches!(items[i], Item::Delta(_))).collect();
+        let extended = (!ext.is_empty() && ext.iter().any(|&i| weights[i] > 0.0))
+            .then(|| (Distribution1D::new(&ext.iter().map(|&i| weights[i]).collect::<Vec<_>>()), ext));
+        LightSampler { items, choice, tri_item, env_item, extended }
     }
 
     pub fn is_empty(&self) -> bool {
         self.items.is_empty()
+    }
+
+    /// Whether the scene has area lights or an environment (lights with extent).
+    pub fn has_extended(&self) -> bool {
+        self.extended.is_some()
     }
 
     /// Samples a light as seen from point `p`. `u` picks the light, `u2` the point on it.
@@ -95,6 +106,18 @@ impl LightSampler {
             return None;
         }
         let (i, p_choice) = self.choice.sample_discrete(u);
+        self.sample_item(scene, p, i, p_choice, u2)
+    }
+
+    /// As `sample`, choosing only among area lights and the environment (densities are
+    /// relative to that choice). Delta lights are left to the caller.
+    pub fn sample_extended(&self, scene: &Scene, p: Vec3, u: f32, u2: Vec2) -> Option<LightSample> {
+        let (dist, idx) = self.extended.as_ref()?;
+        let (k, p_choice) = dist.sample_discrete(u);
+        self.sample_item(scene, p, idx[k], p_choice, u2)
+    }
+
+    fn sample_item(&self, scene: &Scene, p: Vec3, i: usize, p_choice: f32, u2: Vec2) -> Option<LightSample> {
         if p_choice <= 0.0 {
             return None;
         }
@@ -165,7 +188,7 @@ impl LightSampler {
 
 /// Direction, distance and incident radiance of a delta light at point `p`. A light closer
 /// than 1e-12 (a light exactly on the surface) contributes nothing rather than infinity.
-fn delta_sample(l: &Light, p: Vec3) -> Option<(Vec3, f32, Vec3)> {
+pub fn delta_sample(l: &Light, p: Vec3) -> Option<(Vec3, f32, Vec3)> {
     match *l {
         Light::Point { position, intensity } => {
             let d = position - p;

@@ -5,6 +5,7 @@ pub mod builder;
 pub mod envmap;
 pub mod format;
 pub mod load_scene;
+pub mod move_object;
 pub mod obj;
 pub mod shapes;
 
@@ -12,4 +13,5 @@ use relume_core::Registry;
 
 pub fn register(reg: &mut Registry) {
     reg.add(load_scene::LoadScene);
+    reg.add(move_object::MoveObject);
 }
