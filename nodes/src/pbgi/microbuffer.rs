@@ -1,0 +1,223 @@
+//! The receiver's microbuffer: a hemisphere of incoming radiance with depth, in the
+//! receiver's local frame (+z the normal), mapped by the Nusselt analog: direction (x, y, z)
+//! lands at (x, y) on the unit disk, so every pixel inside the disk subtends the same
+//! projected solid angle (2/N)² and the cosine-weighted convolution is a plain sum.
+
+use crate::brdf;
+use crate::types::Material;
+use glam::Vec3;
+
+#[derive(Clone)]
+pub struct Microbuffer {
+    n: usize,
+    /// Local direction of each pixel centre (None outside the disk).
+    dirs: Vec<Option<Vec3>>,
+    pub depth: Vec<f32>,
+    pub radiance: Vec<Vec3>,
+}
+
+impl Microbuffer {
+    /// An N × N buffer (N ≥ 1; N = 1 is one pixel for the whole hemisphere).
+    pub fn new(n: usize) -> Self {
+        let n = n.max(1);
+        let dirs = (0..n * n)
+            .map(|i| {
+                let (x, y) = (((i % n) as f32 + 0.5) / n as f32 * 2.0 - 1.0, ((i / n) as f32 + 0.5) / n as f32 * 2.0 - 1.0);
+                let r2 = x * x + y * y;
+                if n == 1 {
+                    Some(Vec3::Z)
+                } else {
+                    (r2 < 1.0).then(|| Vec3::new(x, y, (1.0 - r2).sqrt()))
+                }
+            })
+            .collect();
+        Microbuffer { n, dirs, depth: vec![f32::INFINITY; n * n], radiance: vec![Vec3::ZERO; n * n] }
+    }
+
+    pub fn resolution(&self) -> usize {
+        self.n
+    }
+
+    pub fn clear(&mut self) {
+        self.depth.fill(f32::INFINITY);
+        self.radiance.fill(Vec3::ZERO);
+    }
+
+    /// Projected solid angle of one pixel: (2/N)², or π for the single-pixel buffer.
+    pub fn pixel_weight(&self) -> f32 {
+        if self.n == 1 {
+            std::f32::consts::PI
+        } else {
+            4.0 / (self.n * self.n) as f32
+        }
+    }
+
+    /// Mean solid angle of a pixel inside the disk (2π over the π N²/4 pixels).
+    pub fn mean_pixel_solid_angle(&self) -> f32 {
+        if self.n == 1 {
+            2.0 * std::f32::consts::PI
+        } else {
+            8.0 / (self.n * self.n) as f32
+        }
+    }
+
+    fn pixel_of(&self, d: Vec3) -> usize {
+        let n = self.n as f32;
+        let x = (((d.x + 1.0) * 0.5 * n) as usize).min(self.n - 1);
+        let y = (((d.y + 1.0) * 0.5 * n) as usize).min(self.n - 1);
+        y * self.n + x
+    }
+
+    fn write(&mut self, i: usize, depth: f32, l: Vec3) {
+        if depth < self.depth[i] {
+            self.depth[i] = depth;
+            self.radiance[i] = l;
+        }
+    }
+
+    /// Rasterises a node seen in local direction `d` (unit, z > 0 part is visible) at distance
+    /// `dist`, subtending solid angle `omega`, with radiance `l`. A node smaller than its pixel
+    /// writes one pixel with radiance scaled by its share of the pixel (coverage); a larger
+    /// one covers the pixels within its angular radius.
+    pub fn splat(&mut self, d: Vec3, dist: f32, omega: f32, l: Vec3) {
+        if d.z <= 0.0 || omega <= 0.0 {
+            return;
+        }
+        let alpha = (omega / std::f32::consts::PI).sqrt().min(std::f32::consts::FRAC_PI_2);
+        let centre = self.pixel_of(d);
+        let pixel_omega = self.pixel_weight() / d.z.max(1e-3);
+        if omega <= pixel_omega || self.n == 1 {
+            let cov = (omega / pixel_omega).min(1.0);
+            self.write(centre, dist, l * cov);
+            return;
+        }
+        // Pixels whose centre lies within the angular radius; the footprint on the disk is at
+        // most sin α wide around (d.x, d.y).
+        let n = self.n as f32;
+        let reach = alpha.sin() + 2.0 / n;
+        let lo = |c: f32| (((c - reach + 1.0) * 0.5 * n).floor().max(0.0)) as usize;
+        let hi = |c: f32| (((c + reach + 1.0) * 0.5 * n).ceil().min(n - 1.0)) as usize;
+        let cos_a = alpha.cos();
+        let mut any = false;
+        for y in lo(d.y)..=hi(d.y) {
+            for x in lo(d.x)..=hi(d.x) {
+                let i = y * self.n + x;
+                if let Some(w) = self.dirs[i] {
+                    if w.dot(d) >= cos_a {
+                        self.write(i, dist, l);
+                        any = true;
+                    }
+                }
+            }
+        }
+        if !any {
+            self.write(centre, dist, l * (omega / pixel_omega).min(1.0));
+        }
+    }
+
+    /// Exact raster of a disk (centre `c` relative to the receiver, normal `nrm`, radius `r`,
+    /// all local): each pixel's centre ray is intersected with the disk. The front side shows
+    /// `l`, the back side occludes in black.
+    pub fn disk_exact(&mut self, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
+        for i in 0..self.dirs.len() {
+            let Some(w) = self.dirs[i] else { continue };
+            let denom = w.dot(nrm);
+            if denom.abs() < 1e-8 {
+                continue;
+            }
+            let t = c.dot(nrm) / denom;
+            if t <= eps || (w * t - c).length_squared() > r * r {
+                continue;
+            }
+            self.write(i, t, if denom < 0.0 { l } else { Vec3::ZERO });
+        }
+    }
+
+    /// Outgoing radiance of a receiver whose own frame differs from the buffer's (the
+    /// factorised gather shares one buffer per cluster): each pixel's direction is taken to
+    /// the receiver's frame and weighted by cos θ_receiver / cos θ_buffer. `wo` is in world
+    /// space.
+    pub fn convolve_in(&self, m: &Material, wo: Vec3, buffer: &crate::math::frame::Frame, receiver: &crate::math::frame::Frame) -> Vec3 {
+        let w = self.pixel_weight();
+        let wo_r = receiver.to_local(wo);
+        let mut sum = Vec3::ZERO;
+        for (d, l) in self.dirs.iter().zip(&self.radiance) {
+            if let (Some(d), true) = (d, *l != Vec3::ZERO) {
+                let wi_r = receiver.to_local(buffer.to_world(*d));
+                if wi_r.z > 0.0 {
+                    // brdf::eval excludes the cosine; the pixel's projected solid angle is
+                    // w with respect to the buffer's normal: dω = w / cos θ_buffer.
+                    sum += brdf::eval(m, wo_r, wi_r) * *l * (wi_r.z / d.z.max(1e-4));
+                }
+            }
+        }
+        sum * w
+    }
+
+    /// Outgoing radiance toward `wo` (local): Σ f(wo, wi) L(wi) · pixel weight.
+    pub fn convolve(&self, m: &Material, wo: Vec3) -> Vec3 {
+        let w = self.pixel_weight();
+        let mut sum = Vec3::ZERO;
+        for (d, l) in self.dirs.iter().zip(&self.radiance) {
+            if let Some(d) = d {
+                if *l != Vec3::ZERO {
+                    sum += brdf::eval(m, wo, *d) * *l;
+                }
+            }
+        }
+        sum * w
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_uniformly_bright_hemisphere_gives_albedo_times_radiance() {
+        // L = 1 everywhere: a Lambert receiver reflects its albedo (the disk pixels' weights
+        // add up to π, up to the pixelised disk's area).
+        for n in [8, 32, 64, 256] {
+            let mut mb = Microbuffer::new(n);
+            for i in 0..n * n {
+                if mb.dirs[i].is_some() {
+                    mb.radiance[i] = Vec3::ONE;
+                }
+            }
+            let out = mb.convolve(&Material::Lambert { albedo: Vec3::splat(0.5) }, Vec3::Z);
+            assert!((out.x - 0.5).abs() < 0.5 * 4.0 / n as f32, "n = {n}: {}", out.x);
+        }
+        let mut one = Microbuffer::new(1);
+        one.radiance[0] = Vec3::ONE;
+        assert!((one.convolve(&Material::Lambert { albedo: Vec3::ONE }, Vec3::Z).x - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn nearer_splats_win_and_small_ones_count_their_coverage() {
+        let mut mb = Microbuffer::new(16);
+        let d = Vec3::new(0.1, 0.2, 1.0).normalize();
+        mb.splat(d, 2.0, 1e-4, Vec3::ONE);
+        let i = mb.pixel_of(d);
+        let cov = mb.radiance[i].x;
+        assert!(cov > 0.0 && cov < 0.05, "{cov}");
+        mb.splat(d, 1.0, 0.5, Vec3::splat(3.0));
+        assert_eq!(mb.radiance[i], Vec3::splat(3.0));
+        mb.splat(d, 5.0, 0.5, Vec3::splat(9.0));
+        assert_eq!(mb.radiance[i], Vec3::splat(3.0), "farther does not overwrite");
+        let covered = mb.radiance.iter().filter(|l| l.x == 3.0).count();
+        assert!(covered > 5, "a large node covers many pixels: {covered}");
+    }
+
+    #[test]
+    fn an_exact_disk_shows_its_front_and_hides_behind_its_back() {
+        let mut mb = Microbuffer::new(32);
+        // A disk straight above, facing down (toward the receiver): visible.
+        mb.disk_exact(Vec3::new(0.0, 0.0, 1.0), -Vec3::Z, 0.5, Vec3::ONE, 1e-6);
+        let lit = mb.radiance.iter().filter(|l| l.x == 1.0).count();
+        // Its solid angle is 2π(1 − cos atan 0.5); its projected share of the π-disk, in pixels.
+        assert!(lit > 100, "{lit}");
+        let mut back = Microbuffer::new(32);
+        back.disk_exact(Vec3::new(0.0, 0.0, 1.0), Vec3::Z, 0.5, Vec3::ONE, 1e-6);
+        assert!(back.radiance.iter().all(|l| *l == Vec3::ZERO) && back.depth.iter().any(|d| d.is_finite()), "black occluder");
+    }
+}
