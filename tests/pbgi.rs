@@ -104,3 +104,40 @@ fn moving_the_light_reruns_shading_onward_but_not_the_surface_points() {
     assert_eq!(ran(&r), ["bvh", "combine", "direct", "gather", "gbuffer", "move", "shade", "tree"]);
     assert!(r.node("points").is_some_and(|n| n.status == "cached"));
 }
+
+#[test]
+fn the_factorized_gather_rasterises_far_fewer_nodes_per_receiver_and_agrees_with_the_plain_one() {
+    use relume_nodes::image::image_error::error_metrics;
+    use relume_nodes::pbgi::cluster_receivers::{cluster_receivers, ClusterReceiversParams};
+    use relume_nodes::pbgi::factorized_gather::{factorized_gather, FactorizedGatherParams};
+    for name in ["cornell", "cornell-bunny"] {
+        let mut scene = relume_nodes::scene::format::load_scene_file(&graphs_dir().join(format!("scenes/{name}.ron"))).unwrap().scene;
+        scene.camera.width = 64;
+        scene.camera.height = 64;
+        let accel = Accel::build(&scene, BuildQuality::Medium);
+        let pts = sample_surface(&scene, &SampleSurfaceParams { method: Method::AreaCdf, count: 20_000, seed: 7, emitters: false }).unwrap();
+        let (b, _) = shade_direct(&scene, &accel, &pts, &ShadeDirectParams { samples: 8, seed: 1 });
+        let tree = PointTree::build(&pts, &b);
+        let r = gbuffer(&scene, &accel);
+        let clusters = cluster_receivers(&r, &ClusterReceiversParams { tile: 32, k: 100, iterations: 10, seed: 3 }, None).unwrap().0;
+        let (plain, cp) = gather(&tree, &r, &PbgiGatherParams { resolution: 16, threshold: 1.0 }, scene.extent());
+        let (fact, cf) = factorized_gather(&tree, &r, &clusters, &FactorizedGatherParams { resolution: 16, threshold: 1.0, epsilon: 0.1 }, scene.extent());
+        let (np, nf) = (cp.rasterised as f64 / r.len() as f64, cf.rasterised as f64 / r.len() as f64);
+        assert!(nf < 0.5 * np, "{name}: nodes rasterised per receiver {nf} (factorised) vs {np} (plain)");
+        let mse = error_metrics(&fact, &plain, 1.0, 0.01).get("mse").unwrap();
+        assert!(mse <= 1e-4, "{name}: MSE between the two {mse}");
+    }
+}
+
+#[test]
+fn changing_k_reruns_only_the_clustering_and_the_factorized_gather() {
+    let reg = relume_nodes::registry();
+    let mut g = Graph::load(&graphs_dir().join("fpbgi_cornell.ron"), &reg).unwrap();
+    for (k, v) in [("scene.width", "16"), ("scene.height", "16"), ("points.count", "3000"), ("direct.spp", "2"), ("shade.samples", "2")] {
+        g.set_param_text(&reg, k, v).unwrap();
+    }
+    let e = engine();
+    run(&e, &g);
+    g.set_param_text(&reg, "clusters.k", "20").unwrap();
+    assert_eq!(ran(&run(&e, &g)), ["clusters", "combine", "gather"]);
+}
