@@ -3,4 +3,5 @@
 pub mod frame;
 pub mod rng;
 pub mod sampling;
+pub mod sh;
 pub mod ssim;
