@@ -4,4 +4,5 @@ pub mod frame;
 pub mod kmeans;
 pub mod rng;
 pub mod sampling;
+pub mod sh;
 pub mod ssim;

@@ -1,13 +1,20 @@
 //! Point-based global illumination (PIPELINES.md pipeline 4; [P] chapters 2–3).
 
 pub mod cluster_receivers;
+pub mod factorized_gather;
 pub mod gbuffer;
+pub mod microbuffer;
+pub mod pbgi_gather;
+pub mod point_tree;
 pub mod shade_direct;
 
 use relume_core::Registry;
 
 pub fn register(reg: &mut Registry) {
     reg.add(shade_direct::ShadeDirect);
+    reg.add(point_tree::BuildPointTree);
     reg.add(gbuffer::GBuffer);
+    reg.add(pbgi_gather::PbgiGather);
     reg.add(cluster_receivers::ClusterReceivers);
+    reg.add(factorized_gather::FactorizedGather);
 }
