@@ -36,14 +36,22 @@ fn setup(name: &str) -> &'static Setup {
             .map(|n| {
                 let s = scene(n, Some(256));
                 let accel = Accel::build(&s, BuildQuality::Medium);
-                let pts = sample_surface(&s, &SampleSurfaceParams { method: Method::AreaCdf, count: 100_000, seed: 7, emitters: false }).unwrap();
+                let pts =
+                    sample_surface(&s, &SampleSurfaceParams { method: Method::AreaCdf, count: 100_000, seed: 7, emitters: false }).unwrap();
                 let (b, _) = shade_direct(&s, &accel, &pts, &ShadeDirectParams { samples: 16, seed: 1 });
                 let tree = PointTree::build(&pts, &b);
                 let receivers = gbuffer(&s, &accel);
-                let clusters = cluster_receivers(&receivers, &ClusterReceiversParams { tile: 32, k: 100, iterations: 10, seed: 3 }, None).unwrap().0;
+                let clusters =
+                    cluster_receivers(&receivers, &ClusterReceiversParams { tile: 32, k: 100, iterations: 10, seed: 3 }, None).unwrap().0;
                 let setup: &'static Setup = Box::leak(Box::new(Setup { tree, receivers, clusters, extent: s.extent() }));
                 let (a, ca) = gather(&setup.tree, &setup.receivers, &PbgiGatherParams { resolution: RES, threshold: 1.0 }, setup.extent);
-                let (f, cf) = factorized_gather(&setup.tree, &setup.receivers, &setup.clusters, &FactorizedGatherParams { resolution: RES, threshold: 1.0, epsilon: 0.1 }, setup.extent);
+                let (f, cf) = factorized_gather(
+                    &setup.tree,
+                    &setup.receivers,
+                    &setup.clusters,
+                    &FactorizedGatherParams { resolution: RES, threshold: 1.0, epsilon: 1.0 },
+                    setup.extent,
+                );
                 let m = error_metrics(&f, &a, 1.0, 0.01);
                 let n = setup.receivers.len() as f64;
                 eprintln!(
@@ -68,5 +76,15 @@ fn pbgi_gather(bencher: divan::Bencher, name: &str) {
 #[divan::bench(args = ["cornell", "cornell-bunny"], sample_count = 3)]
 fn factorized_gather_(bencher: divan::Bencher, name: &str) {
     let s = setup(name);
-    bencher.bench_local(|| factorized_gather(&s.tree, &s.receivers, &s.clusters, &FactorizedGatherParams { resolution: RES, threshold: 1.0, epsilon: 0.1 }, s.extent).1.rasterised);
+    bencher.bench_local(|| {
+        factorized_gather(
+            &s.tree,
+            &s.receivers,
+            &s.clusters,
+            &FactorizedGatherParams { resolution: RES, threshold: 1.0, epsilon: 1.0 },
+            s.extent,
+        )
+        .1
+        .rasterised
+    });
 }

