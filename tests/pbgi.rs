@@ -148,3 +148,15 @@ fn changing_k_reruns_only_the_clustering_and_the_factorized_gather() {
     g.set_param_text(&reg, "clusters.k", "20").unwrap();
     assert_eq!(ran(&run(&e, &g)), ["clusters", "combine", "gather"]);
 }
+
+#[test]
+fn asking_only_for_the_direct_image_builds_no_points_tree_or_gather() {
+    let reg = relume_nodes::registry();
+    let mut g = Graph::load(&graphs_dir().join("pbgi_cornell.ron"), &reg).unwrap();
+    for (k, v) in [("scene.width", "16"), ("scene.height", "16"), ("direct.spp", "2")] {
+        g.set_param_text(&reg, k, v).unwrap();
+    }
+    let opts = relume_core::RunOptions { outputs: Some(vec!["direct".into()]), ..Default::default() };
+    let r = engine().run(&g, &opts).unwrap().report;
+    assert_eq!(ran(&r), ["bvh", "direct", "move", "scene"]);
+}

@@ -41,6 +41,10 @@ pub(crate) struct SweepArgs {
     /// Node whose metric is plotted (default: the first node, in graph order, reporting it).
     #[arg(long, value_name = "NODE")]
     error_node: Option<String>,
+    /// Node whose metric is plotted for the baseline rows (default: the same as --error-node);
+    /// the baseline often has its own error node (a path tracer against the same reference).
+    #[arg(long, value_name = "NODE", requires = "baseline")]
+    baseline_error_node: Option<String>,
     /// No progress bars and no table.
     #[arg(long, short)]
     quiet: bool,
@@ -145,7 +149,14 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
     relume_core::graph::write_atomic(&csv_path, csv.as_bytes())
         .map_err(|e| CliError::run(format!("cannot write {}: {e}", csv_path.display())))?;
 
-    let metric_of = |r: &Row| r.report.node(&error_node).and_then(|n| n.metrics.get(&a.metric).copied()).unwrap_or(f64::NAN);
+    let baseline_node = a.baseline_error_node.clone().unwrap_or_else(|| error_node.clone());
+    if base.node(&baseline_node).is_none() {
+        return Err(CliError::graph(format!("--baseline-error-node {baseline_node}: no such node in the graph")));
+    }
+    let metric_of = |r: &Row| {
+        let node = if r.series == Series::Baseline { &baseline_node } else { &error_node };
+        r.report.node(node).and_then(|n| n.metrics.get(&a.metric).copied()).unwrap_or(f64::NAN)
+    };
     let curve = |series: Series, name: String, color: RGBColor| Curve {
         name,
         color,
@@ -157,7 +168,8 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
         curves.push(curve(Series::Method, name, RGBColor(31, 119, 180)));
     }
     if let Some(b) = &a.baseline {
-        curves.push(curve(Series::Baseline, format!("baseline ({b} = 1, 2, 4, …)"), RGBColor(214, 39, 40)));
+        let of = if baseline_node != error_node { format!(", error of \"{baseline_node}\"") } else { String::new() };
+        curves.push(curve(Series::Baseline, format!("baseline ({b} = 1, 2, 4, …{of})"), RGBColor(214, 39, 40)));
     }
     let title = a.g.graph.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_else(|| a.g.graph.display().to_string());
     let axes = Axes {
