@@ -179,3 +179,16 @@ fn unknown_nodes_params_metrics_and_empty_lists_exit_2() {
     assert_eq!(sweep(&[]), 2, "neither --vary nor --baseline");
     assert!(!out.join("sweep.csv").exists(), "nothing written for bad input");
 }
+
+#[test]
+fn the_baseline_can_plot_its_own_error_node_and_an_unknown_one_exits_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let graph = relume_tests::graphs_dir().join("image_error.ron");
+    let g = graph.to_str().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let ok = relume(&["sweep", g, "--baseline", "denoise.radius", "--baseline-max", "2", "--error-node", "error", "--baseline-error-node", "error_denoised", "--out", out, "--no-disk-cache", "-q"]);
+    assert_eq!(ok, 0);
+    assert!(dir.path().join("sweep.png").is_file());
+    let bad = relume(&["sweep", g, "--baseline", "denoise.radius", "--baseline-max", "2", "--baseline-error-node", "nobody", "--out", out, "--no-disk-cache", "-q"]);
+    assert_eq!(bad, 2);
+}
