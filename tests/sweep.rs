@@ -44,7 +44,7 @@ fn sweeping_blur_sigma_writes_three_method_rows_with_different_errors_and_a_png_
     assert_eq!(code, 0);
 
     let (header, rows) = read_csv(&out.join("sweep.csv"));
-    assert_eq!(&header[..5], ["series", "variant", "blur.sigma", "time_ms", "total_ms"]);
+    assert_eq!(&header[..6], ["series", "variant", "blur.sigma", "time_ms", "pipeline_ms", "total_ms"]);
     for name in ["error.mse", "error.rel_mse", "error.psnr_db", "error.l2_percent", "ms:clean", "ms:blur", "ms:error"] {
         col(&header, name);
     }
@@ -55,7 +55,12 @@ fn sweeping_blur_sigma_writes_three_method_rows_with_different_errors_and_a_png_
     for r in &rows {
         assert_eq!(r[0], "method");
         assert!(num(&r[time]) > 0.0, "blur and everything below it ran: {r:?}");
+        // The pipeline behind the error node's image (noisy, sum, median, blur; not the clean
+        // reference) costs its full compute time in every row, cached parts included.
+        assert!(num(&r[col(&header, "pipeline_ms")]) >= num(&r[col(&header, "ms:blur")]), "{r:?}");
     }
+    let pipe = col(&header, "pipeline_ms");
+    assert!(num(&rows[2][pipe]) > num(&rows[2][col(&header, "ms:blur")]), "the cached median and noise still count");
     let rels: Vec<f64> = rows.iter().map(|r| num(&r[rel])).collect();
     assert!(rels.iter().all(|v| v.is_finite() && *v > 0.0), "{rels:?}");
     assert!(rels[0] != rels[1] && rels[1] != rels[2] && rels[0] != rels[2], "{rels:?}");
@@ -186,9 +191,37 @@ fn the_baseline_can_plot_its_own_error_node_and_an_unknown_one_exits_2() {
     let graph = relume_tests::graphs_dir().join("image_error.ron");
     let g = graph.to_str().unwrap();
     let out = dir.path().to_str().unwrap();
-    let ok = relume(&["sweep", g, "--baseline", "denoise.radius", "--baseline-max", "2", "--error-node", "error", "--baseline-error-node", "error_denoised", "--out", out, "--no-disk-cache", "-q"]);
+    let ok = relume(&[
+        "sweep",
+        g,
+        "--baseline",
+        "denoise.radius",
+        "--baseline-max",
+        "2",
+        "--error-node",
+        "error",
+        "--baseline-error-node",
+        "error_denoised",
+        "--out",
+        out,
+        "--no-disk-cache",
+        "-q",
+    ]);
     assert_eq!(ok, 0);
     assert!(dir.path().join("sweep.png").is_file());
-    let bad = relume(&["sweep", g, "--baseline", "denoise.radius", "--baseline-max", "2", "--baseline-error-node", "nobody", "--out", out, "--no-disk-cache", "-q"]);
+    let bad = relume(&[
+        "sweep",
+        g,
+        "--baseline",
+        "denoise.radius",
+        "--baseline-max",
+        "2",
+        "--baseline-error-node",
+        "nobody",
+        "--out",
+        out,
+        "--no-disk-cache",
+        "-q",
+    ]);
     assert_eq!(bad, 2);
 }

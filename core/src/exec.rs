@@ -237,7 +237,8 @@ impl Engine {
                 let kind = self.kind_of(graph, i);
                 let id = &graph.nodes[i].id;
                 match result {
-                    Ok(entry) => {
+                    Ok(mut entry) => {
+                        entry.compute_ms = ms;
                         let entry = Arc::new(entry);
                         self.store(kind.as_ref(), state.keys[i], entry.clone());
                         if let Some(o) = opts.observer {
@@ -300,7 +301,7 @@ fn run_node(
         Ok(Ok(())) => {
             let outputs = io.finish()?;
             let (metrics, notes, deps) = cx.take();
-            Ok(CacheEntry { outputs, metrics, notes, deps })
+            Ok(CacheEntry { outputs, metrics, notes, deps, compute_ms: 0.0 })
         }
         Ok(Err(e)) => Err(e),
         Err(panic) => {
@@ -347,6 +348,7 @@ impl<'g> RunState<'g> {
                 NodeStatus::CachedDisk => Some("disk"),
             },
             wall_ms: ms,
+            compute_ms: entry.compute_ms,
             bytes: entry.bytes(),
             key: key.hex(),
             metrics: entry.metrics.iter().cloned().collect(),

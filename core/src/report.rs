@@ -14,6 +14,8 @@ pub struct NodeReport {
     pub cache: Option<&'static str>,
     /// Time spent on this node in this run (cache lookup for cached nodes).
     pub wall_ms: f64,
+    /// Time the node took when it last ran (its own cost, cached or not).
+    pub compute_ms: f64,
     /// Bytes of the node's outputs.
     pub bytes: usize,
     /// Cache key (hex).

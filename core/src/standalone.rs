@@ -34,5 +34,5 @@ pub fn run_standalone<N: Node>(
     node.run(&N::Params::from_values(&values), &mut io, &cx)?;
     let outputs = io.finish()?;
     let (metrics, notes, deps) = cx.take();
-    Ok(CacheEntry { outputs, metrics, notes, deps })
+    Ok(CacheEntry { outputs, metrics, notes, deps, compute_ms: 0.0 })
 }

@@ -9,7 +9,7 @@ use crate::port::PortDecl;
 use crate::registry::Registry;
 use std::path::{Path, PathBuf};
 
-const MAGIC: &[u8; 8] = b"RELUMEC2";
+const MAGIC: &[u8; 8] = b"RELUMEC3";
 
 pub struct DiskCache {
     dir: PathBuf,
@@ -62,6 +62,7 @@ impl DiskCache {
             put_str(&mut buf, &path.to_string_lossy());
             buf.extend_from_slice(&h.0);
         }
+        put_u64(&mut buf, entry.compute_ms.to_bits());
         for p in &payloads {
             buf.extend_from_slice(p);
         }
@@ -109,6 +110,7 @@ fn decode(bytes: &[u8], key: &Hash, decls: &[PortDecl], reg: &Registry) -> Optio
     let metrics = (0..r.u32()?).map(|_| Some((r.str()?, f64::from_bits(r.u64()?)))).collect::<Option<Vec<_>>>()?;
     let notes = (0..r.u32()?).map(|_| r.str()).collect::<Option<Vec<_>>>()?;
     let deps = (0..r.u32()?).map(|_| Some((PathBuf::from(r.str()?), Hash(r.take(32)?.try_into().ok()?)))).collect::<Option<Vec<_>>>()?;
+    let compute_ms = f64::from_bits(r.u64()?);
     let mut outputs = Vec::with_capacity(n);
     for ((fp, len), d) in heads.into_iter().zip(decls) {
         let info = reg.port_type(d.ty.name)?;
@@ -118,7 +120,7 @@ fn decode(bytes: &[u8], key: &Hash, decls: &[PortDecl], reg: &Registry) -> Optio
         }
         outputs.push(v);
     }
-    (r.at == body.len()).then_some(CacheEntry { outputs, metrics, notes, deps })
+    (r.at == body.len()).then_some(CacheEntry { outputs, metrics, notes, deps, compute_ms })
 }
 
 fn put_u32(b: &mut Vec<u8>, v: u32) {

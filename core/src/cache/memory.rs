@@ -97,7 +97,7 @@ mod tests {
     }
 
     fn entry(n: usize) -> Arc<CacheEntry> {
-        Arc::new(CacheEntry { outputs: vec![Value::new(Blob(vec![0; n]))], metrics: vec![], notes: vec![], deps: vec![] })
+        Arc::new(CacheEntry { outputs: vec![Value::new(Blob(vec![0; n]))], metrics: vec![], notes: vec![], deps: vec![], compute_ms: 0.0 })
     }
 
     #[test]

@@ -20,6 +20,9 @@ pub struct CacheEntry {
     /// Files the node read beyond its file parameters (an OBJ named inside a scene file),
     /// with their content hashes: the entry is valid only while they are unchanged.
     pub deps: Vec<(PathBuf, Hash)>,
+    /// How long the node took when it ran (ms), kept so that a cached result still says what
+    /// it cost (error-against-time sweeps count the whole pipeline).
+    pub compute_ms: f64,
 }
 
 impl CacheEntry {

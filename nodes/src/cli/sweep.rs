@@ -45,9 +45,46 @@ pub(crate) struct SweepArgs {
     /// the baseline often has its own error node (a path tracer against the same reference).
     #[arg(long, value_name = "NODE", requires = "baseline")]
     baseline_error_node: Option<String>,
+    /// x axis: `pipeline` = what the plotted image costs in full (the compute time of every
+    /// node feeding the error node's `image` but not its `reference`, cached or not);
+    /// `ran` = the wall time of the nodes that ran in the variant (cached nodes cost 0).
+    #[arg(long, value_enum, default_value = "pipeline")]
+    time: TimeAxis,
     /// No progress bars and no table.
     #[arg(long, short)]
     quiet: bool,
+}
+
+/// What the plot's time axis measures.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum TimeAxis {
+    Pipeline,
+    Ran,
+}
+
+/// Nodes whose cost counts toward the plotted image: upstream of the error node's `image`
+/// input and not upstream of its `reference` input (the reference is the yardstick, not part
+/// of the method). Without those inputs: everything upstream of the node.
+fn pipeline_nodes(g: &Graph, error_node: &str) -> std::collections::HashSet<String> {
+    let upstream = |start: Vec<String>| {
+        let mut seen = std::collections::HashSet::new();
+        let mut stack = start;
+        while let Some(id) = stack.pop() {
+            if seen.insert(id.clone()) {
+                stack.extend(g.edges_into(&id).map(|e| e.from.node.clone()));
+            }
+        }
+        seen
+    };
+    let from = |port: &str| g.edges_into(error_node).filter(|e| e.to.port == port).map(|e| e.from.node.clone()).collect::<Vec<_>>();
+    let (image, reference) = (from("image"), from("reference"));
+    if image.is_empty() {
+        let mut all = upstream(vec![error_node.to_string()]);
+        all.remove(error_node);
+        return all;
+    }
+    let r = upstream(reference);
+    upstream(image).into_iter().filter(|n| !r.contains(n)).collect()
 }
 
 /// Which curve a row belongs to.
@@ -84,6 +121,8 @@ struct Row {
     /// Value of each parameter column, as canonical RON text.
     params: Vec<String>,
     time_ms: f64,
+    /// Compute time of the pipeline behind the plotted image (see `--time pipeline`).
+    pipeline_ms: f64,
     report: RunReport,
 }
 
@@ -136,12 +175,22 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
         }
         let params = columns.iter().map(|c| param_text(reg, &v.graph, c)).collect();
         let time_ms = result.report.nodes.iter().filter(|n| n.status == "ran").fold(0.0, |t, n| t + n.wall_ms);
-        rows.push(Row { series: v.series, label: v.label, short: v.short, params, time_ms, report: result.report });
+        rows.push(Row { series: v.series, label: v.label, short: v.short, params, time_ms, pipeline_ms: 0.0, report: result.report });
     }
     let error_node = error_node.expect("a sweep runs at least one variant");
 
     let csv_path = a.csv.clone().unwrap_or_else(|| a.out.join("sweep.csv"));
     let plot_path = a.plot.clone().unwrap_or_else(|| csv_path.with_extension("png"));
+    let baseline_node = a.baseline_error_node.clone().unwrap_or_else(|| error_node.clone());
+    if base.node(&baseline_node).is_none() {
+        return Err(CliError::graph(format!("--baseline-error-node {baseline_node}: no such node in the graph")));
+    }
+    let (method_cost, baseline_cost) = (pipeline_nodes(&base, &error_node), pipeline_nodes(&base, &baseline_node));
+    for r in &mut rows {
+        let nodes = if r.series == Series::Baseline { &baseline_cost } else { &method_cost };
+        r.pipeline_ms = r.report.nodes.iter().filter(|n| nodes.contains(&n.id)).map(|n| n.compute_ms).sum();
+    }
+    let x_of = |r: &Row| if a.time == TimeAxis::Ran { r.time_ms } else { r.pipeline_ms };
     let csv = write_csv(&base, &columns, &rows);
     if let Some(dir) = csv_path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| CliError::run(format!("cannot create {}: {e}", dir.display())))?;
@@ -149,10 +198,6 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
     relume_core::graph::write_atomic(&csv_path, csv.as_bytes())
         .map_err(|e| CliError::run(format!("cannot write {}: {e}", csv_path.display())))?;
 
-    let baseline_node = a.baseline_error_node.clone().unwrap_or_else(|| error_node.clone());
-    if base.node(&baseline_node).is_none() {
-        return Err(CliError::graph(format!("--baseline-error-node {baseline_node}: no such node in the graph")));
-    }
     let metric_of = |r: &Row| {
         let node = if r.series == Series::Baseline { &baseline_node } else { &error_node };
         r.report.node(node).and_then(|n| n.metrics.get(&a.metric).copied()).unwrap_or(f64::NAN)
@@ -160,7 +205,7 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
     let curve = |series: Series, name: String, color: RGBColor| Curve {
         name,
         color,
-        points: rows.iter().filter(|r| r.series == series).map(|r| (r.time_ms, metric_of(r), r.short.clone())).collect(),
+        points: rows.iter().filter(|r| r.series == series).map(|r| (x_of(r), metric_of(r), r.short.clone())).collect(),
     };
     let mut curves = Vec::new();
     if !varies.is_empty() {
@@ -174,14 +219,17 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
     let title = a.g.graph.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_else(|| a.g.graph.display().to_string());
     let axes = Axes {
         title,
-        x_label: "time (ms): wall time of the nodes that ran, cached nodes cost 0".into(),
+        x_label: match a.time {
+            TimeAxis::Ran => "time (ms): wall time of the nodes that ran, cached nodes cost 0".into(),
+            TimeAxis::Pipeline => "time (ms): compute time of the pipeline that made the image (reference excluded)".into(),
+        },
         y_label: format!("{}{} of node \"{error_node}\"", a.metric, unit_of(&a.metric)),
     };
     let warnings = plot_log_log(&plot_path, &axes, &curves).map_err(CliError::run)?;
     for w in warnings {
         eprintln!("warning: {w}");
     }
-    if rows.iter().any(|r| r.time_ms <= 0.0) && !a.quiet {
+    if a.time == TimeAxis::Ran && rows.iter().any(|r| r.time_ms <= 0.0) && !a.quiet {
         eprintln!(
             "note: variants whose nodes all came from the cache cost 0 ms; to time every variant from scratch use --no-disk-cache or a fresh --cache folder"
         );
@@ -380,7 +428,7 @@ fn write_csv(graph: &Graph, columns: &[String], rows: &[Row]) -> String {
     }
     let mut header: Vec<String> = vec!["series".into(), "variant".into()];
     header.extend(columns.iter().cloned());
-    header.extend(["time_ms".to_string(), "total_ms".to_string()]);
+    header.extend(["time_ms".to_string(), "pipeline_ms".to_string(), "total_ms".to_string()]);
     header.extend(metrics.iter().map(|(n, m)| format!("{n}.{m}")));
     header.extend(nodes.iter().map(|n| format!("ms:{n}")));
     let mut out = csv_line(&header);
@@ -388,6 +436,7 @@ fn write_csv(graph: &Graph, columns: &[String], rows: &[Row]) -> String {
         let mut cells: Vec<String> = vec![r.series.as_str().into(), r.label.clone()];
         cells.extend(r.params.iter().cloned());
         cells.push(format!("{:.4}", r.time_ms));
+        cells.push(format!("{:.4}", r.pipeline_ms));
         cells.push(format!("{:.4}", r.report.total_ms));
         for (n, m) in &metrics {
             cells.push(r.report.node(n).and_then(|n| n.metrics.get(m)).map(|v| v.to_string()).unwrap_or_default());
