@@ -79,3 +79,21 @@ pub mod images {
         out
     }
 }
+
+/// A small point-based GI set-up on `test_scene::spheres()`: tree and receivers.
+pub mod pbgi_setup {
+    use crate::geometry::accel::{Accel, BuildQuality};
+    use crate::geometry::sample_surface::{sample_surface, Method, SampleSurfaceParams};
+    use crate::pbgi::gbuffer::gbuffer;
+    use crate::pbgi::point_tree::PointTree;
+    use crate::pbgi::shade_direct::{shade_direct, ShadeDirectParams};
+    use crate::types::Receivers;
+
+    pub fn tree_and_receivers() -> (PointTree, Receivers) {
+        let scene = super::test_scene::spheres();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let pts = sample_surface(&scene, &SampleSurfaceParams { method: Method::AreaCdf, count: 3000, seed: 1, emitters: false }).unwrap();
+        let (b, _) = shade_direct(&scene, &accel, &pts, &ShadeDirectParams { samples: 1, seed: 0 });
+        (PointTree::build(&pts, &b), gbuffer(&scene, &accel))
+    }
+}

@@ -2,7 +2,7 @@
 
 use super::cluster_receivers::Clusters;
 use super::microbuffer::Microbuffer;
-use super::pbgi_gather::{count_metrics, GatherCounts, Traversal};
+use super::pbgi_gather::{count_metrics, microbuffer_schema, GatherCounts, Traversal};
 use super::point_tree::PointTree;
 use crate::brdf;
 use crate::math::frame::Frame;
@@ -36,13 +36,7 @@ pub struct FactorizedGatherParams {
 
 impl Params for FactorizedGatherParams {
     fn schema() -> Schema {
-        Schema::new()
-            .int("resolution", 16, 1, 256)
-            .unit("px")
-            .help("microbuffer side (N × N pixels over the hemisphere)")
-            .float("threshold", 1.0, 0.01, 100.0)
-            .unit("pixels")
-            .help("largest solid angle of a rasterised node, in microbuffer pixels")
+        microbuffer_schema()
             .float("epsilon", 1.0, 1e-4, 10.0)
             .help("near/far split: a node with r_cluster / d > epsilon is left to each receiver")
     }
@@ -148,5 +142,40 @@ impl Node for FactorizedGather {
         cx.metric("clusters", c.clusters.len() as f64);
         io.set("indirect", img)?;
         io.set("stats", m)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pbgi::cluster_receivers::{cluster_receivers, ClusterReceiversParams};
+    use crate::testing::{pbgi_setup, run_on};
+    use relume_core::Value;
+
+    #[test]
+    fn the_node_matches_the_plain_gather_closely_and_refuses_foreign_clusters() {
+        let (tree, r) = pbgi_setup::tree_and_receivers();
+        let clusters = cluster_receivers(&r, &ClusterReceiversParams { tile: 8, k: 4, iterations: 5, seed: 1 }, None).unwrap().0;
+        let out =
+            run_on(FactorizedGather, &[], vec![Value::new(tree.clone()), Value::new(r.clone()), Value::new(clusters.clone())]).unwrap();
+        let img = out[0].get::<Image>().unwrap();
+        let plain = crate::pbgi::pbgi_gather::gather(
+            &tree,
+            &r,
+            &crate::pbgi::pbgi_gather::PbgiGatherParams { resolution: 16, threshold: 1.0 },
+            4.0,
+        )
+        .0;
+        let mse = crate::image::image_error::error_metrics(img, &plain, 1.0, 0.01).get("mse").unwrap();
+        assert!(mse < 1e-4, "{mse}");
+        let mut fewer = r.clone();
+        fewer.pixel.pop();
+        fewer.position.pop();
+        fewer.normal.pop();
+        fewer.wo.pop();
+        fewer.object.pop();
+        fewer.material.pop();
+        let e = run_on(FactorizedGather, &[], vec![Value::new(tree), Value::new(fewer), Value::new(clusters)]).unwrap_err();
+        assert!(e.to_string().contains("input `clusters`"), "{e}");
     }
 }

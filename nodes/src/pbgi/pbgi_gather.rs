@@ -27,15 +27,20 @@ pub struct PbgiGatherParams {
     pub threshold: f32,
 }
 
+/// The microbuffer parameters both gathers share.
+pub fn microbuffer_schema() -> Schema {
+    Schema::new()
+        .int("resolution", 16, 1, 256)
+        .unit("px")
+        .help("microbuffer side (N × N pixels over the hemisphere)")
+        .float("threshold", 1.0, 0.01, 100.0)
+        .unit("pixels")
+        .help("largest solid angle of a rasterised node, in microbuffer pixels")
+}
+
 impl Params for PbgiGatherParams {
     fn schema() -> Schema {
-        Schema::new()
-            .int("resolution", 16, 1, 256)
-            .unit("px")
-            .help("microbuffer side (N × N pixels over the hemisphere)")
-            .float("threshold", 1.0, 0.01, 100.0)
-            .unit("pixels")
-            .help("largest solid angle of a rasterised node, in microbuffer pixels")
+        microbuffer_schema()
     }
     fn from_values(v: &ParamValues) -> Self {
         PbgiGatherParams { resolution: v.int("resolution") as usize, threshold: v.float("threshold") as f32 }
@@ -209,5 +214,25 @@ impl Node for PbgiGather {
         }
         io.set("indirect", img)?;
         io.set("stats", m)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::{first, i, pbgi_setup, run_on};
+    use relume_core::Value;
+
+    #[test]
+    fn the_node_lights_the_receivers_and_reports_its_counts() {
+        let (tree, r) = pbgi_setup::tree_and_receivers();
+        let out = run_on(PbgiGather, &[("resolution", i(8))], vec![Value::new(tree), Value::new(r.clone())]).unwrap();
+        let img: Image = first(&out);
+        assert_eq!((img.width, img.height), (r.width, r.height));
+        assert!(img.as_floats().iter().all(|x| x.is_finite() && *x >= 0.0));
+        assert!(img.as_floats().iter().any(|x| *x > 0.0), "light bounces between the spheres and the floor");
+        let stats = out[1].get::<Metrics>().unwrap();
+        assert!(stats.get("nodes_rasterised_per_receiver").unwrap() > 0.0);
+        assert!(stats.get("nodes_visited_per_receiver").unwrap() >= stats.get("nodes_rasterised_per_receiver").unwrap());
     }
 }
