@@ -1,0 +1,452 @@
+//! The editor application: the document, the node-graph view, background runs, the viewer.
+//! `EditorApp::ui` draws one frame on any `egui::Context`, so tests drive it headlessly
+//! through `Context::run` and the window (eframe) calls the same function.
+
+use crate::document::Document;
+use crate::edit;
+use crate::file_dialog::FileDialog;
+use crate::palette::Palette;
+use crate::runner::{NodeState, Runner};
+use crate::screenshot::ScreenshotJob;
+use crate::view::{GraphView, ViewEdit};
+use crate::viewer::Viewer;
+use relume_core::graph::PortRef;
+use relume_core::{Engine, Graph, Registry, RunReport, Value};
+use relume_nodes::types::Image;
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Quiet time after an edit before the automatic re-run starts (a slider drag runs once it
+/// pauses, not on every frame).
+pub const RUN_DEBOUNCE: Duration = Duration::from_millis(150);
+/// How often unsaved work is written to the recovery file.
+const RECOVERY_EVERY: Duration = Duration::from_secs(5);
+/// Graph output name used to view a port that is not one of the graph's outputs.
+const VIEW_OUTPUT: &str = "__view";
+
+pub struct EditorApp {
+    pub registry: Registry,
+    pub doc: Document,
+    pub view: GraphView,
+    pub runner: Runner,
+    pub viewer: Viewer,
+    pub(crate) palette: Palette,
+    pub(crate) dialog: Option<FileDialog>,
+    /// The last message for the status bar (refusals, errors, saves).
+    pub status: String,
+    /// What each node shows, for the current revision.
+    pub states: HashMap<String, NodeState>,
+    planned: Option<(u64, bool)>,
+    /// States the last finished run reported, with the revision it ran.
+    done_states: Option<(u64, HashMap<String, NodeState>)>,
+    /// Re-run automatically after edits.
+    pub auto_run: bool,
+    /// When to start the next automatic run.
+    pending_run: Option<Instant>,
+    /// The first edit the viewer does not show yet.
+    edit_started: Option<Instant>,
+    /// Time from the last edit to its image, in ms.
+    pub edit_to_image_ms: Option<f64>,
+    pub report: Option<RunReport>,
+    /// What the viewer shows: a graph output name, or `node.port`.
+    pub view_target: Option<String>,
+    last_outputs: Vec<(String, Value)>,
+    pub(crate) quit_prompt: bool,
+    allow_close: bool,
+    last_recovery: Instant,
+    recovery_written: u64,
+    pub(crate) recovery_offer: Option<std::path::PathBuf>,
+    pub screenshot: Option<ScreenshotJob>,
+}
+
+impl EditorApp {
+    pub fn new(registry: Registry, engine: Engine) -> Self {
+        let runner = Runner::new(Arc::new(engine));
+        EditorApp {
+            view: GraphView::new(registry.clone()),
+            registry,
+            doc: Document::new(),
+            runner,
+            viewer: Viewer::default(),
+            palette: Palette::default(),
+            dialog: None,
+            status: String::new(),
+            states: HashMap::new(),
+            planned: None,
+            done_states: None,
+            auto_run: true,
+            pending_run: None,
+            edit_started: None,
+            edit_to_image_ms: None,
+            report: None,
+            view_target: None,
+            last_outputs: Vec::new(),
+            quit_prompt: false,
+            allow_close: false,
+            last_recovery: Instant::now(),
+            recovery_written: 0,
+            recovery_offer: None,
+            screenshot: None,
+        }
+    }
+
+    /// Opens a graph file (replacing the document; the caller asks about unsaved changes).
+    pub fn open(&mut self, path: &Path) -> Result<(), String> {
+        let doc = Document::open(path, &self.registry)?;
+        self.runner.cancel();
+        self.recovery_offer = doc.pending_recovery();
+        self.doc = doc;
+        self.view.shown = None;
+        self.view.state.selected_nodes.clear();
+        self.view_target = self.default_view_target();
+        self.viewer.set_image(None);
+        self.report = None;
+        self.done_states = None;
+        self.planned = None;
+        self.status = format!("opened {}", path.display());
+        Ok(())
+    }
+
+    fn port_type(&self, port: &PortRef) -> Option<&'static str> {
+        let n = self.doc.graph.node(&port.node)?;
+        self.registry.node(&n.kind)?.ports().find_output(&port.port).map(|p| p.ty.name)
+    }
+
+    /// Graph outputs that are images, by name.
+    pub fn image_outputs(&self) -> Vec<String> {
+        self.doc.graph.outputs.iter().filter(|o| self.port_type(&o.port) == Some("Image")).map(|o| o.name.clone()).collect()
+    }
+
+    fn default_view_target(&self) -> Option<String> {
+        let outs = self.image_outputs();
+        outs.iter().find(|o| *o == "image").or(outs.first()).cloned()
+    }
+
+    /// Applies an edit as one undo step. `in_view`: the node-graph widget already shows it.
+    pub fn apply<R>(&mut self, tag: &str, in_view: bool, f: impl FnOnce(&mut Graph) -> R) -> R {
+        let r = self.doc.edit(tag, f);
+        if in_view {
+            self.view.shown = Some(self.doc.revision);
+        }
+        self.after_change();
+        r
+    }
+
+    /// After any change of the graph: drop the old run's states and schedule a re-run.
+    fn after_change(&mut self) {
+        self.done_states = None;
+        if self.auto_run && self.report.is_some() {
+            self.pending_run = Some(Instant::now() + RUN_DEBOUNCE);
+            self.edit_started.get_or_insert_with(Instant::now);
+        }
+    }
+
+    pub fn undo(&mut self) {
+        if self.doc.undo() {
+            self.after_change();
+            self.status = "undone".into();
+        }
+    }
+
+    pub fn redo(&mut self) {
+        if self.doc.redo() {
+            self.after_change();
+            self.status = "redone".into();
+        }
+    }
+
+    /// Sets a parameter after checking it against the schema (the panel's widgets call this).
+    pub fn set_param(&mut self, id: &str, name: &str, value: relume_core::ParamValue) -> Result<(), String> {
+        let kind = self.doc.graph.node(id).map(|n| n.kind.clone()).ok_or_else(|| format!("no node \"{id}\""))?;
+        let spec = self.registry.node(&kind).and_then(|k| k.schema().get(name)).ok_or_else(|| format!("{kind} has no parameter {name}"))?;
+        let v = spec.check(&value).map_err(|m| format!("{id}.{name}: {m}"))?;
+        if self.doc.graph.node(id).and_then(|n| n.param(name)) == Some(&v) {
+            return Ok(());
+        }
+        self.apply(&format!("param:{id}.{name}"), true, |g| g.set_param(id, name, v));
+        Ok(())
+    }
+
+    /// Applies what the node-graph widget did.
+    pub fn apply_view_edits(&mut self, edits: Vec<ViewEdit>) {
+        for e in edits {
+            match e {
+                ViewEdit::Added { kind, pos, node } => {
+                    let id = self.apply("add", true, |g| edit::add_node(g, kind, pos));
+                    self.view.name_node(node, &id);
+                    self.doc.seal();
+                    self.status = format!("added {id} ({kind})");
+                }
+                ViewEdit::Removed(id) => {
+                    self.apply("remove", true, |g| edit::remove_node(g, &id));
+                    self.doc.seal();
+                    self.status = format!("removed {id}");
+                }
+                ViewEdit::Connected { from, to } => match edit::check_connect(&self.doc.graph, &self.registry, &from, &to) {
+                    Ok(()) => {
+                        let reg = self.registry.clone();
+                        let _ = self.apply("connect", true, |g| edit::connect(g, &reg, from, to));
+                        self.doc.seal();
+                    }
+                    Err(m) => {
+                        self.status = m;
+                        self.view.shown = None;
+                    }
+                },
+                ViewEdit::Disconnected { to } => {
+                    if self.doc.graph.edges.iter().any(|e| e.to == to) {
+                        self.apply("disconnect", true, |g| edit::disconnect(g, &to));
+                        self.doc.seal();
+                    }
+                }
+                ViewEdit::Moved(list) => {
+                    let tag = format!("move:{}", list.iter().map(|(id, _)| id.as_str()).collect::<Vec<_>>().join(","));
+                    self.apply(&tag, true, |g| {
+                        for (id, p) in &list {
+                            edit::set_position(g, id, *p);
+                        }
+                    });
+                }
+                ViewEdit::Selected => {}
+            }
+        }
+    }
+
+    /// Adds a node from the palette near the middle of the view.
+    pub fn add_from_palette(&mut self, kind: &'static str, at: [f64; 2]) {
+        let id = self.apply("add", false, |g| edit::add_node(g, kind, at));
+        self.doc.seal();
+        self.view.rebuild(&self.doc.graph, self.doc.revision);
+        self.view.select(&id);
+        self.status = format!("added {id} ({kind})");
+    }
+
+    /// Deletes the selected nodes.
+    pub fn delete_selected(&mut self) {
+        let ids = self.view.selected_ids();
+        if ids.is_empty() {
+            return;
+        }
+        self.apply("remove", false, |g| ids.iter().for_each(|id| edit::remove_node(g, id)));
+        self.doc.seal();
+        self.status = format!("removed {}", ids.join(", "));
+    }
+
+    /// The outputs a run asks for and the graph it runs (with the viewed port as an output).
+    fn run_request(&self) -> (Graph, Vec<String>) {
+        let mut g = self.doc.graph.clone();
+        let mut outputs: Vec<String> = g.outputs.iter().map(|o| o.name.clone()).collect();
+        if let Some(t) = &self.view_target {
+            if !outputs.contains(t) {
+                if let Some(port) = PortRef::parse(t) {
+                    edit::set_output(&mut g, &port, VIEW_OUTPUT, true);
+                    outputs.push(VIEW_OUTPUT.into());
+                }
+            }
+        }
+        (g, outputs)
+    }
+
+    /// Starts a run of the graph in the background.
+    pub fn run(&mut self) {
+        let (g, outputs) = self.run_request();
+        if outputs.is_empty() {
+            self.status = "the graph has no outputs: tick \"graph output\" on a port of the selected node".into();
+            return;
+        }
+        self.pending_run = None;
+        self.edit_started.get_or_insert_with(Instant::now);
+        self.runner.start(g, outputs, self.doc.revision);
+        self.status = "running…".into();
+    }
+
+    pub fn cancel(&mut self) {
+        self.runner.cancel();
+        self.pending_run = None;
+        self.planned = None;
+        self.status = "run cancelled".into();
+    }
+
+    /// Takes in a finished run: report, states, the viewed image, edit-to-image time.
+    fn collect_finished(&mut self) {
+        if let Some(f) = self.runner.take_finished() {
+            self.take_in(f);
+        }
+    }
+
+    fn take_in(&mut self, f: crate::runner::Finished) {
+        let live = self.runner.live_states();
+        self.planned = None;
+        match f.outcome {
+            Ok((report, outputs)) => {
+                self.status = format!("ran in {} ({} ran, {} cached)", crate::fmt_ms(report.total_ms), report.ran, report.cached);
+                self.report = Some(report);
+                self.last_outputs = outputs;
+                self.show_target();
+                if f.revision == self.doc.revision {
+                    if let Some(t0) = self.edit_started.take() {
+                        self.edit_to_image_ms = Some(t0.elapsed().as_secs_f64() * 1e3);
+                    }
+                }
+            }
+            Err(m) => {
+                self.status = m;
+                self.edit_started = None;
+            }
+        }
+        self.done_states = Some((f.revision, live));
+    }
+
+    /// Puts the viewed output of the last run in the viewer.
+    pub fn show_target(&mut self) {
+        let name = match &self.view_target {
+            Some(t) if self.doc.graph.outputs.iter().any(|o| &o.name == t) => t.clone(),
+            Some(_) => VIEW_OUTPUT.to_string(),
+            None => return,
+        };
+        let img = self.last_outputs.iter().find(|(n, _)| *n == name).and_then(|(_, v)| v.get::<Image>()).cloned();
+        if img.is_some() {
+            self.viewer.set_image(img.map(Arc::new));
+        }
+    }
+
+    /// Refreshes what the nodes show: the plan for the current revision under the states of
+    /// the run under way or just finished.
+    fn refresh_states(&mut self) {
+        let running = self.runner.is_running();
+        if self.planned != Some((self.doc.revision, running)) {
+            let (g, outputs) = self.run_request();
+            self.states = match self.runner.plan_states(&g, &outputs) {
+                Ok(s) => s,
+                Err(m) => {
+                    if !running {
+                        self.status = m;
+                    }
+                    HashMap::new()
+                }
+            };
+            self.planned = Some((self.doc.revision, running));
+        }
+        let mut shown = self.states.clone();
+        if running {
+            shown.extend(self.runner.live_states());
+        } else if let Some((rev, done)) = &self.done_states {
+            if *rev == self.doc.revision {
+                shown.extend(done.iter().map(|(k, v)| (k.clone(), v.clone())));
+            }
+        }
+        self.view.user.states = shown;
+    }
+
+    /// Writes the recovery file when there is unsaved work that is not in it yet.
+    fn keep_recovery(&mut self) {
+        if self.last_recovery.elapsed() < RECOVERY_EVERY || self.recovery_written == self.doc.revision {
+            return;
+        }
+        self.last_recovery = Instant::now();
+        if self.doc.is_dirty() {
+            match self.doc.write_recovery() {
+                Ok(_) => self.recovery_written = self.doc.revision,
+                Err(e) => self.status = format!("cannot write the recovery file: {e}"),
+            }
+        }
+    }
+
+    /// One frame of the editor.
+    pub fn ui(&mut self, ctx: &egui::Context) {
+        self.runner.set_repaint(ctx.clone());
+        self.handle_close(ctx);
+        self.shortcuts(ctx);
+        self.collect_finished();
+        if self.pending_run.is_some_and(|t| Instant::now() >= t) {
+            self.run();
+        }
+        if let Some(t) = self.pending_run {
+            ctx.request_repaint_after(t.saturating_duration_since(Instant::now()));
+        }
+        if self.view.shown != Some(self.doc.revision) {
+            self.view.rebuild(&self.doc.graph, self.doc.revision);
+        }
+        self.refresh_states();
+        self.keep_recovery();
+        crate::panels::draw(self, ctx);
+        if let Some(job) = &mut self.screenshot {
+            job.frame(ctx, &self.viewer, self.runner.is_running() || self.pending_run.is_some());
+        }
+        ctx.send_viewport_cmd(egui::ViewportCommand::Title(format!("{} — relume editor", self.doc.title())));
+    }
+
+    fn shortcuts(&mut self, ctx: &egui::Context) {
+        use egui::{Key, KeyboardShortcut, Modifiers};
+        let cmd = |k| KeyboardShortcut::new(Modifiers::COMMAND, k);
+        let cmd_shift = |k| KeyboardShortcut::new(Modifiers::COMMAND | Modifiers::SHIFT, k);
+        if ctx.input_mut(|i| i.consume_shortcut(&cmd_shift(Key::Z)) || i.consume_shortcut(&cmd(Key::Y))) {
+            self.redo();
+        }
+        if ctx.input_mut(|i| i.consume_shortcut(&cmd(Key::Z))) {
+            self.undo();
+        }
+        if ctx.input_mut(|i| i.consume_shortcut(&cmd_shift(Key::S))) {
+            self.dialog = Some(crate::panels::save_as_dialog(self));
+        } else if ctx.input_mut(|i| i.consume_shortcut(&cmd(Key::S))) {
+            self.save();
+        }
+        if ctx.input_mut(|i| i.consume_shortcut(&cmd(Key::O))) {
+            self.dialog = Some(crate::panels::open_dialog(self));
+        }
+        if ctx.input_mut(|i| i.consume_key(Modifiers::NONE, Key::F5)) {
+            self.run();
+        }
+        let typing = ctx.wants_keyboard_input();
+        if !typing && ctx.input_mut(|i| i.consume_key(Modifiers::NONE, Key::Delete)) {
+            self.delete_selected();
+        }
+    }
+
+    /// Saves, or asks for a file when the graph has none.
+    pub fn save(&mut self) {
+        if self.doc.path.is_none() {
+            self.dialog = Some(crate::panels::save_as_dialog(self));
+            return;
+        }
+        self.status = match self.doc.save() {
+            Ok(()) => format!("saved {}", self.doc.path.as_ref().map(|p| p.display().to_string()).unwrap_or_default()),
+            Err(e) => e,
+        };
+    }
+
+    /// Unsaved changes are never dropped silently: closing asks first.
+    fn handle_close(&mut self, ctx: &egui::Context) {
+        if ctx.input(|i| i.viewport().close_requested()) && !self.allow_close && self.doc.is_dirty() {
+            ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
+            self.quit_prompt = true;
+        }
+    }
+
+    /// The user chose to leave without saving.
+    pub fn discard_and_close(&mut self, ctx: &egui::Context) {
+        self.doc.drop_recovery();
+        self.allow_close = true;
+        self.quit_prompt = false;
+        ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+    }
+
+    /// Saves, then closes when the save worked.
+    pub fn save_and_close(&mut self, ctx: &egui::Context) {
+        self.save();
+        if !self.doc.is_dirty() {
+            self.allow_close = true;
+            self.quit_prompt = false;
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+        }
+    }
+
+    /// Waits for the run under way and takes it in (tests, the screenshot mode).
+    pub fn wait_for_run(&mut self) {
+        if let Some(f) = self.runner.wait() {
+            self.take_in(f);
+        }
+    }
+}

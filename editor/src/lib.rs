@@ -1,0 +1,27 @@
+//! relume-editor: the visual node editor. The core `Graph` is the document; the node-graph
+//! widget (egui_node_graph2) is a view of it; runs go through the core `Engine` in the
+//! background. `EditorApp::ui` draws a frame on any egui context, so everything but the
+//! window itself is tested headlessly.
+
+pub mod app;
+pub mod document;
+pub mod edit;
+pub mod file_dialog;
+pub mod palette;
+pub mod panels;
+pub mod params_ui;
+pub mod runner;
+pub mod screenshot;
+pub mod view;
+pub mod viewer;
+
+pub use app::EditorApp;
+
+/// Milliseconds for people: `85 ms`, `1.24 s`.
+pub fn fmt_ms(ms: f64) -> String {
+    if ms < 1000.0 {
+        format!("{ms:.0} ms")
+    } else {
+        format!("{:.2} s", ms / 1000.0)
+    }
+}

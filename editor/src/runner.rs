@@ -1,0 +1,193 @@
+//! Background runs through the core executor: one run at a time, a newer request cancels the
+//! older one, per-node state and progress for the node widgets, the report and the outputs
+//! when it ends.
+
+use relume_core::{CancelToken, Engine, Event, Graph, NodeStatus, Observer, PlanAction, RunOptions, RunReport, Value};
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// What a node shows.
+#[derive(Clone, Debug, PartialEq)]
+pub enum NodeState {
+    /// Its result for the current parameters and inputs is in the cache.
+    Cached,
+    /// It would run: a parameter, an input or a file changed, or it never ran.
+    Stale,
+    /// No output of the graph needs it.
+    Unused,
+    /// Running; the fraction of its own work done.
+    Running(f32),
+    /// Ran in the last run, taking this many milliseconds.
+    Done(f64),
+    Failed(String),
+}
+
+impl NodeState {
+    pub fn label(&self) -> String {
+        match self {
+            NodeState::Cached => "cached".into(),
+            NodeState::Stale => "stale".into(),
+            NodeState::Unused => "not needed".into(),
+            NodeState::Running(f) => format!("running {:.0} %", f * 100.0),
+            NodeState::Done(ms) => format!("done in {}", crate::fmt_ms(*ms)),
+            NodeState::Failed(m) => format!("failed: {m}"),
+        }
+    }
+}
+
+/// The end of a run.
+pub struct Finished {
+    /// The document revision the run was started for.
+    pub revision: u64,
+    pub started: Instant,
+    pub outcome: Result<(RunReport, Vec<(String, Value)>), String>,
+}
+
+#[derive(Default)]
+struct Shared {
+    /// Run generation these states belong to.
+    generation: u64,
+    live: HashMap<String, NodeState>,
+    finished: Option<Finished>,
+    running: bool,
+}
+
+struct Watch {
+    shared: Arc<Mutex<Shared>>,
+    generation: u64,
+    repaint: Option<egui::Context>,
+}
+
+impl Observer for Watch {
+    fn event(&self, e: &Event<'_>) {
+        let (id, state) = match e {
+            Event::Planned { .. } => return,
+            Event::Started { id, .. } => (*id, NodeState::Running(0.0)),
+            Event::Progress { id, fraction } => (*id, NodeState::Running(*fraction)),
+            Event::Finished { id, status: NodeStatus::Ran, wall_ms, .. } => (*id, NodeState::Done(*wall_ms)),
+            Event::Finished { id, .. } => (*id, NodeState::Cached),
+            Event::Failed { id, message, .. } => (*id, NodeState::Failed(message.to_string())),
+        };
+        let mut s = self.shared.lock().unwrap();
+        if s.generation == self.generation {
+            s.live.insert(id.to_string(), state);
+        }
+        drop(s);
+        if let Some(ctx) = &self.repaint {
+            ctx.request_repaint();
+        }
+    }
+}
+
+/// Runs graphs in a background thread and keeps what the UI shows about them.
+pub struct Runner {
+    engine: Arc<Engine>,
+    shared: Arc<Mutex<Shared>>,
+    cancel: Option<CancelToken>,
+    repaint: Option<egui::Context>,
+}
+
+impl Runner {
+    pub fn new(engine: Arc<Engine>) -> Self {
+        Runner { engine, shared: Arc::default(), cancel: None, repaint: None }
+    }
+
+    /// Asks for repaints on `ctx` as the run progresses.
+    pub fn set_repaint(&mut self, ctx: egui::Context) {
+        self.repaint = Some(ctx);
+    }
+
+    pub fn engine(&self) -> &Arc<Engine> {
+        &self.engine
+    }
+
+    pub fn is_running(&self) -> bool {
+        self.shared.lock().unwrap().running
+    }
+
+    /// Starts a run of `outputs` of `graph` (cancelling the one under way).
+    pub fn start(&mut self, graph: Graph, outputs: Vec<String>, revision: u64) {
+        self.cancel();
+        let cancel = CancelToken::new();
+        self.cancel = Some(cancel.clone());
+        let generation = {
+            let mut s = self.shared.lock().unwrap();
+            s.generation += 1;
+            s.live.clear();
+            s.running = true;
+            s.generation
+        };
+        let (engine, shared, repaint) = (self.engine.clone(), self.shared.clone(), self.repaint.clone());
+        std::thread::spawn(move || {
+            let started = Instant::now();
+            let watch = Watch { shared: shared.clone(), generation, repaint: repaint.clone() };
+            let opts = RunOptions { outputs: Some(outputs), cancel, observer: Some(&watch) };
+            let outcome = engine.run(&graph, &opts).map(|r| (r.report, r.outputs)).map_err(|e| e.to_string());
+            let mut s = shared.lock().unwrap();
+            if s.generation == generation {
+                s.running = false;
+                s.finished = Some(Finished { revision, started, outcome });
+            }
+            drop(s);
+            if let Some(ctx) = repaint {
+                ctx.request_repaint();
+            }
+        });
+    }
+
+    /// Cancels the run under way; its result is dropped.
+    pub fn cancel(&mut self) {
+        if let Some(c) = self.cancel.take() {
+            c.cancel();
+        }
+        let mut s = self.shared.lock().unwrap();
+        s.generation += 1;
+        s.running = false;
+    }
+
+    /// The end of the last run, once.
+    pub fn take_finished(&self) -> Option<Finished> {
+        self.shared.lock().unwrap().finished.take()
+    }
+
+    /// States the current run reported so far.
+    pub fn live_states(&self) -> HashMap<String, NodeState> {
+        self.shared.lock().unwrap().live.clone()
+    }
+
+    /// Blocks until the run under way ends (tests and the screenshot mode).
+    pub fn wait(&self) -> Option<Finished> {
+        loop {
+            {
+                let mut s = self.shared.lock().unwrap();
+                if !s.running {
+                    return s.finished.take();
+                }
+            }
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+    }
+
+    /// What each node would do if the graph ran now, without running anything.
+    pub fn plan_states(&self, graph: &Graph, outputs: &[String]) -> Result<HashMap<String, NodeState>, String> {
+        let lines = self.engine.explain(graph, Some(outputs)).map_err(|e| e.to_string())?;
+        Ok(lines
+            .into_iter()
+            .map(|l| {
+                let s = match l.action {
+                    PlanAction::Cached => NodeState::Cached,
+                    PlanAction::Run => NodeState::Stale,
+                    PlanAction::Skip => NodeState::Unused,
+                };
+                (l.id, s)
+            })
+            .collect())
+    }
+}
+
+impl Drop for Runner {
+    fn drop(&mut self) {
+        self.cancel();
+    }
+}

@@ -1,0 +1,138 @@
+//! The screenshot mode (`relume-editor GRAPH --screenshot OUT.png`): run the graph, wait until
+//! the viewer shows the image, take an in-app screenshot (`ViewportCommand::Screenshot`),
+//! write it, check that the viewer's part of it is not blank, and close with an exit code.
+
+use crate::viewer::Viewer;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicI32, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Frames to draw with the image before the screenshot (layout settles, texture uploads).
+const SETTLE_FRAMES: u32 = 5;
+
+pub struct ScreenshotJob {
+    pub path: PathBuf,
+    deadline: Instant,
+    frames_with_image: u32,
+    requested: bool,
+    done: bool,
+    /// Process exit code: 0 when the screenshot shows a picture.
+    pub exit: Arc<AtomicI32>,
+}
+
+/// Statistics of the viewer's region of a screenshot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Region {
+    pub pixels: usize,
+    pub distinct_colors: usize,
+    pub luma_std: f64,
+}
+
+impl Region {
+    /// A rendered picture: many colours and visible variation (a blank or flat panel has one
+    /// or two colours and no spread).
+    pub fn is_picture(&self) -> bool {
+        self.pixels > 0 && self.distinct_colors >= 16 && self.luma_std >= 4.0
+    }
+}
+
+/// Measures the pixels of `img` inside `rect` (in physical pixels).
+pub fn region_stats(img: &egui::ColorImage, rect: egui::Rect) -> Region {
+    let x0 = rect.min.x.max(0.0) as usize;
+    let y0 = rect.min.y.max(0.0) as usize;
+    let x1 = (rect.max.x as usize).min(img.size[0]);
+    let y1 = (rect.max.y as usize).min(img.size[1]);
+    let mut colors = std::collections::HashSet::new();
+    let (mut n, mut sum, mut sum2) = (0usize, 0.0f64, 0.0f64);
+    for y in y0..y1 {
+        for x in x0..x1 {
+            let c = img.pixels[y * img.size[0] + x];
+            colors.insert((c.r(), c.g(), c.b()));
+            let l = 0.2126 * c.r() as f64 + 0.7152 * c.g() as f64 + 0.0722 * c.b() as f64;
+            n += 1;
+            sum += l;
+            sum2 += l * l;
+        }
+    }
+    let mean = if n > 0 { sum / n as f64 } else { 0.0 };
+    let var = if n > 0 { (sum2 / n as f64 - mean * mean).max(0.0) } else { 0.0 };
+    Region { pixels: n, distinct_colors: colors.len(), luma_std: var.sqrt() }
+}
+
+impl ScreenshotJob {
+    pub fn new(path: PathBuf, timeout: Duration, exit: Arc<AtomicI32>) -> Self {
+        exit.store(3, Ordering::SeqCst);
+        ScreenshotJob { path, deadline: Instant::now() + timeout, frames_with_image: 0, requested: false, done: false, exit }
+    }
+
+    fn finish(&mut self, ctx: &egui::Context, code: i32, msg: &str) {
+        eprintln!("relume-editor screenshot: {msg}");
+        self.exit.store(code, Ordering::SeqCst);
+        self.done = true;
+        ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+    }
+
+    /// Called once per frame after drawing.
+    pub fn frame(&mut self, ctx: &egui::Context, viewer: &Viewer, busy: bool) {
+        if self.done {
+            return;
+        }
+        ctx.request_repaint();
+        if Instant::now() > self.deadline {
+            return self.finish(ctx, 3, "timed out before the viewer showed an image");
+        }
+        let shot = ctx.input(|i| {
+            i.raw.events.iter().find_map(|e| match e {
+                egui::Event::Screenshot { image, .. } => Some(image.clone()),
+                _ => None,
+            })
+        });
+        if let Some(img) = shot {
+            let ppp = ctx.pixels_per_point();
+            let rect = viewer.image_rect.map(|r| egui::Rect::from_min_max(r.min * ppp, r.max * ppp)).unwrap_or(egui::Rect::NOTHING);
+            let stats = region_stats(&img, rect);
+            let rgba: Vec<u8> = img.pixels.iter().flat_map(|c| [c.r(), c.g(), c.b(), 255]).collect();
+            let saved = image::save_buffer(&self.path, &rgba, img.size[0] as u32, img.size[1] as u32, image::ExtendedColorType::Rgba8);
+            let msg = format!(
+                "{} ({}×{}); viewer region {} px, {} colours, luma std {:.1}",
+                self.path.display(),
+                img.size[0],
+                img.size[1],
+                stats.pixels,
+                stats.distinct_colors,
+                stats.luma_std
+            );
+            return match (saved, stats.is_picture()) {
+                (Err(e), _) => self.finish(ctx, 4, &format!("cannot write {}: {e}", self.path.display())),
+                (Ok(()), true) => self.finish(ctx, 0, &format!("ok: {msg}")),
+                (Ok(()), false) => self.finish(ctx, 2, &format!("the viewer looks blank: {msg}")),
+            };
+        }
+        if !busy && viewer.has_image() && viewer.image_rect.is_some() {
+            self.frames_with_image += 1;
+            if self.frames_with_image >= SETTLE_FRAMES && !self.requested {
+                self.requested = true;
+                ctx.send_viewport_cmd(egui::ViewportCommand::Screenshot);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flat_regions_are_blank_and_pictures_are_not() {
+        let flat = egui::ColorImage::new([64, 64], egui::Color32::from_gray(30));
+        let r = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(64.0, 64.0));
+        assert!(!region_stats(&flat, r).is_picture());
+        let mut pic = flat.clone();
+        for (i, p) in pic.pixels.iter_mut().enumerate() {
+            *p = egui::Color32::from_rgb((i % 64 * 4) as u8, (i / 64 * 4) as u8, 90);
+        }
+        assert!(region_stats(&pic, r).is_picture());
+        assert_eq!(region_stats(&pic, egui::Rect::NOTHING).pixels, 0);
+    }
+}
