@@ -99,6 +99,7 @@ impl EditorApp {
         self.recovery_offer = doc.pending_recovery();
         self.doc = doc;
         self.view.shown = None;
+        self.view.fit_pending = true;
         self.view.state.selected_nodes.clear();
         self.view_target = self.default_view_target();
         self.viewer.set_image(None);
@@ -259,7 +260,7 @@ impl EditorApp {
         self.pending_run = None;
         self.edit_started.get_or_insert_with(Instant::now);
         self.runner.start(g, outputs, self.doc.revision);
-        self.status = "running…".into();
+        self.status = "running...".into();
     }
 
     pub fn cancel(&mut self) {

@@ -42,7 +42,7 @@ impl Document {
 
     pub fn title(&self) -> String {
         let name = self.path.as_ref().and_then(|p| p.file_name()).map(|n| n.to_string_lossy().into_owned());
-        format!("{}{}", name.unwrap_or_else(|| "untitled".into()), if self.is_dirty() { " •" } else { "" })
+        format!("{}{}", name.unwrap_or_else(|| "untitled".into()), if self.is_dirty() { " *" } else { "" })
     }
 
     /// Whether the graph differs from what is on disk.

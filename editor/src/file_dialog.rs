@@ -44,7 +44,7 @@ impl FileDialog {
         };
         egui::Window::new(title).collapsible(false).default_width(420.0).show(ctx, |ui| {
             ui.horizontal(|ui| {
-                if ui.button("⬆").on_hover_text("parent folder").clicked() {
+                if ui.button("up").on_hover_text("parent folder").clicked() {
                     if let Some(p) = self.dir.canonicalize().ok().and_then(|d| d.parent().map(Path::to_path_buf)) {
                         self.dir = p;
                     }

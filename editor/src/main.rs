@@ -7,10 +7,11 @@ use std::sync::atomic::{AtomicI32, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-const USAGE: &str = "usage: relume-editor [GRAPH.ron] [--run] [--screenshot OUT.png] [--timeout SECONDS] [--cache DIR]
+const USAGE: &str = "usage: relume-editor [GRAPH.ron] [--run] [--select NODE] [--screenshot OUT.png] [--timeout SECONDS] [--cache DIR]
 
   GRAPH.ron          graph file to open (a new graph when left out)
   --run              run the graph once it is open
+  --select NODE      select a node (its parameters show in the properties panel)
   --screenshot OUT   run, wait for the image, save an in-app screenshot to OUT and exit
                      (exit code 0 when the viewer shows a picture, 2 when it looks blank)
   --timeout S        give up the screenshot after S seconds (default 600)
@@ -22,10 +23,11 @@ struct Args {
     screenshot: Option<PathBuf>,
     timeout: u64,
     cache: Option<PathBuf>,
+    select: Option<String>,
 }
 
 fn parse_args() -> Result<Args, String> {
-    let mut a = Args { graph: None, run: false, screenshot: None, timeout: 600, cache: None };
+    let mut a = Args { graph: None, run: false, screenshot: None, timeout: 600, cache: None, select: None };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
         let mut value = |name: &str| it.next().ok_or(format!("{name} needs a value"));
@@ -34,6 +36,7 @@ fn parse_args() -> Result<Args, String> {
             "--screenshot" => a.screenshot = Some(value("--screenshot")?.into()),
             "--timeout" => a.timeout = value("--timeout")?.parse().map_err(|_| "--timeout needs a number of seconds")?,
             "--cache" => a.cache = Some(value("--cache")?.into()),
+            "--select" => a.select = Some(value("--select")?),
             "-h" | "--help" => return Err(String::new()),
             s if s.starts_with('-') => return Err(format!("unknown option {s}")),
             s => a.graph = Some(s.into()),
@@ -64,6 +67,14 @@ fn main() {
             eprintln!("relume-editor: {e}");
             std::process::exit(1);
         }
+    }
+    if let Some(id) = &args.select {
+        if app.doc.graph.node(id).is_none() {
+            eprintln!("relume-editor: no node \"{id}\" to select");
+            std::process::exit(64);
+        }
+        app.view.rebuild(&app.doc.graph, app.doc.revision);
+        app.view.select(id);
     }
     let exit = Arc::new(AtomicI32::new(0));
     if let Some(out) = &args.screenshot {

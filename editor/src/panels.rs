@@ -29,7 +29,7 @@ pub fn draw(app: &mut EditorApp, ctx: &egui::Context) {
             app.add_from_palette(kind, at);
         }
     });
-    egui::SidePanel::right("inspector").default_width(420.0).show(ctx, |ui| {
+    egui::SidePanel::right("inspector").resizable(true).default_width(440.0).max_width(640.0).show(ctx, |ui| {
         egui::ScrollArea::vertical().show(ui, |ui| {
             properties(app, ui);
             ui.separator();
@@ -47,7 +47,7 @@ fn menu_bar(app: &mut EditorApp, ctx: &egui::Context) {
     egui::TopBottomPanel::top("menu").show(ctx, |ui| {
         egui::menu::bar(ui, |ui| {
             ui.menu_button("File", |ui| {
-                if ui.button("Open…  (Ctrl+O)").clicked() {
+                if ui.button("Open...  (Ctrl+O)").clicked() {
                     app.dialog = Some(open_dialog(app));
                     ui.close_menu();
                 }
@@ -55,7 +55,7 @@ fn menu_bar(app: &mut EditorApp, ctx: &egui::Context) {
                     app.save();
                     ui.close_menu();
                 }
-                if ui.button("Save as…  (Ctrl+Shift+S)").clicked() {
+                if ui.button("Save as...  (Ctrl+Shift+S)").clicked() {
                     app.dialog = Some(save_as_dialog(app));
                     ui.close_menu();
                 }
@@ -100,7 +100,7 @@ fn status_bar(app: &mut EditorApp, ctx: &egui::Context) {
             ui.label(&app.status);
             ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
                 if let Some(ms) = app.edit_to_image_ms {
-                    ui.label(format!("edit → image {}", crate::fmt_ms(ms)))
+                    ui.label(format!("edit to image {}", crate::fmt_ms(ms)))
                         .on_hover_text("time from the last edit to the refreshed image in the viewer");
                 }
             });

@@ -132,7 +132,7 @@ pub fn param_widget(ui: &mut egui::Ui, spec: &ParamSpec, value: Option<&ParamVal
                 if r.changed() && (spec.kind == ParamKind::Text || !s.is_empty()) {
                     action = Some(ParamAction::Set(ParamValue::Text(s)));
                 }
-                if spec.kind != ParamKind::Text && ui.button("…").on_hover_text("choose a file").clicked() {
+                if spec.kind != ParamKind::Text && ui.button("...").on_hover_text("choose a file").clicked() {
                     action = Some(ParamAction::Browse);
                 }
             }
@@ -140,7 +140,7 @@ pub fn param_widget(ui: &mut egui::Ui, spec: &ParamSpec, value: Option<&ParamVal
                 ui.label(other.map(|v| v.to_text()).unwrap_or_else(|| "(required)".into()));
             }
         }
-        if explicit && spec.default.is_some() && ui.small_button("↺").on_hover_text("reset to the default").clicked() {
+        if explicit && spec.default.is_some() && ui.small_button("reset").on_hover_text("reset to the default").clicked() {
             action = Some(ParamAction::Reset);
         }
     });

@@ -214,6 +214,8 @@ pub struct GraphView {
     pub shown: Option<u64>,
     /// Responses to feed into the next frame (tests drive the widget this way).
     pub inject: Vec<NodeResponse>,
+    /// Fit the whole graph into the view at the next frame (after opening a file).
+    pub fit_pending: bool,
 }
 
 /// What the widget did this frame, as document edits to apply.
@@ -238,6 +240,7 @@ impl GraphView {
             ids: HashMap::new(),
             shown: None,
             inject: Vec::new(),
+            fit_pending: true,
         }
     }
 
@@ -315,6 +318,9 @@ impl GraphView {
                 self.xf = Transform { scale: self.xf.scale * d, offset: (self.xf.offset - c) * d + c };
             }
         }
+        if self.fit_pending {
+            self.fit(ui);
+        }
         let inject = std::mem::take(&mut self.inject);
         let resp = self.state.draw_graph_editor(ui, &self.kinds, &mut self.user, inject);
         self.edits(resp.node_responses)
@@ -368,6 +374,29 @@ impl GraphView {
             out.push(ViewEdit::Moved(positions));
         }
         out
+    }
+
+    /// Zooms and pans so that every node is in view (zoom at most 1).
+    pub fn fit(&mut self, ui: &egui::Ui) {
+        self.fit_pending = false;
+        let layout: Vec<(eng::NodeId, [f64; 2])> = self.state.node_positions.iter().map(|(n, p)| (n, self.xf.to_layout(*p))).collect();
+        let pts: Vec<Pos2> = layout.iter().map(|(_, p)| Pos2::new(p[0] as f32, p[1] as f32)).collect();
+        if pts.is_empty() {
+            return;
+        }
+        let bbox = egui::Rect::from_points(&pts);
+        // Node widgets reach about 200 × 150 points right of and below their position.
+        let need = bbox.size() + Vec2::new(260.0, 190.0);
+        let avail = ui.max_rect().size();
+        let scale = (avail.x / need.x).min(avail.y / need.y).clamp(0.2, 1.0);
+        let style = ui.style().clone();
+        self.state.pan_zoom.zoom(ui.clip_rect(), &style, scale / self.state.pan_zoom.zoom);
+        self.state.pan_zoom.pan = Vec2::ZERO;
+        let zoom = self.state.pan_zoom.zoom;
+        self.xf = Transform { scale: zoom, offset: Vec2::new(30.0, 30.0) - bbox.min.to_vec2() * zoom };
+        for (n, p) in layout {
+            self.state.node_positions[n] = self.xf.to_widget(p);
+        }
     }
 
     /// Removes a connection the widget made but the document refused.

@@ -120,11 +120,22 @@ pub fn report_table(ui: &mut egui::Ui, report: &RunReport) {
             ui.label(status);
             let t = if n.status == "ran" { crate::fmt_ms(n.wall_ms) } else { format!("({})", crate::fmt_ms(n.compute_ms)) };
             ui.label(t).on_hover_text("time this run; in brackets, what the cached result cost when it ran");
-            let m: Vec<String> = n.metrics.iter().map(|(k, v)| format!("{k} {v:.4e}")).collect();
-            ui.label(m.join("  "));
+            let m: Vec<String> = n.metrics.iter().map(|(k, v)| format!("{k} {}", fmt_num(*v))).collect();
+            ui.add(egui::Label::new(m.join("  ")).wrap());
             ui.end_row();
         }
     });
+}
+
+/// A metric for reading: integers as integers, small and large values in scientific form.
+pub fn fmt_num(v: f64) -> String {
+    if v.fract() == 0.0 && v.abs() < 1e9 {
+        format!("{v:.0}")
+    } else if (1e-3..1e4).contains(&v.abs()) {
+        format!("{v:.4}")
+    } else {
+        format!("{v:.3e}")
+    }
 }
 
 #[cfg(test)]
@@ -139,5 +150,13 @@ mod tests {
         assert!(display([0.1; 3], 2.0, Operator::Aces).r() > a.r(), "exposure brightens");
         let bad = display([f32::NAN, f32::INFINITY, -1.0], 0.0, Operator::Aces);
         assert_eq!((bad.r(), bad.g(), bad.b()), (0, 255, 0));
+    }
+
+    #[test]
+    fn numbers_read_well() {
+        assert_eq!(fmt_num(61500.0), "61500");
+        assert_eq!(fmt_num(0.00172), "0.0017");
+        assert_eq!(fmt_num(1.7e-6), "1.700e-6");
+        assert_eq!(fmt_num(f64::NAN), "NaN");
     }
 }

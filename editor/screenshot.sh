@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Opens a graph in relume-editor inside a virtual X display (Xvfb, Mesa's software OpenGL),
+# runs it, waits until the viewer shows the image, and saves an in-app screenshot.
+# Exit status 0 when the viewer shows a picture, 2 when it looks blank.
+#
+#   editor/screenshot.sh [GRAPH.ron] [OUT.png] [EDITOR OPTIONS]   (defaults: graphs/pbgi_cornell.ron docs/editor.png)
+#   editor/screenshot.sh graphs/pbgi_cornell.ron docs/editor.png --select gather
+#
+# Needs Xvfb and Mesa: `apt-get install xvfb xauth libgl1-mesa-dri`.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+graph="${1:-graphs/pbgi_cornell.ron}"
+out="${2:-docs/editor.png}"
+mkdir -p "$(dirname "$out")"
+cargo build --release -p relume-editor
+# Software rendering: there is no GPU under Xvfb.
+export LIBGL_ALWAYS_SOFTWARE=1
+shift $(( $# > 2 ? 2 : $# ))
+xvfb-run -a -s "-screen 0 1400x900x24" target/release/relume-editor "$graph" --screenshot "$out" --timeout 900 "$@"
