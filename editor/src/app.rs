@@ -53,7 +53,7 @@ pub struct EditorApp {
     /// What the viewer shows: a graph output name, or `node.port`.
     pub view_target: Option<String>,
     last_outputs: Vec<(String, Value)>,
-    pub(crate) quit_prompt: bool,
+    pub quit_prompt: bool,
     allow_close: bool,
     last_recovery: Instant,
     recovery_written: u64,

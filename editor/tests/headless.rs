@@ -222,3 +222,39 @@ fn pbgi_cornell_edits_rerun_only_what_they_reach() {
     assert_eq!(app.report.as_ref().unwrap().ran_ids(), ["combine", "gather"]);
     assert!(app.edit_to_image_ms.unwrap() > 0.0);
 }
+
+/// One frame in which the window's close button was pressed; returns the viewport commands.
+fn close_frame(ctx: &egui::Context, app: &mut EditorApp) -> Vec<egui::ViewportCommand> {
+    let mut input =
+        egui::RawInput { screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(1400.0, 860.0))), ..Default::default() };
+    input.viewports.entry(egui::ViewportId::ROOT).or_default().events.push(egui::ViewportEvent::Close);
+    let out = ctx.run(input, |ctx| app.ui(ctx));
+    out.viewport_output.get(&egui::ViewportId::ROOT).map(|v| v.commands.clone()).unwrap_or_default()
+}
+
+#[test]
+fn closing_with_unsaved_changes_asks_first_and_keeps_a_recovery_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut app = app();
+    let path = open_copy(&mut app, "filters.ron", dir.path());
+    let ctx = egui::Context::default();
+    frame(&ctx, &mut app);
+    let cmds = close_frame(&ctx, &mut app);
+    assert!(!cmds.contains(&egui::ViewportCommand::CancelClose), "a clean graph closes at once");
+
+    app.set_param("blur", "sigma", ParamValue::Float(1.5)).unwrap();
+    let cmds = close_frame(&ctx, &mut app);
+    assert!(cmds.contains(&egui::ViewportCommand::CancelClose), "unsaved changes stop the close");
+    assert!(app.quit_prompt);
+    let rec = app.doc.write_recovery().unwrap();
+
+    // Opening the file again offers the unsaved work back.
+    let mut again = self::app();
+    again.open(&path).unwrap();
+    frame(&ctx, &mut again);
+    assert!(again.status.contains("opened"));
+    assert!(again.doc.pending_recovery().is_some());
+    assert!(rec.exists());
+    app.save_and_close(&ctx);
+    assert!(!app.doc.is_dirty() && !rec.exists(), "saving clears the recovery file");
+}
