@@ -131,7 +131,10 @@ impl EditorApp {
         if in_view {
             self.view.shown = Some(self.doc.revision);
         }
-        self.after_change();
+        // Moving nodes changes the file but no result.
+        if !tag.starts_with("move:") {
+            self.after_change();
+        }
         r
     }
 

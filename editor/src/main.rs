@@ -7,7 +7,8 @@ use std::sync::atomic::{AtomicI32, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-const USAGE: &str = "usage: relume-editor [GRAPH.ron] [--run] [--select NODE] [--screenshot OUT.png] [--timeout SECONDS] [--cache DIR]
+const USAGE: &str =
+    "usage: relume-editor [GRAPH.ron] [--run] [--select NODE] [--screenshot OUT.png] [--timeout SECONDS] [--cache DIR | --no-disk-cache]
 
   GRAPH.ron          graph file to open (a new graph when left out)
   --run              run the graph once it is open
@@ -15,7 +16,8 @@ const USAGE: &str = "usage: relume-editor [GRAPH.ron] [--run] [--select NODE] [-
   --screenshot OUT   run, wait for the image, save an in-app screenshot to OUT and exit
                      (exit code 0 when the viewer shows a picture, 2 when it looks blank)
   --timeout S        give up the screenshot after S seconds (default 600)
-  --cache DIR        keep results in a disk cache shared with `relume run --cache`";
+  --cache DIR        disk cache folder, shared with `relume run` (default: $RELUME_CACHE or .relume-cache)
+  --no-disk-cache    keep results in memory only";
 
 struct Args {
     graph: Option<PathBuf>,
@@ -24,10 +26,11 @@ struct Args {
     timeout: u64,
     cache: Option<PathBuf>,
     select: Option<String>,
+    no_disk_cache: bool,
 }
 
 fn parse_args() -> Result<Args, String> {
-    let mut a = Args { graph: None, run: false, screenshot: None, timeout: 600, cache: None, select: None };
+    let mut a = Args { graph: None, run: false, screenshot: None, timeout: 600, cache: None, select: None, no_disk_cache: false };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
         let mut value = |name: &str| it.next().ok_or(format!("{name} needs a value"));
@@ -36,6 +39,7 @@ fn parse_args() -> Result<Args, String> {
             "--screenshot" => a.screenshot = Some(value("--screenshot")?.into()),
             "--timeout" => a.timeout = value("--timeout")?.parse().map_err(|_| "--timeout needs a number of seconds")?,
             "--cache" => a.cache = Some(value("--cache")?.into()),
+            "--no-disk-cache" => a.no_disk_cache = true,
             "--select" => a.select = Some(value("--select")?),
             "-h" | "--help" => return Err(String::new()),
             s if s.starts_with('-') => return Err(format!("unknown option {s}")),
@@ -58,7 +62,8 @@ fn main() {
     };
     let registry = relume_nodes::registry();
     let mut engine = relume_core::Engine::new(registry.clone());
-    if let Some(dir) = &args.cache {
+    if !args.no_disk_cache {
+        let dir = args.cache.clone().or_else(|| std::env::var_os("RELUME_CACHE").map(PathBuf::from)).unwrap_or(".relume-cache".into());
         engine = engine.with_disk_cache(dir);
     }
     let mut app = EditorApp::new(registry, engine);
