@@ -175,7 +175,16 @@ impl EditorApp {
 
     /// Applies what the node-graph widget did.
     pub fn apply_view_edits(&mut self, edits: Vec<ViewEdit>) {
+        // Deleting a node also reports its connections as disconnected: the removal is one
+        // undo step, not one per edge.
+        let removed: Vec<String> =
+            edits.iter().filter_map(|e| if let ViewEdit::Removed(id) = e { Some(id.clone()) } else { None }).collect();
+        let edge_of_removed =
+            |g: &Graph, to: &PortRef| removed.contains(&to.node) || g.edges.iter().any(|e| &e.to == to && removed.contains(&e.from.node));
         for e in edits {
+            if matches!(&e, ViewEdit::Disconnected { to } if edge_of_removed(&self.doc.graph, to)) {
+                continue;
+            }
             match e {
                 ViewEdit::Added { kind, pos, node } => {
                     let id = self.apply("add", true, |g| edit::add_node(g, kind, pos));

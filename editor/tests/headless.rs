@@ -258,3 +258,23 @@ fn closing_with_unsaved_changes_asks_first_and_keeps_a_recovery_file() {
     app.save_and_close(&ctx);
     assert!(!app.doc.is_dirty() && !rec.exists(), "saving clears the recovery file");
 }
+
+#[test]
+fn deleting_a_node_in_the_widget_is_one_undo_step() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut app = app();
+    open_copy(&mut app, "filters.ron", dir.path());
+    let ctx = egui::Context::default();
+    frame(&ctx, &mut app);
+    let before = app.doc.graph.to_ron();
+    let blur = app.view.ids["blur"];
+    app.view.inject.push(NodeResponse::DeleteNodeUi(blur));
+    frame(&ctx, &mut app);
+    assert!(app.doc.graph.node("blur").is_none());
+    assert!(!app.doc.graph.edges.iter().any(|e| e.from.node == "blur" || e.to.node == "blur"));
+    assert_eq!(app.view.connection_count(), app.doc.graph.edges.len());
+    app.undo();
+    frame(&ctx, &mut app);
+    assert_eq!(app.doc.graph.to_ron(), before, "one undo brings the node and its edges back");
+    assert_eq!(app.view.connection_count(), 7);
+}
