@@ -34,6 +34,16 @@ fn open_copy(app: &mut EditorApp, name: &str, dir: &Path) -> PathBuf {
     dst
 }
 
+/// `filters.ron` open in a fresh editor (in a temporary folder), one frame drawn.
+fn filters() -> (tempfile::TempDir, EditorApp, egui::Context) {
+    let dir = tempfile::tempdir().unwrap();
+    let mut app = app();
+    open_copy(&mut app, "filters.ron", dir.path());
+    let ctx = egui::Context::default();
+    frame(&ctx, &mut app);
+    (dir, app, ctx)
+}
+
 fn states(app: &EditorApp) -> Vec<(String, NodeState)> {
     let mut v: Vec<_> = app.view.user.states.iter().map(|(k, s)| (k.clone(), s.clone())).collect();
     v.sort_by(|a, b| a.0.cmp(&b.0));
@@ -69,11 +79,7 @@ fn a_relume_saved_file_round_trips_byte_identical_through_the_editor() {
 
 #[test]
 fn connecting_incompatible_ports_is_refused_and_compatible_ones_are_undoable() {
-    let dir = tempfile::tempdir().unwrap();
-    let mut app = app();
-    open_copy(&mut app, "filters.ron", dir.path());
-    let ctx = egui::Context::default();
-    frame(&ctx, &mut app);
+    let (_dir, mut app, ctx) = filters();
     let before = app.doc.graph.to_ron();
     let port = |app: &EditorApp, node: &str, name: &str, output: bool| -> (eng::NodeId, Option<eng::OutputId>, Option<eng::InputId>) {
         let id = app.view.ids[node];
@@ -118,11 +124,7 @@ fn connecting_incompatible_ports_is_refused_and_compatible_ones_are_undoable() {
 
 #[test]
 fn a_parameter_edit_marks_exactly_the_downstream_nodes_stale_and_undo_restores() {
-    let dir = tempfile::tempdir().unwrap();
-    let mut app = app();
-    open_copy(&mut app, "filters.ron", dir.path());
-    let ctx = egui::Context::default();
-    frame(&ctx, &mut app);
+    let (_dir, mut app, ctx) = filters();
     assert_eq!(stale(&app).len(), 7, "nothing has run: every node is stale");
     app.run();
     app.wait_for_run();
@@ -261,11 +263,7 @@ fn closing_with_unsaved_changes_asks_first_and_keeps_a_recovery_file() {
 
 #[test]
 fn deleting_a_node_in_the_widget_is_one_undo_step() {
-    let dir = tempfile::tempdir().unwrap();
-    let mut app = app();
-    open_copy(&mut app, "filters.ron", dir.path());
-    let ctx = egui::Context::default();
-    frame(&ctx, &mut app);
+    let (_dir, mut app, ctx) = filters();
     let before = app.doc.graph.to_ron();
     let blur = app.view.ids["blur"];
     app.view.inject.push(NodeResponse::DeleteNodeUi(blur));
