@@ -94,7 +94,9 @@ fn coincident_points_build_a_tree_and_gather_finitely() {
 fn moving_the_light_reruns_shading_onward_but_not_the_surface_points() {
     let reg = relume_nodes::registry();
     let mut g = Graph::load(&graphs_dir().join("pbgi_cornell.ron"), &reg).unwrap();
-    for (k, v) in [("scene.width", "16"), ("scene.height", "16"), ("points.count", "3000"), ("direct.spp", "2"), ("shade.samples", "2")] {
+    for (k, v) in
+        [("scene.width", "16"), ("scene.height", "16"), ("points.count", "3000"), ("direct.pixel_samples", "2"), ("shade.samples", "2")]
+    {
         g.set_param_text(&reg, k, v).unwrap();
     }
     let e = engine();
@@ -140,7 +142,9 @@ fn the_factorized_gather_rasterises_far_fewer_nodes_per_receiver_and_agrees_with
 fn changing_k_reruns_only_the_clustering_and_the_factorized_gather() {
     let reg = relume_nodes::registry();
     let mut g = Graph::load(&graphs_dir().join("fpbgi_cornell.ron"), &reg).unwrap();
-    for (k, v) in [("scene.width", "16"), ("scene.height", "16"), ("points.count", "3000"), ("direct.spp", "2"), ("shade.samples", "2")] {
+    for (k, v) in
+        [("scene.width", "16"), ("scene.height", "16"), ("points.count", "3000"), ("direct.pixel_samples", "2"), ("shade.samples", "2")]
+    {
         g.set_param_text(&reg, k, v).unwrap();
     }
     let e = engine();
@@ -153,7 +157,7 @@ fn changing_k_reruns_only_the_clustering_and_the_factorized_gather() {
 fn asking_only_for_the_direct_image_builds_no_points_tree_or_gather() {
     let reg = relume_nodes::registry();
     let mut g = Graph::load(&graphs_dir().join("pbgi_cornell.ron"), &reg).unwrap();
-    for (k, v) in [("scene.width", "16"), ("scene.height", "16"), ("direct.spp", "2")] {
+    for (k, v) in [("scene.width", "16"), ("scene.height", "16"), ("direct.pixel_samples", "2")] {
         g.set_param_text(&reg, k, v).unwrap();
     }
     let opts = relume_core::RunOptions { outputs: Some(vec!["direct".into()]), ..Default::default() };

@@ -101,6 +101,15 @@ impl Distribution1D {
         (i, self.cdf[i + 1] - self.cdf[i])
     }
 
+    /// As `sample_discrete`, also returning u's position within the chosen cell rescaled to
+    /// [0, 1): a stratified u stays stratified within each cell (sample reuse).
+    pub fn sample_discrete_reuse(&self, u: f32) -> (usize, f32, f32) {
+        let i = self.find(u);
+        let width = self.cdf[i + 1] - self.cdf[i];
+        let du = if width > 0.0 { ((u - self.cdf[i]) / width).clamp(0.0, 1.0 - f32::EPSILON) } else { 0.5 };
+        (i, width, du)
+    }
+
     /// Probability of drawing cell `i` with `sample_discrete`.
     pub fn discrete_pdf(&self, i: usize) -> f32 {
         self.cdf[i + 1] - self.cdf[i]
@@ -138,6 +147,56 @@ impl Distribution1D {
         }
         i
     }
+}
+
+/// Kensler's hash permutation of 0..len ("Correlated Multi-Jittered Sampling", Pixar 2013):
+/// element `i` of the permutation numbered `pattern`.
+pub fn permute(mut i: u32, len: u32, pattern: u32) -> u32 {
+    let p = pattern;
+    let mut w = len.max(1) - 1;
+    w |= w >> 1;
+    w |= w >> 2;
+    w |= w >> 4;
+    w |= w >> 8;
+    w |= w >> 16;
+    loop {
+        i ^= p;
+        i = i.wrapping_mul(0xe170893d);
+        i ^= p >> 16;
+        i ^= (i & w) >> 4;
+        i ^= p >> 8;
+        i = i.wrapping_mul(0x0929eb3f);
+        i ^= p >> 23;
+        i ^= (i & w) >> 1;
+        i = i.wrapping_mul(1 | p >> 27);
+        i = i.wrapping_mul(0x6935fa69);
+        i ^= (i & w) >> 11;
+        i = i.wrapping_mul(0x74dcb303);
+        i ^= (i & w) >> 2;
+        i = i.wrapping_mul(0x9e501cc3);
+        i ^= (i & w) >> 2;
+        i = i.wrapping_mul(0xc860a3df);
+        i &= w;
+        i ^= i >> 5;
+        if i < len.max(1) {
+            return (i.wrapping_add(p)) % len.max(1);
+        }
+    }
+}
+
+/// Sample `s` of `n` correlated multi-jittered points in [0, 1)² (Kensler 2013): the n points
+/// of one `pattern` fall one per cell of an m × ⌈n/m⌉ grid (m = ⌊√n⌋) and one per 1/n strip
+/// along each axis. `jitter` (two uniforms in [0, 1)) places the point within its cell.
+pub fn cmj(s: u32, n: u32, pattern: u32, jitter: Vec2) -> Vec2 {
+    let n = n.max(1);
+    let m = ((n as f32).sqrt() as u32).max(1);
+    let rows = n.div_ceil(m);
+    let s = permute(s % n, n, pattern.wrapping_mul(0x51633e2d));
+    let sx = permute(s % m, m, pattern.wrapping_mul(0x68bc21eb));
+    let sy = permute(s / m, rows, pattern.wrapping_mul(0x02e5be93));
+    let x = (sx as f32 + (sy as f32 + jitter.x) / rows as f32) / m as f32;
+    let y = (s as f32 + jitter.y) / n as f32;
+    Vec2::new(x.min(1.0 - f32::EPSILON), y.min(1.0 - f32::EPSILON))
 }
 
 /// A piecewise-constant 2-D distribution over [0, 1)²: a marginal over rows (v) and a
@@ -216,6 +275,50 @@ mod tests {
         assert!((d.pdf_cell(2) - 3.0).abs() < 1e-6, "density integrates to 1 over [0,1)");
         let zero = Distribution1D::new(&[0.0, 0.0]);
         assert_eq!(zero.pdf_cell(1), 1.0);
+    }
+
+    #[test]
+    fn permutations_are_bijections_and_cmj_points_are_stratified() {
+        for len in [1u32, 2, 7, 16, 33, 100] {
+            for pattern in [0u32, 1, 0xdead_beef] {
+                let mut seen: Vec<u32> = (0..len).map(|i| permute(i, len, pattern)).collect();
+                seen.sort_unstable();
+                assert_eq!(seen, (0..len).collect::<Vec<_>>(), "len {len}");
+            }
+        }
+        for n in [1u32, 5, 16, 64, 90] {
+            for pattern in [3u32, 77] {
+                let pts: Vec<Vec2> = (0..n).map(|s| cmj(s, n, pattern, u2(s as u64 + 1000 * n as u64))).collect();
+                assert!(pts.iter().all(|p| (0.0..1.0).contains(&p.x) && (0.0..1.0).contains(&p.y)));
+                // One point per 1/n strip along y, per cell of the m × ⌈n/m⌉ grid (when it has n cells)
+                // and per fine strip along x.
+                let mut rows: Vec<u32> = pts.iter().map(|p| (p.y * n as f32) as u32).collect();
+                rows.sort_unstable();
+                assert_eq!(rows, (0..n).collect::<Vec<_>>());
+                let m = (n as f32).sqrt() as u32;
+                let cols = n.div_ceil(m);
+                let mut cells: Vec<(u32, u32)> = pts.iter().map(|p| ((p.x * m as f32) as u32, (p.y * cols as f32) as u32)).collect();
+                cells.sort_unstable();
+                cells.dedup();
+                if m * cols == n {
+                    assert_eq!(cells.len() as u32, n, "n = {n}");
+                }
+                let mut strips: Vec<u32> = pts.iter().map(|p| (p.x * (m * cols) as f32) as u32).collect();
+                strips.sort_unstable();
+                strips.dedup();
+                assert_eq!(strips.len() as u32, n, "one point per fine strip along x, n = {n}");
+            }
+        }
+    }
+
+    #[test]
+    fn reused_discrete_samples_rescale_within_their_cell() {
+        let d = Distribution1D::new(&[1.0, 3.0]);
+        let (i, p, du) = d.sample_discrete_reuse(0.25 + 0.75 * 0.5);
+        assert_eq!(i, 1);
+        assert!((p - 0.75).abs() < 1e-6 && (du - 0.5).abs() < 1e-6, "{p} {du}");
+        let (i, _, du) = d.sample_discrete_reuse(0.125);
+        assert!(i == 0 && (du - 0.5).abs() < 1e-6);
     }
 
     #[test]

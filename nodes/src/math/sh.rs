@@ -173,15 +173,26 @@ pub fn sh_eval(coeffs: &[f32], dir: Vec3) -> f32 {
 /// Σ_k c_k Y_k(dir) in 3 bands.
 #[inline]
 pub fn sh9_eval(coeffs: &[f32; 9], dir: Vec3) -> f32 {
-    let y = sh9(dir);
-    coeffs.iter().zip(&y).map(|(c, y)| c * y).sum()
+    sh9_dot(coeffs, &sh9(dir))
+}
+
+/// Σ_k c_k y_k for a basis `y` = `sh9(dir)` already evaluated (several functions, one
+/// direction).
+#[inline]
+pub fn sh9_dot(coeffs: &[f32; 9], y: &[f32; 9]) -> f32 {
+    coeffs.iter().zip(y).map(|(c, y)| c * y).sum()
+}
+
+/// `sh9_dot` per RGB channel.
+#[inline]
+pub fn sh9_dot_rgb(coeffs: &[Vec3; 9], y: &[f32; 9]) -> Vec3 {
+    coeffs.iter().zip(y).fold(Vec3::ZERO, |acc, (c, y)| acc + *c * *y)
 }
 
 /// Σ_k c_k Y_k(dir) in 3 bands, per RGB channel.
 #[inline]
 pub fn sh9_eval_rgb(coeffs: &[Vec3; 9], dir: Vec3) -> Vec3 {
-    let y = sh9(dir);
-    coeffs.iter().zip(&y).fold(Vec3::ZERO, |acc, (c, y)| acc + *c * *y)
+    sh9_dot_rgb(coeffs, &sh9(dir))
 }
 
 /// ∫ over the sphere of the function the coefficients stand for: c_0 · √(4π).

@@ -57,7 +57,7 @@ pub fn factorized_gather(
     p: &FactorizedGatherParams,
     extent: f32,
 ) -> (Image, GatherCounts) {
-    let t = Traversal { tree, threshold: p.threshold, eps: 1e-5 * extent };
+    let t = Traversal::new(tree, p.threshold, 1e-5 * extent);
     let per_cluster: Vec<Vec<(u32, Vec3, GatherCounts)>> = clusters
         .clusters
         .par_iter()

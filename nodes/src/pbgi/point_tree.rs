@@ -2,7 +2,7 @@
 //! node that builds it.
 
 use crate::math::frame::Frame;
-use crate::math::sh::{sh9_clamped_cosine, sh9_eval, sh9_eval_rgb};
+use crate::math::sh::{sh9, sh9_clamped_cosine, sh9_dot, sh9_dot_rgb, sh9_eval, sh9_eval_rgb};
 use crate::types::{PointRadiance, SurfacePoints};
 use glam::{DVec3, Vec3};
 use relume_core::{node_doc, Caching, Hash, Hasher, Io, Node, NodeError, PortValue, Ports, RunCtx};
@@ -12,9 +12,17 @@ use relume_core::{node_doc, Caching, Hash, Hasher, Io, Node, NodeError, PortValu
 pub struct TreeNode {
     /// Bounding sphere: contains the children's spheres (so every disk below); a leaf's is its
     /// disk's (radius r at the point). Nesting makes inner spheres looser than the tightest
-    /// sphere around their points (about 1.2–1.7 × on sampled scenes).
+    /// sphere around their points (about 1.2–1.7 × on sampled scenes); `bound` is the tight
+    /// radius about the same centre.
     pub center: Vec3,
     pub radius: f32,
+    /// Tight bound: every disk below lies within `bound` of `center` (≤ `radius`; leaves: r).
+    /// Measured from the disks themselves, not nested, so it does not hold the children's
+    /// spheres; traversals cull and open by it.
+    pub bound: f32,
+    /// Every point x of every disk below has `cone_axis`·(x − `center`) within [slab[0],
+    /// slab[1]]: a flat group is a thin slab, which a receiver in its plane can cull.
+    pub slab: [f32; 2],
     /// Normal cone: every normal below lies within acos(`cone_cos`) of `cone_axis` (unit).
     /// Leaves: the point's normal, `cone_cos` = 1; −1 is the whole sphere.
     pub cone_axis: Vec3,
@@ -82,6 +90,8 @@ impl PointTree {
         let empty = TreeNode {
             center: Vec3::ZERO,
             radius: 0.0,
+            bound: 0.0,
+            slab: [0.0; 2],
             cone_axis: Vec3::Z,
             cone_cos: 1.0,
             area: 0.0,
@@ -125,16 +135,21 @@ impl PointTree {
         if node.is_leaf() {
             return if node.cone_axis.dot(dir) > 0.0 { self.point_radiance[node.point as usize] } else { Vec3::ZERO };
         }
-        let a = sh9_eval(&node.sh_area, dir);
-        if a.is_nan() || a <= MIN_AREA_FRACTION * node.area || cone_bounds(node, dir).1 <= 0.0 {
-            return Vec3::ZERO;
+        radiance_ratio(node, sh9_eval_rgb(&node.sh_power, dir), sh9_eval(&node.sh_area, dir), cone_bounds(node, dir).1)
+    }
+
+    /// `projected_area(i, dir)` and `radiance_toward(i, dir)` together, the SH basis and the
+    /// cone bounds evaluated once (the same values, bit for bit).
+    pub fn area_and_radiance(&self, i: u32, dir: Vec3) -> (f32, Vec3) {
+        let node = &self.nodes[i as usize];
+        if node.is_leaf() {
+            return (self.projected_area(i, dir), self.radiance_toward(i, dir));
         }
-        let r = sh9_eval_rgb(&node.sh_power, dir) / a;
-        if r.is_finite() {
-            r.max(Vec3::ZERO)
-        } else {
-            Vec3::ZERO
-        }
+        let y = sh9(dir);
+        let (lo, hi) = cone_bounds(node, dir);
+        let a = sh9_dot(&node.sh_area, &y);
+        let area = a.max(node.area * lo).min(node.area * hi);
+        (area, radiance_ratio(node, sh9_dot_rgb(&node.sh_power, &y), a, hi))
     }
 
     /// The cut: walk from the root; stop at a node when `refine(node)` is false or it is a leaf;
@@ -177,6 +192,21 @@ impl PointTree {
     }
 }
 
+/// SH power over SH area (`power`, `a` at one direction; `hi` the cone's upper bound there):
+/// 0 when the area is at most `MIN_AREA_FRACTION` of the node's or the cone faces away, never
+/// NaN, each channel ≥ 0.
+fn radiance_ratio(node: &TreeNode, power: Vec3, a: f32, hi: f32) -> Vec3 {
+    if a.is_nan() || a <= MIN_AREA_FRACTION * node.area || hi <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let r = power / a;
+    if r.is_finite() {
+        r.max(Vec3::ZERO)
+    } else {
+        Vec3::ZERO
+    }
+}
+
 /// The range [lo, hi] of max(0, n·dir) over the unit normals n of `node`'s cone.
 fn cone_bounds(node: &TreeNode, dir: Vec3) -> (f32, f32) {
     let cos_t = node.cone_cos;
@@ -202,6 +232,8 @@ fn leaf(p: u32, input: &Input) -> TreeNode {
     TreeNode {
         center: input.pos[i],
         radius: r,
+        bound: r,
+        slab: [0.0; 2],
         cone_axis: n,
         cone_cos: 1.0,
         area,
@@ -246,7 +278,31 @@ fn build_rec(idx: &mut [u32], input: &Input, nodes: &mut [TreeNode], base: u32) 
         (build_rec(li, input, ln, l), build_rec(ri, input, rn, r))
     };
     head[0] = merge(&ln[0], &rn[0], [l, r]);
+    tighten(&mut head[0], idx, input);
     1 + dl.max(dr)
+}
+
+/// Sets `bound` and `slab` of `node` from the disks of its points `idx` (in f64, widened by a
+/// little for rounding). A disk of radius r, normal n, whose centre is at q from the node's
+/// centre reaches √((|q⊥| + r)² + (q·n)²) from it (q⊥: q in the disk's plane) and spans
+/// ± r √(1 − (a·n)²) along the axis a.
+fn tighten(node: &mut TreeNode, idx: &[u32], input: &Input) {
+    let (c, a) = (node.center.as_dvec3(), node.cone_axis.as_dvec3());
+    let (mut reach2, mut lo, mut hi) = (0.0f64, f64::INFINITY, f64::NEG_INFINITY);
+    for &i in idx {
+        let i = i as usize;
+        let (q, n, r) = (input.pos[i].as_dvec3() - c, input.normal[i].as_dvec3(), input.radius[i].max(0.0) as f64);
+        let qn = q.dot(n);
+        let q_plane = (q.length_squared() - qn * qn).max(0.0).sqrt();
+        reach2 = reach2.max((q_plane + r) * (q_plane + r) + qn * qn);
+        let (along, spread) = (a.dot(q), r * (1.0 - a.dot(n).powi(2)).max(0.0).sqrt());
+        lo = lo.min(along - spread);
+        hi = hi.max(along + spread);
+    }
+    let bound = reach2.sqrt();
+    let pad = 1e-6 * (bound + c.abs().max_element()) + 1e-30;
+    node.bound = ((bound + pad) as f32).min(node.radius);
+    node.slab = [(lo - pad) as f32, (hi + pad) as f32];
 }
 
 /// The parent of two nodes: enclosing sphere, enclosing cone, sums of area and SH.
@@ -256,6 +312,8 @@ fn merge(a: &TreeNode, b: &TreeNode, children: [u32; 2]) -> TreeNode {
     TreeNode {
         center,
         radius,
+        bound: radius,
+        slab: [-radius, radius],
         cone_axis,
         cone_cos,
         area: a.area + b.area,
@@ -348,7 +406,8 @@ impl PortValue for PointTree {
         };
         let put = |buf: &mut Vec<u8>, v: f32| buf.extend_from_slice(&v.to_bits().to_le_bytes());
         for n in &self.nodes {
-            for v in n.center.to_array().into_iter().chain([n.radius]).chain(n.cone_axis.to_array()).chain([n.cone_cos, n.area]) {
+            let head = n.center.to_array().into_iter().chain([n.radius, n.bound, n.slab[0], n.slab[1]]);
+            for v in head.chain(n.cone_axis.to_array()).chain([n.cone_cos, n.area]) {
                 put(&mut buf, v);
             }
             for v in n.sh_area.into_iter().chain(n.sh_power.iter().flat_map(|c| c.to_array())) {
@@ -665,6 +724,37 @@ mod tests {
                     prop_assert!(a.cone_cos <= -1.0 || nr.dot(a.cone_axis) >= a.cone_cos - 1e-6);
                     j = parent[j as usize];
                 }
+            }
+        }
+
+        #[test]
+        fn tight_bounds_and_slabs_hold_every_disk_below_and_are_no_looser_than_the_spheres(
+            n in 1usize..200, seed in any::<u64>(), layout in layout()
+        ) {
+            let (pts, rad) = random_set(n, seed, layout);
+            let tree = PointTree::build(&pts, &rad);
+            let mut tighter = 0;
+            for (i, node) in tree.nodes.iter().enumerate() {
+                let slack = 1e-5 * (1.0 + node.center.abs().max_element() + node.radius);
+                prop_assert!(node.bound >= 0.0 && node.bound <= node.radius, "bound {} radius {}", node.bound, node.radius);
+                prop_assert!(node.slab[0] <= node.slab[1] + slack);
+                tighter += (node.bound < 0.99 * node.radius) as usize;
+                for p in leaves_under(&tree, i as u32) {
+                    let (x, nr, r) = (pts.position[p as usize], pts.normal[p as usize].normalize(), pts.radius[p as usize]);
+                    let f = Frame::from_normal(nr);
+                    // The disk's centre and 16 points of its rim.
+                    for k in 0..17 {
+                        let phi = k as f32 * std::f32::consts::TAU / 16.0;
+                        let y = if k == 16 { x } else { x + (f.s * phi.cos() + f.t * phi.sin()) * r };
+                        prop_assert!(y.distance(node.center) <= node.bound + slack, "node {}: disk point {} past bound {}", i, y.distance(node.center), node.bound);
+                        let along = node.cone_axis.dot(y - node.center);
+                        prop_assert!(along >= node.slab[0] - slack && along <= node.slab[1] + slack, "node {}: {} outside slab {:?}", i, along, node.slab);
+                    }
+                }
+            }
+            // Spread-out sets nest loosely: the tight bound is the smaller one somewhere.
+            if matches!(layout, Layout::Free) && n > 8 {
+                prop_assert!(tighter > 0);
             }
         }
 

@@ -109,6 +109,16 @@ impl LightSampler {
         self.sample_item(scene, p, i, p_choice, u2)
     }
 
+    /// As `sample` from one 2-D sample: u.x picks the light and, rescaled within that light's
+    /// share, places the point together with u.y, so stratified u stay stratified on each light.
+    pub fn sample_2d(&self, scene: &Scene, p: Vec3, u: Vec2) -> Option<LightSample> {
+        if self.items.is_empty() {
+            return None;
+        }
+        let (i, p_choice, ux) = self.choice.sample_discrete_reuse(u.x);
+        self.sample_item(scene, p, i, p_choice, Vec2::new(ux, u.y))
+    }
+
     /// As `sample`, choosing only among area lights and the environment (densities are
     /// relative to that choice). Delta lights are left to the caller.
     pub fn sample_extended(&self, scene: &Scene, p: Vec3, u: f32, u2: Vec2) -> Option<LightSample> {
