@@ -187,7 +187,7 @@ fn pbgi_cornell_edits_rerun_only_what_they_reach() {
         ("scene", "width", ParamValue::Int(64)),
         ("scene", "height", ParamValue::Int(64)),
         ("points", "count", ParamValue::Int(4000)),
-        ("direct", "spp", ParamValue::Int(2)),
+        ("direct", "pixel_samples", ParamValue::Int(2)),
     ] {
         app.set_param(id, name, v).unwrap();
     }
