@@ -59,6 +59,8 @@ pub struct EditorApp {
     recovery_written: u64,
     pub(crate) recovery_offer: Option<std::path::PathBuf>,
     pub screenshot: Option<ScreenshotJob>,
+    /// The window title last sent (sent again only when it changes).
+    window_title: String,
 }
 
 impl EditorApp {
@@ -89,6 +91,7 @@ impl EditorApp {
             recovery_written: 0,
             recovery_offer: None,
             screenshot: None,
+            window_title: String::new(),
         }
     }
 
@@ -388,7 +391,11 @@ impl EditorApp {
         if let Some(job) = &mut self.screenshot {
             job.frame(ctx, &self.viewer, self.runner.is_running() || self.pending_run.is_some());
         }
-        ctx.send_viewport_cmd(egui::ViewportCommand::Title(format!("{} — relume editor", self.doc.title())));
+        let title = format!("{} - relume editor", self.doc.title());
+        if title != self.window_title {
+            ctx.send_viewport_cmd(egui::ViewportCommand::Title(title.clone()));
+            self.window_title = title;
+        }
     }
 
     fn shortcuts(&mut self, ctx: &egui::Context) {
