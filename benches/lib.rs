@@ -50,6 +50,54 @@ pub fn edit_node(n: usize) -> String {
     format!("n{l}_{j}")
 }
 
+/// The repository's `graphs/` folder.
+pub fn graphs_dir() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../graphs")
+}
+
+/// A graph file, the parameter its representative edit changes (`node.param`), and the value
+/// text of the k-th edit.
+pub type GraphEdit = (&'static str, &'static str, fn(u64) -> String);
+
+/// Every pipeline graph in `graphs/` with its representative edit: the parameter a user
+/// drags and the value of the k-th edit (new every time, so never cached).
+pub fn graph_edits() -> Vec<GraphEdit> {
+    vec![
+        ("filters.ron", "blur.sigma", |k| format!("{}", 0.8 + k as f64 * 1e-6)),
+        ("image_error.ron", "error_denoised.epsilon", |k| format!("{}", 0.01 + k as f64 * 1e-9)),
+        ("reference_cornell.ron", "reference.seed", |k| format!("{}", 1000 + k)),
+        ("pbgi_cornell.ron", "move.translation", |k| format!("({}, 0, 0)", k as f64 * 1e-6)),
+        ("fpbgi_cornell.ron", "move.translation", |k| format!("({}, 0, 0)", k as f64 * 1e-6)),
+        ("pbgi_vs_reference.ron", "fpbgi.epsilon", |k| format!("{}", 1.0 + k as f64 * 1e-6)),
+    ]
+}
+
+/// Loads a graph of `graphs/` at bench size: the converged references (4096 samples per
+/// pixel) come down to 64, so that a cold run takes seconds, not minutes; everything else is
+/// as the file says.
+pub fn bench_graph(name: &str) -> Graph {
+    let reg = relume_nodes::registry();
+    let mut g = Graph::load(&graphs_dir().join(name), &reg).expect("graph loads");
+    for n in g.nodes.clone() {
+        if n.kind == "PathTrace" && n.param("spp").is_some_and(|v| v.to_text().parse::<i64>().is_ok_and(|spp| spp > 64)) {
+            g.set_param_text(&reg, &format!("{}.spp", n.id), "64").unwrap();
+        }
+    }
+    g
+}
+
+/// Adds a graph output `name` for port `node.port` (to read an intermediate result).
+pub fn add_output(g: &mut Graph, name: &str, port: &str) {
+    let port = relume_core::graph::PortRef::parse(port).expect("node.port");
+    g.outputs.push(relume_core::graph::Output { name: name.into(), port, pos: Default::default() });
+}
+
+/// Runs one registered node kind by name with its default parameters on `inputs` in
+/// declared order: a kernel benchmark through the node's own interface.
+pub fn run_kind(kind: &str, inputs: &[relume_core::Value]) -> Vec<relume_core::Value> {
+    relume_core::run_kind(&relume_nodes::registry(), kind, &[], &graphs_dir(), inputs).unwrap_or_else(|e| panic!("{kind}: {e}")).outputs
+}
+
 /// A canonical scene from `graphs/scenes/`, optionally at another resolution.
 pub fn scene(name: &str, size: Option<usize>) -> relume_nodes::types::Scene {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../graphs/scenes").join(format!("{name}.ron"));
@@ -77,5 +125,23 @@ mod tests {
         g.set_param_text(e.registry(), &format!("{}.sigma", edit_node(200)), "2.0").unwrap();
         let ran = e.run(&g, &RunOptions::default()).unwrap().report.ran;
         assert!((10..100).contains(&ran), "{ran}");
+    }
+
+    #[test]
+    fn every_graph_in_graphs_has_a_representative_edit_that_reruns_part_of_it() {
+        let mut names: Vec<String> = std::fs::read_dir(graphs_dir())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".ron"))
+            .collect();
+        names.sort();
+        let mut listed: Vec<&str> = graph_edits().iter().map(|e| e.0).collect();
+        listed.sort();
+        assert_eq!(names, listed, "benches/lib.rs graph_edits() lists every graph");
+        let reg = relume_nodes::registry();
+        for (name, param, value) in graph_edits() {
+            let mut g = Graph::load(&graphs_dir().join(name), &reg).unwrap();
+            g.set_param_text(&reg, param, &value(1)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
     }
 }

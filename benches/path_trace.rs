@@ -4,8 +4,8 @@
 
 use divan::counter::ItemsCount;
 use relume_benches::scene;
-use relume_nodes::geometry::accel::{Accel, BuildQuality};
-use relume_nodes::reference::path_trace::{render, PathTraceParams};
+use relume_nodes::reference::path_trace::{render, PathTrace};
+use relume_nodes::types::accel::{Accel, BuildQuality};
 
 fn main() {
     divan::main();
@@ -18,6 +18,6 @@ fn cornell_256(bencher: divan::Bencher, threads: usize) {
     let s = scene("cornell", Some(256));
     let accel = Accel::build(&s, BuildQuality::Medium);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-    let p = PathTraceParams { spp: SPP, max_depth: -1, rr_depth: 5, seed: 0 };
+    let p = PathTrace { spp: SPP, max_depth: -1, rr_depth: 5, seed: 0 };
     bencher.counter(ItemsCount::new(256 * 256 * SPP as usize)).bench_local(|| pool.install(|| render(&s, &accel, &p, None).unwrap().2));
 }

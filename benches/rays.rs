@@ -4,8 +4,8 @@
 use divan::counter::ItemsCount;
 use glam::Vec3;
 use relume_benches::scene;
-use relume_nodes::geometry::accel::{Accel, BuildQuality};
-use relume_nodes::reference::camera::CameraRays;
+use relume_nodes::render::camera::CameraRays;
+use relume_nodes::types::accel::{Accel, BuildQuality};
 
 fn main() {
     divan::main();

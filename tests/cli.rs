@@ -28,6 +28,7 @@ fn running_image_error_twice_shows_every_node_cached_the_second_time() {
             d(r),
             "--cache".into(),
             d("cache"),
+            "--cache-all".into(),
             "--quiet".into(),
         ]
     };

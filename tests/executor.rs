@@ -1,13 +1,13 @@
 //! The executor: concurrency of independent nodes, cancellation, progress events, failures.
 
 use relume_core::{CancelToken, Engine, Event, Graph, Observer, Registry, RunError, RunOptions};
-use relume_tests::{test_registry, Log, Rendezvous, UntilCancelled};
-use std::sync::{Arc, Condvar, Mutex};
+use relume_tests::{rendezvous, test_registry, Log, UntilCancelled};
+use std::sync::Mutex;
 
 #[test]
 fn independent_nodes_run_at_the_same_time() {
     let mut reg = Registry::new();
-    reg.add(Rendezvous { state: Arc::new((Mutex::new(0), Condvar::new())), parties: 2 });
+    reg.add_dyn(rendezvous(2));
     let g = Graph::parse(r#"(version: 1, nodes: { "a": (kind: "Rendezvous", params: (salt: 1)), "b": (kind: "Rendezvous", params: (salt: 2)) }, outputs: { "a": "a.out", "b": "b.out" })"#, None).unwrap();
     // Each node waits until the other is running too: a sequential executor fails here.
     let r = Engine::new(reg).with_parallelism(2).run(&g, &RunOptions::default()).unwrap();
@@ -43,7 +43,7 @@ impl Observer for Recorder {
 fn a_cancelled_run_stops_reports_cancelled_and_leaves_the_cache_consistent() {
     let log = Log::default();
     let mut reg = test_registry(&log);
-    reg.add(UntilCancelled);
+    reg.add::<UntilCancelled>();
     let g = Graph::parse(
         r#"(version: 1, nodes: { "a": (kind: "Mix0", params: ()), "slow": (kind: "UntilCancelled", params: ()), "after": (kind: "Mix1", params: ()) },
            edges: [("a.out", "slow.in0"), ("slow.out", "after.in0")], outputs: { "x": "after.out" })"#,

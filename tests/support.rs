@@ -2,8 +2,8 @@
 //! small utilities around graphs and reports.
 
 use relume_core::{
-    Caching, Documented, Engine, Graph, Hash, Hasher, Io, Node, NodeError, ParamValues, Params, PortValue, Ports, Registry, RunCtx,
-    RunOptions, RunReport, Schema,
+    inputs, node, outputs, Caching, DynNode, Engine, Graph, Hasher, NodeError, ParamValues, Params, PortDecl, PortValue, Ports, Registry,
+    RunCtx, RunOptions, RunReport, Schema, Value,
 };
 use std::path::PathBuf;
 use std::sync::{Arc, Condvar, Mutex};
@@ -12,6 +12,54 @@ use std::time::Duration;
 /// The repository's `graphs/` folder.
 pub fn graphs_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../graphs")
+}
+
+/// The `tests/` folder (its `scenes/` hold test-only scenes).
+pub fn tests_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Loads `graphs/NAME` and applies `--set`-style overrides (`node.param`, value text).
+pub fn load_graph(name: &str, sets: &[(&str, &str)]) -> Graph {
+    let reg = relume_nodes::registry();
+    let mut g = Graph::load(&graphs_dir().join(name), &reg).unwrap_or_else(|e| panic!("{e}"));
+    for (k, v) in sets {
+        g.set_param_text(&reg, k, v).unwrap_or_else(|e| panic!("--set {k}={v}: {e}"));
+    }
+    g
+}
+
+/// Adds a graph output `name` for port `node.port` (to read an intermediate result).
+pub fn add_output(g: &mut Graph, name: &str, port: &str) {
+    let port = relume_core::graph::PortRef::parse(port).expect("node.port");
+    g.outputs.push(relume_core::graph::Output { name: name.into(), port, pos: Default::default() });
+}
+
+/// Runs the named outputs of a graph and returns the result (panics with the error's text).
+pub fn run_outputs(engine: &Engine, g: &Graph, outputs: &[&str]) -> relume_core::RunResult {
+    let opts = RunOptions { outputs: Some(outputs.iter().map(|s| s.to_string()).collect()), ..Default::default() };
+    engine.run(g, &opts).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Runs one registered node kind by name with its default parameters on `inputs` (declared
+/// order): a stage on inputs no graph produces (hand-made stiff cases).
+pub fn run_kind(kind: &str, inputs: &[Value]) -> Result<Vec<Value>, NodeError> {
+    relume_core::run_kind(&relume_nodes::registry(), kind, &[], &graphs_dir(), inputs).map(|e| e.outputs)
+}
+
+/// Every file below `dir` (a cache folder), sorted.
+pub fn files_under(dir: &std::path::Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            out.extend(files_under(&p));
+        } else {
+            out.push(p);
+        }
+    }
+    out.sort();
+    out
 }
 
 /// Every `*.ron` graph in `graphs/` (not the scenes).
@@ -44,14 +92,11 @@ pub struct Num(pub u64);
 impl PortValue for Num {
     const NAME: &'static str = "Num";
     const COLOR: [u8; 3] = [90, 90, 220];
-    fn fingerprint(&self) -> Hash {
-        Hasher::new().str("Num").u64(self.0).finish()
-    }
     fn byte_size(&self) -> usize {
         8
     }
-    fn encode(&self) -> Option<Vec<u8>> {
-        Some(self.0.to_le_bytes().to_vec())
+    fn encode(&self) -> Vec<u8> {
+        self.0.to_le_bytes().to_vec()
     }
     fn decode(b: &[u8]) -> Option<Self> {
         Some(Num(u64::from_le_bytes(b.try_into().ok()?)))
@@ -61,111 +106,118 @@ impl PortValue for Num {
 /// Shared record of which test nodes ran, in order.
 pub type Log = Arc<Mutex<Vec<String>>>;
 
-pub struct SaltParams {
-    pub salt: i64,
+type RunFn = dyn Fn(i64, &[Value], &RunCtx) -> Result<Vec<Value>, NodeError> + Send + Sync;
+
+/// A test node kind that carries state of its own (a log, a rendezvous), registered in its
+/// type-erased form with `Registry::add_dyn`; its one parameter is `salt`.
+pub struct TestNode {
+    kind: &'static str,
+    ports: Ports,
+    schema: Schema,
+    run: Box<RunFn>,
 }
 
-impl Params for SaltParams {
-    fn schema() -> Schema {
-        Schema::new().int("salt", 0, i64::MIN, i64::MAX).help("changes the output")
-    }
-    fn from_values(v: &ParamValues) -> Self {
-        SaltParams { salt: v.int("salt") }
+impl TestNode {
+    fn erased(kind: &'static str, inputs: &[&'static str], run: Box<RunFn>) -> Arc<dyn DynNode> {
+        let ports = Ports { inputs: inputs.iter().map(|n| PortDecl::of::<Num>(n)).collect(), outputs: vec![PortDecl::of::<Num>("out")] };
+        let schema = Schema::new().int("salt", 0, i64::MIN, i64::MAX).help("changes the output");
+        Arc::new(TestNode { kind, ports, schema, run })
     }
 }
 
-/// Test node with N inputs `in0..`: output = hash(salt, inputs); logs its id when it runs.
-pub struct Mix<const N: usize>(pub Log);
-
-impl<const N: usize> Documented for Mix<N> {
-    const DOC: &'static str = "Test node: hashes its inputs and salt.";
+impl DynNode for TestNode {
+    fn kind(&self) -> &'static str {
+        self.kind
+    }
+    fn version(&self) -> u32 {
+        1
+    }
+    fn category(&self) -> &'static str {
+        "test"
+    }
+    fn doc(&self) -> &str {
+        "Test node."
+    }
+    fn ports(&self) -> &Ports {
+        &self.ports
+    }
+    fn schema(&self) -> &Schema {
+        &self.schema
+    }
+    fn caching(&self) -> Caching {
+        Caching::Auto
+    }
+    fn run(&self, params: &ParamValues, inputs: &[Value], cx: &RunCtx) -> Result<Vec<Value>, NodeError> {
+        (self.run)(params.int("salt"), inputs, cx)
+    }
 }
 
 const MIX_KINDS: [&str; 4] = ["Mix0", "Mix1", "Mix2", "Mix3"];
 const INPUT_NAMES: [&str; 3] = ["in0", "in1", "in2"];
 
-impl<const N: usize> Node for Mix<N> {
-    const KIND: &'static str = MIX_KINDS[N];
-    const VERSION: u32 = 1;
-    const CATEGORY: &'static str = "test";
-    const CACHING: Caching = Caching::Disk;
-    type Params = SaltParams;
-    fn ports() -> Ports {
-        INPUT_NAMES[..N].iter().fold(Ports::new(), |p, n| p.input::<Num>(n)).output::<Num>("out")
-    }
-    fn run(&self, p: &SaltParams, io: &mut Io, cx: &RunCtx) -> Result<(), NodeError> {
-        self.0.lock().unwrap().push(cx.node_id().to_string());
-        let mut h = Hasher::new();
-        h.i64(p.salt);
-        for n in &INPUT_NAMES[..N] {
-            h.u64(io.input::<Num>(n)?.0);
-        }
-        let v = u64::from_le_bytes(h.finish().0[..8].try_into().unwrap());
-        io.set("out", Num(v))
-    }
+/// Test node `MixN` with N inputs `in0..`: output = hash(salt, inputs); logs its id when it runs.
+pub fn mix(n: usize, log: &Log) -> Arc<dyn DynNode> {
+    let log = log.clone();
+    TestNode::erased(
+        MIX_KINDS[n],
+        &INPUT_NAMES[..n],
+        Box::new(move |salt, inputs, cx| {
+            log.lock().unwrap().push(cx.node_id().to_string());
+            let mut h = Hasher::new();
+            h.i64(salt);
+            for v in inputs {
+                h.u64(v.get::<Num>().expect("Num input").0);
+            }
+            Ok(vec![Value::new(Num(u64::from_le_bytes(h.finish().0[..8].try_into().unwrap())))])
+        }),
+    )
 }
 
-/// Waits (up to 20 s) until `parties` Rendezvous nodes are running at the same time; fails
-/// if they never are, which proves that independent nodes run concurrently.
-pub struct Rendezvous {
-    pub state: Arc<(Mutex<usize>, Condvar)>,
-    pub parties: usize,
+/// Test node `Rendezvous`: waits (up to 20 s) until `parties` of its kind are running at the
+/// same time; fails if they never are, which proves that independent nodes run concurrently.
+pub fn rendezvous(parties: usize) -> Arc<dyn DynNode> {
+    let state = Arc::new((Mutex::new(0usize), Condvar::new()));
+    TestNode::erased(
+        "Rendezvous",
+        &[],
+        Box::new(move |salt, _, _| {
+            let (lock, cv) = &*state;
+            let mut n = lock.lock().unwrap();
+            *n += 1;
+            cv.notify_all();
+            let (n, timeout) = cv.wait_timeout_while(n, Duration::from_secs(20), |n| *n < parties).unwrap();
+            if timeout.timed_out() {
+                return Err(NodeError::failed(format!("only {} of {parties} ran at once", *n)));
+            }
+            Ok(vec![Value::new(Num(salt as u64))])
+        }),
+    )
 }
 
-impl Documented for Rendezvous {
-    const DOC: &'static str = "Test node: meets its siblings.";
-}
-
-impl Node for Rendezvous {
-    const KIND: &'static str = "Rendezvous";
-    const VERSION: u32 = 1;
-    const CATEGORY: &'static str = "test";
-    type Params = SaltParams;
-    fn ports() -> Ports {
-        Ports::new().output::<Num>("out")
-    }
-    fn run(&self, p: &SaltParams, io: &mut Io, _cx: &RunCtx) -> Result<(), NodeError> {
-        let (lock, cv) = &*self.state;
-        let mut n = lock.lock().unwrap();
-        *n += 1;
-        cv.notify_all();
-        let (n, timeout) = cv.wait_timeout_while(n, Duration::from_secs(20), |n| *n < self.parties).unwrap();
-        if timeout.timed_out() {
-            return Err(NodeError::failed(format!("only {} of {} ran at once", *n, self.parties)));
-        }
-        io.set("out", Num(p.salt as u64))
-    }
-}
-
-/// Runs until cancelled (at most 20 s), reporting progress; for cancellation tests.
+/// Test node: spins until the run is cancelled (at most 20 s), reporting progress.
+#[derive(Params)]
 pub struct UntilCancelled;
 
-impl Documented for UntilCancelled {
-    const DOC: &'static str = "Test node: spins until the run is cancelled.";
-}
+inputs!(pub UntilCancelledIn { in0: Num });
+outputs!(pub UntilCancelledOut { out: Num });
 
-impl Node for UntilCancelled {
-    const KIND: &'static str = "UntilCancelled";
-    const VERSION: u32 = 1;
-    const CATEGORY: &'static str = "test";
-    type Params = ();
-    fn ports() -> Ports {
-        Ports::new().input::<Num>("in0").output::<Num>("out")
-    }
-    fn run(&self, _: &(), io: &mut Io, cx: &RunCtx) -> Result<(), NodeError> {
+#[node(category = "test")]
+impl UntilCancelled {
+    fn run(&self, _: UntilCancelledIn, cx: &RunCtx) -> Result<UntilCancelledOut, NodeError> {
         for step in 0..20_000u64 {
-            cx.check()?;
-            cx.progress(step, 20_000);
+            cx.tick(step, 20_000)?;
             std::thread::sleep(Duration::from_millis(1));
         }
-        io.set("out", Num(0))
+        Ok(UntilCancelledOut { out: Num(0) })
     }
 }
 
 /// A registry of the Mix test nodes sharing one log.
 pub fn test_registry(log: &Log) -> Registry {
     let mut r = Registry::new();
-    r.add(Mix::<0>(log.clone())).add(Mix::<1>(log.clone())).add(Mix::<2>(log.clone())).add(Mix::<3>(log.clone()));
+    for n in 0..4 {
+        r.add_dyn(mix(n, log));
+    }
     r
 }
 

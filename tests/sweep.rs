@@ -150,14 +150,25 @@ fn a_disk_cache_shared_between_two_sweeps_makes_the_second_one_cost_nothing_new(
     let g = filters();
     for csv in ["a.csv", "b.csv"] {
         let csv = dir.path().join(csv);
-        let args = ["sweep", &g, "--vary", "blur.sigma=0.7,1.3", "--csv", csv.to_str().unwrap(), "--cache", cache.to_str().unwrap(), "-q"];
+        let args = [
+            "sweep",
+            &g,
+            "--vary",
+            "blur.sigma=0.7,1.3",
+            "--csv",
+            csv.to_str().unwrap(),
+            "--cache",
+            cache.to_str().unwrap(),
+            "--cache-all",
+            "-q",
+        ];
         assert_eq!(relume(&args), 0);
     }
     let (header, a) = read_csv(&dir.path().join("a.csv"));
     let (_, b) = read_csv(&dir.path().join("b.csv"));
     let (time, ms_blur) = (col(&header, "time_ms"), col(&header, "ms:blur"));
     assert!(a.iter().all(|r| num(&r[ms_blur]) > 0.0));
-    // Blur, median and error come from disk; only the memory-cached sources re-run, once.
+    // With --cache-all every result was written: the second sweep computes nothing new.
     assert!(b.iter().all(|r| num(&r[ms_blur]) == 0.0), "{b:?}");
     assert_eq!(num(&b[1][time]), 0.0, "{b:?}");
 }

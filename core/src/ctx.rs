@@ -1,7 +1,8 @@
 //! What a running node sees besides its data: cancellation, progress, metrics and notes.
 
+use crate::error::NodeError;
 use crate::hash::Hash;
-use crate::node::NodeError;
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -85,6 +86,9 @@ pub struct RunCtx<'a> {
     pub(crate) notes: Mutex<Vec<String>>,
     pub(crate) deps: Mutex<Vec<(PathBuf, Hash)>>,
     last_permille: AtomicU64,
+    /// The share of the node's whole work that progress reports now cover, in permille
+    /// (`from << 32 | to`), set by `phase`.
+    span: AtomicU64,
 }
 
 impl<'a> RunCtx<'a> {
@@ -97,6 +101,7 @@ impl<'a> RunCtx<'a> {
             notes: Mutex::default(),
             deps: Mutex::default(),
             last_permille: AtomicU64::new(u64::MAX),
+            span: AtomicU64::new(1000),
         }
     }
 
@@ -117,10 +122,69 @@ impl<'a> RunCtx<'a> {
     /// Reports `done` of `total` units of work (cheap: forwards at most 1000 steps).
     pub fn progress(&self, done: u64, total: u64) {
         let Some(obs) = self.observer else { return };
-        let permille = (done.min(total) * 1000).checked_div(total).unwrap_or(1000);
+        let local = (done.min(total) * 1000).checked_div(total).unwrap_or(1000);
+        let span = self.span.load(Ordering::Relaxed);
+        let (from, to) = (span >> 32, span & 0xffff_ffff);
+        let permille = from + (to - from) * local / 1000;
         if self.last_permille.swap(permille, Ordering::Relaxed) != permille {
             obs.event(&Event::Progress { id: self.id, fraction: permille as f32 / 1000.0 });
         }
+    }
+
+    /// Says that the progress reported from now on (by `progress`, `tick` and the parallel
+    /// helpers, each counting its own 0..n) covers the fraction `from..to` of the node's whole
+    /// work: a node with phases (two blur passes, passes of doubling sample counts) shows one
+    /// bar that never goes back.
+    pub fn phase(&self, from: f64, to: f64) {
+        let p = |x: f64| (x.clamp(0.0, 1.0) * 1000.0).round() as u64;
+        let (a, b) = (p(from), p(to).max(p(from)));
+        self.span.store(a << 32 | b, Ordering::Relaxed);
+    }
+
+    /// `check` and `progress` in one call, for sequential loops: `cx.tick(i, n)?`.
+    pub fn tick(&self, done: u64, total: u64) -> Result<(), NodeError> {
+        self.check()?;
+        self.progress(done, total);
+        Ok(())
+    }
+
+    /// Maps `f` over the items `0..n` in parallel (rayon), reporting progress and stopping
+    /// soon after the run is cancelled. Results come back in item order, so a reduction over
+    /// them in order gives the same bytes on any thread count.
+    pub fn par_map<T: Send>(&self, n: usize, f: impl Fn(usize) -> T + Sync + Send) -> Result<Vec<T>, NodeError> {
+        self.par_try_map(n, |i| Ok(f(i)))
+    }
+
+    /// As `par_map` for work that can fail: the first error rayon meets stops the run.
+    pub fn par_try_map<T: Send>(&self, n: usize, f: impl Fn(usize) -> Result<T, NodeError> + Sync + Send) -> Result<Vec<T>, NodeError> {
+        let done = AtomicU64::new(0);
+        (0..n)
+            .into_par_iter()
+            .map(|i| {
+                self.check()?;
+                let r = f(i)?;
+                self.progress(done.fetch_add(1, Ordering::Relaxed) + 1, n as u64);
+                Ok(r)
+            })
+            .collect()
+    }
+
+    /// Runs `f(chunk_index, chunk)` over `data` split into chunks of `chunk` elements (rows
+    /// of an image, tiles, …) in parallel, with progress and cancellation as `par_map`.
+    pub fn par_chunks_mut<T: Send>(
+        &self,
+        data: &mut [T],
+        chunk: usize,
+        f: impl Fn(usize, &mut [T]) + Sync + Send,
+    ) -> Result<(), NodeError> {
+        let n = data.len().div_ceil(chunk.max(1));
+        let done = AtomicU64::new(0);
+        data.par_chunks_mut(chunk.max(1)).enumerate().try_for_each(|(i, c)| {
+            self.check()?;
+            f(i, c);
+            self.progress(done.fetch_add(1, Ordering::Relaxed) + 1, n as u64);
+            Ok(())
+        })
     }
 
     /// Adds a quality figure to the report (`metrics` of this node).
@@ -142,5 +206,39 @@ impl<'a> RunCtx<'a> {
 
     pub(crate) fn take(self) -> Recorded {
         (self.metrics.into_inner().unwrap(), self.notes.into_inner().unwrap(), self.deps.into_inner().unwrap())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    struct Record(Mutex<Vec<f32>>);
+    impl Observer for Record {
+        fn event(&self, e: &Event<'_>) {
+            if let Event::Progress { fraction, .. } = e {
+                self.0.lock().unwrap().push(*fraction);
+            }
+        }
+    }
+
+    #[test]
+    fn phases_make_one_bar_that_never_goes_back_and_cancellation_stops_the_helpers() {
+        let rec = Record(Mutex::default());
+        let cancel = CancelToken::new();
+        let cx = RunCtx::new("n", &cancel, Some(&rec));
+        cx.phase(0.0, 0.25);
+        assert_eq!(cx.par_map(100, |i| i * 2).unwrap()[99], 198, "results in item order");
+        let first = rec.0.lock().unwrap().len();
+        cx.phase(0.25, 1.0);
+        let mut data = vec![0u32; 1000];
+        cx.par_chunks_mut(&mut data, 10, |c, s| s.iter_mut().for_each(|x| *x = c as u32)).unwrap();
+        assert_eq!(data[995], 99);
+        let seen = rec.0.lock().unwrap().clone();
+        assert!(first > 0 && seen[..first].iter().all(|f| *f <= 0.25), "{seen:?}");
+        assert!(seen[first..].iter().all(|f| *f >= 0.25) && seen[first..].contains(&1.0), "{seen:?}");
+        cancel.cancel();
+        assert_eq!(cx.par_map(10, |i| i), Err(NodeError::Cancelled));
+        assert_eq!(cx.tick(1, 2), Err(NodeError::Cancelled));
     }
 }

@@ -1,4 +1,4 @@
-//! Load-time errors that name the file, line, node and parameter.
+//! Load-time errors that name the file, line, node and parameter, and run-time node errors.
 
 use crate::ron::Pos;
 use std::fmt;
@@ -79,3 +79,48 @@ impl fmt::Display for GraphErrors {
 }
 
 impl std::error::Error for GraphErrors {}
+
+/// Why a node did not produce its outputs.
+#[derive(Clone, Debug, PartialEq)]
+pub enum NodeError {
+    Cancelled,
+    /// A parameter's value cannot be used (beyond what the schema's range catches).
+    Param {
+        name: String,
+        msg: String,
+    },
+    /// An input cannot be used (sizes disagree, data is not finite, …).
+    Input {
+        port: String,
+        msg: String,
+    },
+    /// The node is declared but its algorithm is not finished.
+    NotImplemented(&'static str),
+    Failed(String),
+}
+
+impl NodeError {
+    pub fn param(name: &str, msg: impl Into<String>) -> Self {
+        NodeError::Param { name: name.into(), msg: msg.into() }
+    }
+    pub fn input(port: &str, msg: impl Into<String>) -> Self {
+        NodeError::Input { port: port.into(), msg: msg.into() }
+    }
+    pub fn failed(msg: impl Into<String>) -> Self {
+        NodeError::Failed(msg.into())
+    }
+}
+
+impl fmt::Display for NodeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            NodeError::Cancelled => f.write_str("cancelled"),
+            NodeError::Param { name, msg } => write!(f, "parameter `{name}`: {msg}"),
+            NodeError::Input { port, msg } => write!(f, "input `{port}`: {msg}"),
+            NodeError::NotImplemented(what) => write!(f, "not implemented yet: {what}"),
+            NodeError::Failed(msg) => f.write_str(msg),
+        }
+    }
+}
+
+impl std::error::Error for NodeError {}

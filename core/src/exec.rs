@@ -3,11 +3,11 @@
 
 use crate::cache::{CacheEntry, DiskCache, MemoryCache};
 use crate::ctx::{CancelToken, Event, NodeStatus, Observer, RunCtx};
+use crate::error::NodeError;
 use crate::error::{GraphError, GraphErrors};
 use crate::graph::Graph;
 use crate::hash::{Hash, Hasher};
-use crate::io::Io;
-use crate::node::{Caching, DynNode, NodeError};
+use crate::node::{Caching, DynNode};
 use crate::params::ParamValues;
 use crate::plan::{make_plan, Plan};
 use crate::port::Value;
@@ -22,7 +22,20 @@ pub struct Engine {
     registry: Registry,
     memory: Mutex<MemoryCache>,
     disk: Option<DiskCache>,
+    disk_policy: DiskPolicy,
     max_parallel: usize,
+}
+
+/// Which results an engine with a disk cache writes there.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum DiskPolicy {
+    /// The rule (ARCHITECTURE.md, "Caching"): a result whose computation took longer than
+    /// loading it would (`cache::worth_storing`).
+    #[default]
+    WhenCheaperToLoad,
+    /// Every cacheable result (a cache shared by machines that must not recompute anything,
+    /// tests of the disk cache itself).
+    Always,
 }
 
 /// What to run and who watches.
@@ -83,7 +96,13 @@ impl Engine {
     /// An engine with a 2 GiB memory cache, no disk cache, and as many concurrent nodes as cores.
     pub fn new(registry: Registry) -> Self {
         let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(2);
-        Engine { registry, memory: Mutex::new(MemoryCache::new(2 << 30)), disk: None, max_parallel: cores }
+        Engine {
+            registry,
+            memory: Mutex::new(MemoryCache::new(2 << 30)),
+            disk: None,
+            disk_policy: DiskPolicy::default(),
+            max_parallel: cores,
+        }
     }
     pub fn with_memory_budget(mut self, bytes: usize) -> Self {
         self.memory = Mutex::new(MemoryCache::new(bytes));
@@ -91,6 +110,10 @@ impl Engine {
     }
     pub fn with_disk_cache(mut self, dir: impl Into<std::path::PathBuf>) -> Self {
         self.disk = Some(DiskCache::new(dir));
+        self
+    }
+    pub fn with_disk_policy(mut self, policy: DiskPolicy) -> Self {
+        self.disk_policy = policy;
         self
     }
     /// How many nodes may run at once (nodes also parallelise inside with rayon).
@@ -133,7 +156,7 @@ impl Engine {
         Ok(Prepared { params, key: h.finish() })
     }
 
-    /// Looks a key up in memory, then (for nodes that opt in) on disk.
+    /// Looks a key up in memory, then on disk.
     pub(crate) fn lookup(&self, kind: &dyn DynNode, key: &Hash) -> Option<(Arc<CacheEntry>, NodeStatus)> {
         if kind.caching() == Caching::Never {
             return None;
@@ -145,7 +168,7 @@ impl Engine {
             }
             self.memory.lock().unwrap().remove(key);
         }
-        if kind.caching() == Caching::Disk {
+        {
             let found =
                 self.disk.as_ref().and_then(|d| d.get(key, &kind.ports().outputs, &self.registry)).filter(CacheEntry::deps_unchanged);
             if let Some(e) = found {
@@ -157,11 +180,13 @@ impl Engine {
         None
     }
 
+    /// Keeps a result in memory, and on disk when it cost more to compute than loading it
+    /// would (`cache::worth_storing`): the one rule for every `Caching::Auto` node.
     fn store(&self, kind: &dyn DynNode, key: Hash, entry: Arc<CacheEntry>) {
         if kind.caching() == Caching::Never {
             return;
         }
-        if kind.caching() == Caching::Disk {
+        if self.disk_policy == DiskPolicy::Always || crate::cache::worth_storing(&entry) {
             if let Some(d) = &self.disk {
                 // A failed write only costs a later recomputation.
                 let _ = d.put(&key, &entry, &kind.ports().outputs);
@@ -295,11 +320,9 @@ fn run_node(
         o.event(&Event::Started { id, kind: kind.kind() });
     }
     let cx = RunCtx::new(id, cancel, observer);
-    let mut io = Io::new(kind.ports(), inputs);
-    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| kind.run(params, &mut io, &cx)));
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| kind.run(params, inputs, &cx)));
     match outcome {
-        Ok(Ok(())) => {
-            let outputs = io.finish()?;
+        Ok(Ok(outputs)) => {
             let (metrics, notes, deps) = cx.take();
             Ok(CacheEntry { outputs, metrics, notes, deps, compute_ms: 0.0 })
         }

@@ -17,6 +17,12 @@ impl Hash {
     }
     /// Hash of a byte slice.
     pub fn of_bytes(bytes: &[u8]) -> Hash {
+        // blake3's tree hashing spreads a large input over the cores; the hash is the same.
+        if bytes.len() >= 1 << 20 {
+            let mut h = blake3::Hasher::new();
+            h.update_rayon(bytes);
+            return Hash(*h.finalize().as_bytes());
+        }
         Hash(*blake3::hash(bytes).as_bytes())
     }
 }
@@ -57,7 +63,11 @@ impl Hasher {
     }
     pub fn bytes(&mut self, b: &[u8]) -> &mut Self {
         self.u64(b.len() as u64);
-        self.0.update(b);
+        if b.len() >= 1 << 20 {
+            self.0.update_rayon(b);
+        } else {
+            self.0.update(b);
+        }
         self
     }
     /// Raw bytes without a length prefix (for streaming large payloads whose length was hashed).

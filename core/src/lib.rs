@@ -12,7 +12,6 @@ mod exec;
 mod explain;
 pub mod graph;
 mod hash;
-mod io;
 mod node;
 mod params;
 mod plan;
@@ -23,16 +22,19 @@ pub mod ron;
 mod standalone;
 
 pub use ctx::{CancelToken, Event, NodeStatus, Observer, RunCtx};
-pub use error::{GraphError, GraphErrors};
-pub use exec::{Engine, RunError, RunOptions, RunResult};
+pub use error::{GraphError, GraphErrors, NodeError};
+pub use exec::{DiskPolicy, Engine, RunError, RunOptions, RunResult};
 pub use explain::{PlanAction, PlanLine};
 pub use graph::{Graph, FORMAT_VERSION};
 pub use hash::{Hash, Hasher};
-pub use io::Io;
-pub use node::{Caching, Documented, DynNode, Node, NodeError};
-pub use params::{ParamKind, ParamSpec, ParamValue, ParamValues, Params, Schema};
+pub use node::{ports_of, run_typed, Caching, Documented, DynNode, Node};
+pub use params::{ParamEnum, ParamKind, ParamSpec, ParamValue, ParamValues, Params, Schema};
 pub use plan::{make_plan, Plan};
-pub use port::{PortDecl, PortTypeInfo, PortValue, Ports, Value};
+pub use port::{codec, input_at, InputPorts, OutputPorts, PortDecl, PortTypeInfo, PortValue, Ports, Value};
+pub use relume_macros::{node, ParamEnum, Params};
+
+// Lets the derive macros name `::relume_core` inside this crate's own tests.
+extern crate self as relume_core;
 pub use registry::Registry;
 pub use report::{NodeReport, RunReport};
-pub use standalone::run_standalone;
+pub use standalone::{run_kind, run_standalone, run_standalone_with};

@@ -1,104 +1,56 @@
-//! The node trait, its type-erased form, node errors and the doc-comment macro.
+//! The node trait and its type-erased form.
+//!
+//! A node is one struct that derives `Params` (its fields are its parameters, its doc comment
+//! the editor tooltip), its ports declared with `inputs!` / `outputs!`, and `#[node]` on the
+//! `impl` holding `run`. See the README's "Writing a node".
 
 use crate::ctx::RunCtx;
-use crate::io::Io;
+use crate::error::NodeError;
 use crate::params::{ParamValues, Params, Schema};
-use crate::port::Ports;
-use std::fmt;
+use crate::port::{InputPorts, OutputPorts, Ports, Value};
 
 /// Where a node's results may be kept between runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Caching {
-    /// In the memory cache only.
-    Memory,
-    /// In memory and, when the engine has a disk cache, on disk.
-    Disk,
+    /// The rule: always in the memory cache; also on disk (when the engine has a disk cache)
+    /// whenever computing the result cost more than loading it would
+    /// (see [`load_cost_ms`](crate::cache::load_cost_ms)).
+    Auto,
     /// Never cached: the node has a side effect (writes a file) and runs every time it is needed.
     Never,
 }
 
 /// The doc comment of a node type, available at run time (the editor tooltip, `relume nodes`).
-/// Implemented by `node_doc!`.
+/// Implemented by `derive(Params)`.
 pub trait Documented {
     const DOC: &'static str;
 }
 
-/// Declares a node struct with its doc comment and implements `Documented` from it:
-/// ```ignore
-/// relume_core::node_doc! {
-///     /// Blurs an image with a separable Gaussian.
-///     pub struct GaussianBlur;
-/// }
-/// ```
-#[macro_export]
-macro_rules! node_doc {
-    ($(#[doc = $doc:literal])* $vis:vis struct $name:ident;) => {
-        $(#[doc = $doc])*
-        #[derive(Clone, Copy, Debug, Default)]
-        $vis struct $name;
-        impl $crate::Documented for $name {
-            const DOC: &'static str = concat!($($doc, "\n"),*);
-        }
-    };
-}
-
-/// A stage of a pipeline. One file per node; see ARCHITECTURE.md.
-pub trait Node: Documented + Send + Sync + 'static {
+/// A stage of a pipeline: its parameters are `Self` (`derive(Params)`), its ports the
+/// `Inputs` / `Outputs` structs. Implemented by `#[node]`; see ARCHITECTURE.md.
+pub trait Node: Params + Documented + Send + Sync + 'static {
     const KIND: &'static str;
     /// Bump when the output for the same inputs and parameters changes.
     const VERSION: u32;
     /// Palette category in the editor (e.g. "image", "scene").
     const CATEGORY: &'static str;
-    const CACHING: Caching = Caching::Memory;
-    type Params: Params;
-    fn ports() -> Ports;
-    fn run(&self, p: &Self::Params, io: &mut Io, cx: &RunCtx) -> Result<(), NodeError>;
+    const CACHING: Caching;
+    type Inputs<'a>: InputPorts<'a>;
+    type Outputs: OutputPorts;
+    fn run(&self, inputs: Self::Inputs<'_>, cx: &RunCtx) -> Result<Self::Outputs, NodeError>;
 }
 
-/// Why a node did not produce its outputs.
-#[derive(Clone, Debug, PartialEq)]
-pub enum NodeError {
-    Cancelled,
-    /// A parameter's value cannot be used (beyond what the schema's range catches).
-    Param {
-        name: String,
-        msg: String,
-    },
-    /// An input cannot be used (sizes disagree, data is not finite, …).
-    Input {
-        port: String,
-        msg: String,
-    },
-    /// The node is declared but its algorithm is not finished.
-    NotImplemented(&'static str),
-    Failed(String),
+/// The port declarations of a node type.
+pub fn ports_of<N: Node>() -> Ports {
+    Ports { inputs: <N::Inputs<'static> as InputPorts<'static>>::decls(), outputs: N::Outputs::decls() }
 }
 
-impl NodeError {
-    pub fn param(name: &str, msg: impl Into<String>) -> Self {
-        NodeError::Param { name: name.into(), msg: msg.into() }
-    }
-    pub fn input(port: &str, msg: impl Into<String>) -> Self {
-        NodeError::Input { port: port.into(), msg: msg.into() }
-    }
-    pub fn failed(msg: impl Into<String>) -> Self {
-        NodeError::Failed(msg.into())
-    }
+/// Builds the node from checked parameter values and runs it on `inputs` (declared order).
+pub fn run_typed<N: Node>(params: &ParamValues, inputs: &[Value], cx: &RunCtx) -> Result<Vec<Value>, NodeError> {
+    let node = N::from_values(params)?;
+    let inputs = N::Inputs::from_values(inputs)?;
+    Ok(node.run(inputs, cx)?.into_values())
 }
-
-impl fmt::Display for NodeError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            NodeError::Cancelled => f.write_str("cancelled"),
-            NodeError::Param { name, msg } => write!(f, "parameter `{name}`: {msg}"),
-            NodeError::Input { port, msg } => write!(f, "input `{port}`: {msg}"),
-            NodeError::NotImplemented(what) => write!(f, "not implemented yet: {what}"),
-            NodeError::Failed(msg) => f.write_str(msg),
-        }
-    }
-}
-
-impl std::error::Error for NodeError {}
 
 /// A node kind behind a trait object, as the registry and executor hold it.
 pub trait DynNode: Send + Sync {
@@ -110,20 +62,21 @@ pub trait DynNode: Send + Sync {
     fn ports(&self) -> &Ports;
     fn schema(&self) -> &Schema;
     fn caching(&self) -> Caching;
-    fn run(&self, params: &ParamValues, io: &mut Io, cx: &RunCtx) -> Result<(), NodeError>;
+    /// Runs the node; outputs in declaration order.
+    fn run(&self, params: &ParamValues, inputs: &[Value], cx: &RunCtx) -> Result<Vec<Value>, NodeError>;
 }
 
 pub(crate) struct NodeEntry<N: Node> {
-    node: N,
     ports: Ports,
     schema: Schema,
     doc: String,
+    _node: std::marker::PhantomData<fn() -> N>,
 }
 
 impl<N: Node> NodeEntry<N> {
-    pub(crate) fn new(node: N) -> Self {
+    pub(crate) fn new() -> Self {
         let doc = N::DOC.lines().map(|l| l.strip_prefix(' ').unwrap_or(l)).collect::<Vec<_>>().join("\n").trim().to_string();
-        NodeEntry { node, ports: N::ports(), schema: N::Params::schema(), doc }
+        NodeEntry { ports: ports_of::<N>(), schema: N::schema(), doc, _node: std::marker::PhantomData }
     }
 }
 
@@ -149,8 +102,7 @@ impl<N: Node> DynNode for NodeEntry<N> {
     fn caching(&self) -> Caching {
         N::CACHING
     }
-    fn run(&self, params: &ParamValues, io: &mut Io, cx: &RunCtx) -> Result<(), NodeError> {
-        let p = N::Params::from_values(params);
-        self.node.run(&p, io, cx)
+    fn run(&self, params: &ParamValues, inputs: &[Value], cx: &RunCtx) -> Result<Vec<Value>, NodeError> {
+        run_typed::<N>(params, inputs, cx)
     }
 }

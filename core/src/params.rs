@@ -1,5 +1,6 @@
 //! Parameter schemas (type, default, range, unit, help), values, validation and typed access.
 
+use crate::error::NodeError;
 use crate::hash::{Hash, Hasher};
 use crate::ron::{write_f64, write_str, Ron, RonKind};
 use std::path::{Path, PathBuf};
@@ -155,7 +156,8 @@ impl ParamSpec {
                 if !f.is_finite() || f < *min || f > *max {
                     return Err(format!("{} is out of range [{min}, {max}]{unit}", v.to_text()));
                 }
-                Ok(ParamValue::Float(f))
+                // -0 and 0 are one value: one cache key.
+                Ok(ParamValue::Float(f + 0.0))
             }
             ParamKind::Int { min, max } => match v {
                 ParamValue::Int(i) if i >= min && i <= max => Ok(v.clone()),
@@ -191,7 +193,7 @@ impl ParamSpec {
                         if vals.iter().any(|x| !x.is_finite() || *x < min || *x > max) {
                             return Err(format!("{} has a component out of range [{min}, {max}]{unit}", v.to_text()));
                         }
-                        Ok(ParamValue::Tuple(vals.into_iter().map(ParamValue::Float).collect()))
+                        Ok(ParamValue::Tuple(vals.into_iter().map(|x| ParamValue::Float(x + 0.0)).collect()))
                     }
                     _ => Err(format!("expected a tuple of three numbers, found `{}`", v.to_text())),
                 }
@@ -270,14 +272,17 @@ pub struct ParamValues {
 }
 
 impl ParamValues {
-    /// Fills defaults; the explicit values must already have been checked by the loader.
-    /// Returns the names of required parameters that are missing.
+    /// Fills defaults and normalises every value once through the schema (`2` for a float
+    /// parameter becomes `2.0`, an enum given as a string becomes an identifier, −0 becomes 0),
+    /// so that equal values give one cache key however they were written. The explicit values
+    /// must already have been checked by the loader. Returns the names of required parameters
+    /// that are missing.
     pub fn resolve(schema: &Schema, explicit: &[(String, ParamValue)], base_dir: &Path) -> Result<ParamValues, Vec<&'static str>> {
         let mut values = Vec::with_capacity(schema.0.len());
         let mut missing = Vec::new();
         for spec in &schema.0 {
             match explicit.iter().find(|(n, _)| n == spec.name).map(|(_, v)| v).or(spec.default.as_ref()) {
-                Some(v) => values.push((spec.name, v.clone())),
+                Some(v) => values.push((spec.name, spec.check(v).unwrap_or_else(|_| v.clone()))),
                 None => missing.push(spec.name),
             }
         }
@@ -358,18 +363,17 @@ impl ParamValues {
     }
 }
 
-/// A node's typed parameters, built from the checked values.
+/// A node's typed parameters, built from the checked values (`#[derive(Params)]`).
 pub trait Params: Sized + Send + Sync + 'static {
     fn schema() -> Schema;
-    fn from_values(v: &ParamValues) -> Self;
+    fn from_values(v: &ParamValues) -> Result<Self, NodeError>;
 }
 
-/// Nodes without parameters use `()`.
-impl Params for () {
-    fn schema() -> Schema {
-        Schema::new()
-    }
-    fn from_values(_: &ParamValues) -> Self {}
+/// A choice parameter (`#[derive(ParamEnum)]`): variants listed once, in order.
+pub trait ParamEnum: Sized + Copy {
+    const VARIANTS: &'static [&'static str];
+    fn from_name(name: &str) -> Option<Self>;
+    fn name(&self) -> &'static str;
 }
 
 #[cfg(test)]

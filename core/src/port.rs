@@ -1,40 +1,71 @@
 //! Typed ports: the `PortValue` trait a data type implements, the type-erased `Value` the
-//! executor moves around, and the port declarations of a node.
+//! executor moves around, and the port declarations of a node (`inputs!` / `outputs!`).
 
-use crate::hash::Hash;
+use crate::error::NodeError;
+use crate::hash::{Hash, Hasher};
 use std::any::{Any, TypeId};
 use std::sync::Arc;
 
 /// A type that can flow along an edge. Registered by name; the editor colours ports with
-/// `COLOR`; the cache identifies values by `fingerprint` and may store them on disk through
-/// `encode`/`decode`.
+/// `COLOR`. Every port type has a disk encoding (`encode` / `decode`: serde through postcard
+/// with [`serde_codec!`](crate::serde_codec), or `bytemuck` for flat arrays), so any node may
+/// be disk-cached; its fingerprint is by default the hash of that encoding, i.e. of everything
+/// that identifies its content.
 pub trait PortValue: Any + Send + Sync + Sized {
     const NAME: &'static str;
     const COLOR: [u8; 3];
     /// One line for the catalogue.
     const DOC: &'static str = "";
-    /// Hash of the content (or of something that identifies it, for very large values).
-    fn fingerprint(&self) -> Hash;
     /// Bytes held in memory (for the cache budget and the report).
     fn byte_size(&self) -> usize;
-    /// Disk encoding; `None` means the value is never written to the disk cache.
-    fn encode(&self) -> Option<Vec<u8>> {
-        None
-    }
-    fn decode(_bytes: &[u8]) -> Option<Self> {
-        None
+    /// The disk encoding: deterministic (same value, same bytes).
+    fn encode(&self) -> Vec<u8>;
+    /// The inverse of `encode`; `None` for bytes it did not write (never a panic).
+    fn decode(bytes: &[u8]) -> Option<Self>;
+    /// Hash of the content: by default of the type name and the encoding.
+    fn fingerprint(&self) -> Hash {
+        Hasher::new().str(Self::NAME).bytes(&self.encode()).finish()
     }
 }
 
-type EncodeFn = fn(&(dyn Any + Send + Sync)) -> Option<Vec<u8>>;
-type DecodeFn = fn(&[u8]) -> Option<Value>;
-
-fn encode_erased<T: PortValue>(v: &(dyn Any + Send + Sync)) -> Option<Vec<u8>> {
-    v.downcast_ref::<T>().and_then(T::encode)
+/// Serde through postcard, the encoding most port types use.
+pub mod codec {
+    /// Encodes a value (deterministic for types without hash maps).
+    pub fn to_bytes<T: serde::Serialize>(v: &T) -> Vec<u8> {
+        postcard::to_stdvec(v).expect("port values serialise to memory")
+    }
+    /// Decodes a value; `None` for malformed or trailing bytes.
+    pub fn from_bytes<T: serde::de::DeserializeOwned>(b: &[u8]) -> Option<T> {
+        match postcard::take_from_bytes(b) {
+            Ok((v, [])) => Some(v),
+            _ => None,
+        }
+    }
 }
 
-fn decode_erased<T: PortValue>(bytes: &[u8]) -> Option<Value> {
-    T::decode(bytes).map(Value::new)
+/// Implements `PortValue::encode` / `decode` with serde through postcard, inside an
+/// `impl PortValue for T` block of a type that derives `Serialize` and `Deserialize`.
+#[macro_export]
+macro_rules! serde_codec {
+    () => {
+        fn encode(&self) -> Vec<u8> {
+            $crate::codec::to_bytes(self)
+        }
+        fn decode(bytes: &[u8]) -> Option<Self> {
+            $crate::codec::from_bytes(bytes)
+        }
+    };
+}
+
+type EncodeFn = fn(&(dyn Any + Send + Sync)) -> Vec<u8>;
+type DecodeFn = fn(&[u8], Hash) -> Option<Value>;
+
+fn encode_erased<T: PortValue>(v: &(dyn Any + Send + Sync)) -> Vec<u8> {
+    v.downcast_ref::<T>().expect("a Value holds its declared type").encode()
+}
+
+fn decode_erased<T: PortValue>(bytes: &[u8], fingerprint: Hash) -> Option<Value> {
+    T::decode(bytes).map(|v| Value::with_fingerprint(v, fingerprint))
 }
 
 /// A value on a port, shared cheaply, with its fingerprint computed once.
@@ -50,7 +81,12 @@ pub struct Value {
 
 impl Value {
     pub fn new<T: PortValue>(v: T) -> Value {
-        let fingerprint = v.fingerprint();
+        let fp = v.fingerprint();
+        Value::with_fingerprint(v, fp)
+    }
+    /// A value whose fingerprint is already known (read back from the disk cache, where the
+    /// entry's checksum vouches for it).
+    fn with_fingerprint<T: PortValue>(v: T, fingerprint: Hash) -> Value {
         let bytes = v.byte_size();
         Value { data: Arc::new(v), type_name: T::NAME, type_id: TypeId::of::<T>(), fingerprint, bytes, encode: encode_erased::<T> }
     }
@@ -69,7 +105,7 @@ impl Value {
     pub fn byte_size(&self) -> usize {
         self.bytes
     }
-    pub fn encode(&self) -> Option<Vec<u8>> {
+    pub fn encode(&self) -> Vec<u8> {
         (self.encode)(self.data.as_ref())
     }
 }
@@ -87,6 +123,7 @@ pub struct PortTypeInfo {
     pub color: [u8; 3],
     pub doc: &'static str,
     pub type_id: TypeId,
+    /// Decodes a disk payload into a `Value` carrying the given fingerprint.
     pub decode: DecodeFn,
 }
 
@@ -103,6 +140,12 @@ pub struct PortDecl {
     pub ty: PortTypeInfo,
 }
 
+impl PortDecl {
+    pub fn of<T: PortValue>(name: &'static str) -> Self {
+        PortDecl { name, ty: PortTypeInfo::of::<T>() }
+    }
+}
+
 /// The inputs and outputs of a node kind, in declaration order.
 #[derive(Clone, Debug, Default)]
 pub struct Ports {
@@ -111,21 +154,75 @@ pub struct Ports {
 }
 
 impl Ports {
-    pub fn new() -> Self {
-        Ports::default()
-    }
-    pub fn input<T: PortValue>(mut self, name: &'static str) -> Self {
-        self.inputs.push(PortDecl { name, ty: PortTypeInfo::of::<T>() });
-        self
-    }
-    pub fn output<T: PortValue>(mut self, name: &'static str) -> Self {
-        self.outputs.push(PortDecl { name, ty: PortTypeInfo::of::<T>() });
-        self
-    }
     pub fn find_input(&self, name: &str) -> Option<&PortDecl> {
         self.inputs.iter().find(|p| p.name == name)
     }
     pub fn find_output(&self, name: &str) -> Option<&PortDecl> {
         self.outputs.iter().find(|p| p.name == name)
     }
+}
+
+/// A node's inputs as one typed struct borrowing the values (declared with [`inputs!`]).
+pub trait InputPorts<'a>: Sized {
+    fn decls() -> Vec<PortDecl>;
+    /// `values` in declaration order.
+    fn from_values(values: &'a [Value]) -> Result<Self, NodeError>;
+}
+
+/// A node's outputs as one typed struct (declared with [`outputs!`]).
+pub trait OutputPorts: Sized {
+    fn decls() -> Vec<PortDecl>;
+    /// The values in declaration order.
+    fn into_values(self) -> Vec<Value>;
+}
+
+impl InputPorts<'_> for () {
+    fn decls() -> Vec<PortDecl> {
+        Vec::new()
+    }
+    fn from_values(_: &[Value]) -> Result<Self, NodeError> {
+        Ok(())
+    }
+}
+
+/// The value at `values[i]` as `T` (used by `inputs!`).
+pub fn input_at<'a, T: PortValue>(values: &'a [Value], i: usize, name: &str) -> Result<&'a T, NodeError> {
+    let v = values.get(i).ok_or_else(|| NodeError::input(name, "not given"))?;
+    v.get::<T>().ok_or_else(|| NodeError::input(name, format!("holds {}, not {}", v.type_name(), T::NAME)))
+}
+
+/// Declares a node's input ports as a struct of references, each port named once:
+/// `inputs!(pub BlurIn { /// the image to blur
+/// image: Image });` gives `BlurIn<'a> { pub image: &'a Image }`.
+#[macro_export]
+macro_rules! inputs {
+    ($vis:vis $name:ident { $($(#[$m:meta])* $port:ident : $ty:ty),+ $(,)? }) => {
+        $vis struct $name<'a> { $($(#[$m])* pub $port: &'a $ty,)+ }
+        impl<'a> $crate::InputPorts<'a> for $name<'a> {
+            fn decls() -> Vec<$crate::PortDecl> {
+                vec![$($crate::PortDecl::of::<$ty>(stringify!($port))),+]
+            }
+            fn from_values(values: &'a [$crate::Value]) -> Result<Self, $crate::NodeError> {
+                let mut i = 0usize;
+                Ok($name { $($port: { i += 1; $crate::input_at::<$ty>(values, i - 1, stringify!($port))? },)+ })
+            }
+        }
+    };
+}
+
+/// Declares a node's output ports as a struct of owned values, each port named once:
+/// `outputs!(pub BlurOut { image: Image });`.
+#[macro_export]
+macro_rules! outputs {
+    ($vis:vis $name:ident { $($(#[$m:meta])* $port:ident : $ty:ty),+ $(,)? }) => {
+        $vis struct $name { $($(#[$m])* pub $port: $ty,)+ }
+        impl $crate::OutputPorts for $name {
+            fn decls() -> Vec<$crate::PortDecl> {
+                vec![$($crate::PortDecl::of::<$ty>(stringify!($port))),+]
+            }
+            fn into_values(self) -> Vec<$crate::Value> {
+                vec![$($crate::Value::new(self.$port)),+]
+            }
+        }
+    };
 }

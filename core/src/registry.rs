@@ -18,12 +18,18 @@ impl Registry {
 
     /// Registers a node kind and the port types its ports use. Panics on a duplicate kind or
     /// on two different Rust types registered under one port-type name (programming errors).
-    pub fn add<N: Node>(&mut self, node: N) -> &mut Self {
-        let entry = NodeEntry::new(node);
-        for p in entry.ports().inputs.iter().chain(&entry.ports().outputs) {
+    pub fn add<N: Node>(&mut self) -> &mut Self {
+        self.add_dyn(Arc::new(NodeEntry::<N>::new()))
+    }
+
+    /// Registers a node kind given in its type-erased form: a node that holds state of its own
+    /// (the test harness's logging nodes), or one built at run time (a plugin).
+    pub fn add_dyn(&mut self, node: Arc<dyn DynNode>) -> &mut Self {
+        for p in node.ports().inputs.iter().chain(&node.ports().outputs) {
             self.add_port_type(p.ty.clone());
         }
-        assert!(self.nodes.insert(N::KIND, Arc::new(entry)).is_none(), "node kind {} registered twice", N::KIND);
+        let kind = node.kind();
+        assert!(self.nodes.insert(kind, node).is_none(), "node kind {kind} registered twice");
         self
     }
 

@@ -5,7 +5,6 @@
 use relume_core::graph::{Edge, NodeDecl, Output, PortRef};
 use relume_core::ron::Pos;
 use relume_core::{Graph, Registry};
-use std::collections::HashSet;
 
 /// A fresh node id from the kind's name: `gaussian_blur`, `gaussian_blur_2`, ….
 pub fn unique_id(graph: &Graph, kind: &str) -> String {
@@ -38,44 +37,14 @@ pub fn remove_node(graph: &mut Graph, id: &str) {
     graph.editor.positions.retain(|(n, _)| n != id);
 }
 
-/// Why a connection is refused, in words for the status line.
+/// Why a connection is refused, in words for the status line (core's check: types and cycles).
 pub fn check_connect(graph: &Graph, reg: &Registry, from: &PortRef, to: &PortRef) -> Result<(), String> {
-    let port_type = |r: &PortRef, output: bool| -> Result<&'static str, String> {
-        let n = graph.node(&r.node).ok_or_else(|| format!("no node \"{}\"", r.node))?;
-        let kind = reg.node(&n.kind).ok_or_else(|| format!("unknown node kind \"{}\"", n.kind))?;
-        let ports = if output { &kind.ports().outputs } else { &kind.ports().inputs };
-        ports.iter().find(|p| p.name == r.port).map(|p| p.ty.name).ok_or_else(|| format!("{} has no port `{}`", n.kind, r.port))
-    };
-    let (a, b) = (port_type(from, true)?, port_type(to, false)?);
-    if a != b {
-        return Err(format!("cannot connect {from} ({a}) to {to} ({b}): the port types differ"));
-    }
-    if from.node == to.node || reaches(graph, &to.node, &from.node) {
-        return Err(format!("cannot connect {from} to {to}: it would make a cycle"));
-    }
-    Ok(())
-}
-
-/// Whether `to` can be reached from `from` along edges.
-pub fn reaches(graph: &Graph, from: &str, to: &str) -> bool {
-    let mut seen = HashSet::new();
-    let mut stack = vec![from];
-    while let Some(n) = stack.pop() {
-        if n == to {
-            return true;
-        }
-        if seen.insert(n) {
-            stack.extend(graph.edges.iter().filter(|e| e.from.node == n).map(|e| e.to.node.as_str()));
-        }
-    }
-    false
+    graph.check_connection(reg, from, to)
 }
 
 /// Every node downstream of `id` (itself included).
 pub fn downstream(graph: &Graph, id: &str) -> Vec<String> {
-    let mut out: Vec<String> = graph.nodes.iter().filter(|n| reaches(graph, id, &n.id)).map(|n| n.id.clone()).collect();
-    out.sort();
-    out
+    graph.downstream(id)
 }
 
 /// Connects `from` to `to` (replacing what fed `to`), after `check_connect`.

@@ -3,8 +3,8 @@
 
 use egui::{Color32, ColorImage, TextureHandle, TextureOptions};
 use relume_core::RunReport;
-use relume_nodes::image::io::srgb_encode;
 use relume_nodes::image::tonemap::{tonemap_channel, Operator};
+use relume_nodes::math::srgb::srgb_encode;
 use relume_nodes::types::Image;
 use std::sync::Arc;
 

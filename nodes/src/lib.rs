@@ -7,6 +7,7 @@ pub mod image;
 pub mod math;
 pub mod pbgi;
 pub mod reference;
+pub mod render;
 pub mod scene;
 #[cfg(test)]
 pub(crate) mod testing;

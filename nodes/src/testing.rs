@@ -1,21 +1,45 @@
 //! Helpers for the nodes' own unit tests.
 
-use relume_core::{cache::CacheEntry, run_standalone, Node, NodeError, ParamValue, PortValue, Value};
+use relume_core::{
+    cache::CacheEntry, run_standalone, run_standalone_with, CancelToken, Event, Node, NodeError, Observer, ParamValue, PortValue, Value,
+};
 use std::path::Path;
 
 /// Runs a node with the given explicit parameters and inputs; returns its outputs.
-pub fn run_node<N: Node>(node: N, params: &[(&str, ParamValue)], base_dir: &Path, inputs: Vec<Value>) -> Result<Vec<Value>, NodeError> {
-    run_full(node, params, base_dir, inputs).map(|e| e.outputs)
+pub fn run_node<N: Node>(params: &[(&str, ParamValue)], base_dir: &Path, inputs: Vec<Value>) -> Result<Vec<Value>, NodeError> {
+    run_full::<N>(params, base_dir, inputs).map(|e| e.outputs)
 }
 
 /// As `run_node`, keeping metrics and notes.
-pub fn run_full<N: Node>(node: N, params: &[(&str, ParamValue)], base_dir: &Path, inputs: Vec<Value>) -> Result<CacheEntry, NodeError> {
-    run_standalone(&node, params, base_dir, &inputs)
+pub fn run_full<N: Node>(params: &[(&str, ParamValue)], base_dir: &Path, inputs: Vec<Value>) -> Result<CacheEntry, NodeError> {
+    run_standalone::<N>(params, base_dir, &inputs)
 }
 
 /// Runs a node without file parameters on one or more values.
-pub fn run_on<N: Node>(node: N, params: &[(&str, ParamValue)], inputs: Vec<Value>) -> Result<Vec<Value>, NodeError> {
-    run_node(node, params, Path::new("."), inputs)
+pub fn run_on<N: Node>(params: &[(&str, ParamValue)], inputs: Vec<Value>) -> Result<Vec<Value>, NodeError> {
+    run_node::<N>(params, Path::new("."), inputs)
+}
+
+/// Runs a node and cancels the run at its first progress report: asserts that it stops with
+/// `Cancelled` (not a result, not another error) and returns how many progress reports it
+/// made after the cancellation (a node that honours cancellation makes few).
+pub fn cancels_midway<N: Node>(params: &[(&str, ParamValue)], inputs: Vec<Value>) -> usize {
+    struct CancelOnProgress(CancelToken, std::sync::atomic::AtomicUsize);
+    impl Observer for CancelOnProgress {
+        fn event(&self, e: &Event<'_>) {
+            if let Event::Progress { .. } = e {
+                if self.0.is_cancelled() {
+                    self.1.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                }
+                self.0.cancel();
+            }
+        }
+    }
+    let obs = CancelOnProgress(CancelToken::new(), Default::default());
+    let r = run_standalone_with::<N>(&obs.0, Some(&obs), params, Path::new("."), &inputs);
+    assert!(obs.0.is_cancelled(), "{} reported no progress before finishing", N::KIND);
+    assert!(matches!(r, Err(NodeError::Cancelled)), "{} did not stop when cancelled: {:?}", N::KIND, r.map(|e| e.outputs.len()));
+    obs.1.load(std::sync::atomic::Ordering::Relaxed)
 }
 
 /// The first output as type T.
@@ -82,18 +106,20 @@ pub mod images {
 
 /// A small point-based GI set-up on `test_scene::spheres()`: tree and receivers.
 pub mod pbgi_setup {
-    use crate::geometry::accel::{Accel, BuildQuality};
-    use crate::geometry::sample_surface::{sample_surface, Method, SampleSurfaceParams};
+    use crate::geometry::sample_surface::{sample_surface, Method, SampleSurface};
     use crate::pbgi::gbuffer::gbuffer;
-    use crate::pbgi::point_tree::PointTree;
-    use crate::pbgi::shade_direct::{shade_direct, ShadeDirectParams};
-    use crate::types::Receivers;
+    use crate::pbgi::shade_direct::{shade_direct, ShadeDirect};
+    use crate::types::accel::{Accel, BuildQuality};
+    use crate::types::{PointTree, Receivers};
+    use relume_core::{CancelToken, RunCtx};
 
     pub fn tree_and_receivers() -> (PointTree, Receivers) {
         let scene = super::test_scene::spheres();
         let accel = Accel::build(&scene, BuildQuality::Fast);
-        let pts = sample_surface(&scene, &SampleSurfaceParams { method: Method::AreaCdf, count: 3000, seed: 1, emitters: false }).unwrap();
-        let (b, _) = shade_direct(&scene, &accel, &pts, &ShadeDirectParams { samples: 1, seed: 0 });
-        (PointTree::build(&pts, &b), gbuffer(&scene, &accel))
+        let pts = sample_surface(&scene, &SampleSurface { method: Method::AreaCdf, count: 3000, seed: 1, emitters: false }).unwrap();
+        let cancel = CancelToken::new();
+        let cx = RunCtx::new("pbgi_setup", &cancel, None);
+        let (b, _) = shade_direct(&scene, &accel, &pts, &ShadeDirect { samples: 1, seed: 0 }, &cx).unwrap();
+        (PointTree::build(&pts, &b), gbuffer(&scene, &accel, &cx).unwrap())
     }
 }

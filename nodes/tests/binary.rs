@@ -63,7 +63,16 @@ fn two_processes_can_share_one_disk_cache() {
     let report: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("c.json")).unwrap()).unwrap();
     let nodes = report["nodes"].as_array().unwrap();
     assert_eq!(nodes.len(), 5);
-    assert!(nodes.iter().all(|n| n["status"] == "cached"), "{report}");
+    // The filter and the two error figures (milliseconds each) are found whole; the image
+    // loaders may re-run: reading the EXR is cheaper than reading a cache entry of the same
+    // size (the disk rule).
+    for n in nodes {
+        assert!(n["status"] == "cached" || n["kind"] == "LoadImage", "{report}");
+    }
+    assert!(
+        ["denoise", "error", "error_denoised"].iter().all(|id| nodes.iter().any(|n| n["id"] == *id && n["status"] == "cached")),
+        "{report}"
+    );
     let leftovers: Vec<_> = walk(&dir.path().join("cache")).into_iter().filter(|p| p.to_string_lossy().ends_with(".tmp")).collect();
     assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
 }

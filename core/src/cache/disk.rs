@@ -29,15 +29,9 @@ impl DiskCache {
         self.dir.join(&hex[..2]).join(format!("{hex}.rlc"))
     }
 
-    /// Writes an entry; returns `Ok(false)` when some output type has no disk encoding.
-    pub fn put(&self, key: &Hash, entry: &CacheEntry, decls: &[PortDecl]) -> std::io::Result<bool> {
-        let mut payloads = Vec::with_capacity(entry.outputs.len());
-        for v in &entry.outputs {
-            match v.encode() {
-                Some(b) => payloads.push(b),
-                None => return Ok(false),
-            }
-        }
+    /// Writes an entry.
+    pub fn put(&self, key: &Hash, entry: &CacheEntry, decls: &[PortDecl]) -> std::io::Result<()> {
+        let payloads: Vec<Vec<u8>> = entry.outputs.iter().map(|v| v.encode()).collect();
         let mut buf = Vec::new();
         buf.extend_from_slice(MAGIC);
         buf.extend_from_slice(&key.0);
@@ -70,8 +64,7 @@ impl DiskCache {
         buf.extend_from_slice(&sum.0);
         let path = self.path_of(key);
         std::fs::create_dir_all(path.parent().unwrap())?;
-        write_atomic(&path, &buf)?;
-        Ok(true)
+        write_atomic(&path, &buf)
     }
 
     /// Reads an entry whose outputs must match `decls`; any defect is a miss.
@@ -114,11 +107,8 @@ fn decode(bytes: &[u8], key: &Hash, decls: &[PortDecl], reg: &Registry) -> Optio
     let mut outputs = Vec::with_capacity(n);
     for ((fp, len), d) in heads.into_iter().zip(decls) {
         let info = reg.port_type(d.ty.name)?;
-        let v = (info.decode)(r.take(len)?)?;
-        if v.fingerprint().0 != fp {
-            return None;
-        }
-        outputs.push(v);
+        // The entry's checksum vouches for the stored fingerprint.
+        outputs.push((info.decode)(r.take(len)?, Hash(fp))?);
     }
     (r.at == body.len()).then_some(CacheEntry { outputs, metrics, notes, deps, compute_ms })
 }

@@ -88,11 +88,14 @@ mod tests {
     impl PortValue for Blob {
         const NAME: &'static str = "Blob";
         const COLOR: [u8; 3] = [0, 0, 0];
-        fn fingerprint(&self) -> Hash {
-            Hash::of_bytes(&self.0)
-        }
         fn byte_size(&self) -> usize {
             self.0.len()
+        }
+        fn encode(&self) -> Vec<u8> {
+            self.0.clone()
+        }
+        fn decode(b: &[u8]) -> Option<Self> {
+            Some(Blob(b.to_vec()))
         }
     }
 

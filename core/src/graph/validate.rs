@@ -1,6 +1,6 @@
 //! Checks a parsed graph against the registry: kinds, parameters, edge types, outputs, cycles.
 
-use super::Graph;
+use super::{Graph, PortRef};
 use crate::error::{GraphError, GraphErrors};
 use crate::registry::Registry;
 use std::collections::HashMap;
@@ -136,6 +136,52 @@ impl Graph {
                 ))
             }
         }
+    }
+
+    /// Whether an edge `from` → `to` may be added (the editor asks before connecting): both
+    /// ports exist, their types agree, and the edge closes no cycle. The error is a sentence.
+    pub fn check_connection(&self, reg: &Registry, from: &PortRef, to: &PortRef) -> Result<(), String> {
+        let kind_known = |node: &str| self.node(node).and_then(|n| reg.node(&n.kind)).is_some();
+        for (r, input) in [(from, false), (to, true)] {
+            if !kind_known(&r.node) {
+                return Err(match self.node(&r.node) {
+                    Some(n) => format!("unknown node kind \"{}\"", n.kind),
+                    None => format!("there is no node \"{}\"", r.node),
+                });
+            }
+            self.port_type(reg, &r.node, &r.port, input)?;
+        }
+        let a = self.port_type(reg, &from.node, &from.port, false)?.unwrap_or_default();
+        let b = self.port_type(reg, &to.node, &to.port, true)?.unwrap_or_default();
+        if a != b {
+            return Err(format!("cannot connect {from} ({a}) to {to} ({b}): the port types differ"));
+        }
+        if from.node == to.node || self.reaches(&to.node, &from.node) {
+            return Err(format!("cannot connect {from} to {to}: it would make a cycle"));
+        }
+        Ok(())
+    }
+
+    /// Whether node `to` can be reached from node `from` along edges (a node reaches itself).
+    pub fn reaches(&self, from: &str, to: &str) -> bool {
+        let mut seen = std::collections::HashSet::new();
+        let mut stack = vec![from];
+        while let Some(n) = stack.pop() {
+            if n == to {
+                return true;
+            }
+            if seen.insert(n) {
+                stack.extend(self.edges.iter().filter(|e| e.from.node == n).map(|e| e.to.node.as_str()));
+            }
+        }
+        false
+    }
+
+    /// Every node downstream of `id`, itself included, sorted: what an edit of `id` makes stale.
+    pub fn downstream(&self, id: &str) -> Vec<String> {
+        let mut out: Vec<String> = self.nodes.iter().filter(|n| self.reaches(id, &n.id)).map(|n| n.id.clone()).collect();
+        out.sort();
+        out
     }
 
     /// A cycle as a list of node ids, if the edges have one.

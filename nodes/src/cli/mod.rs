@@ -52,6 +52,10 @@ pub(crate) struct GraphArgs {
     /// Do not read or write the disk cache.
     #[arg(long)]
     no_disk_cache: bool,
+    /// Write every result to the disk cache, not only those that cost more to compute than
+    /// to load (a cache that other machines or later sweeps must not recompute anything from).
+    #[arg(long)]
+    cache_all: bool,
 }
 
 #[derive(Args)]
@@ -140,7 +144,8 @@ impl GraphArgs {
             .clone()
             .or_else(|| std::env::var_os("RELUME_CACHE").map(PathBuf::from))
             .unwrap_or_else(|| Path::new(".relume-cache").to_path_buf());
-        engine.with_disk_cache(dir)
+        let policy = if self.cache_all { relume_core::DiskPolicy::Always } else { relume_core::DiskPolicy::WhenCheaperToLoad };
+        engine.with_disk_cache(dir).with_disk_policy(policy)
     }
 
     pub(crate) fn requested(&self) -> Option<Vec<String>> {

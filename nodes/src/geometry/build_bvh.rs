@@ -1,52 +1,30 @@
 //! BuildBvh node.
 
-use super::accel::{Accel, BuildQuality};
+use crate::types::accel::{Accel, BuildQuality};
 use crate::types::Scene;
-use relume_core::{node_doc, Caching, Io, Node, NodeError, ParamValues, Params, Ports, RunCtx, Schema};
+use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
-node_doc! {
-    /// Builds a compressed-wide BVH (obvhs, PLOC) over every triangle of a scene, for
-    /// closest-hit rays and shadow rays that stop at the first blocker. Its fingerprint is
-    /// that of the scene plus the build quality (it is rebuilt, not stored on disk).
-    pub struct BuildBvh;
-}
-
-pub struct BuildBvhParams {
+/// Builds a compressed-wide BVH (obvhs, PLOC) over every triangle of a scene, for
+/// closest-hit rays and shadow rays that stop at the first blocker. The build is
+/// deterministic; a disk-cached BVH is stored whole (nodes and prepared triangles).
+#[derive(Params)]
+pub struct BuildBvh {
+    /// build effort against traversal speed (obvhs presets)
+    #[param(default = Medium)]
     pub quality: BuildQuality,
 }
 
-impl Params for BuildBvhParams {
-    fn schema() -> Schema {
-        Schema::new()
-            .enumeration("quality", &["Fast", "Medium", "Slow"], "Medium")
-            .help("build effort against traversal speed (obvhs presets)")
-    }
-    fn from_values(v: &ParamValues) -> Self {
-        let quality = match v.variant("quality") {
-            "Fast" => BuildQuality::Fast,
-            "Slow" => BuildQuality::Slow,
-            _ => BuildQuality::Medium,
-        };
-        BuildBvhParams { quality }
-    }
-}
+inputs!(pub BuildBvhIn { scene: Scene });
+outputs!(pub BuildBvhOut { accel: Accel });
 
-impl Node for BuildBvh {
-    const KIND: &'static str = "BuildBvh";
-    const VERSION: u32 = 1;
-    const CATEGORY: &'static str = "geometry";
-    const CACHING: Caching = Caching::Memory;
-    type Params = BuildBvhParams;
-
-    fn ports() -> Ports {
-        Ports::new().input::<Scene>("scene").output::<Accel>("accel")
-    }
-
-    fn run(&self, p: &BuildBvhParams, io: &mut Io, cx: &RunCtx) -> Result<(), NodeError> {
-        let accel = Accel::build(io.input::<Scene>("scene")?, p.quality);
+#[node(category = "geometry")]
+impl BuildBvh {
+    fn run(&self, i: BuildBvhIn, cx: &RunCtx) -> Result<BuildBvhOut, NodeError> {
+        // One obvhs call: not cancellable inside.
+        let accel = Accel::build(i.scene, self.quality);
         cx.metric("triangles", accel.triangle_count() as f64);
         cx.metric("bvh_nodes", accel.node_count() as f64);
-        io.set("accel", accel)
+        Ok(BuildBvhOut { accel })
     }
 }
 
@@ -69,7 +47,7 @@ mod tests {
             let mut best: Option<(f32, u32)> = None;
             for t in 0..scene.triangles.len() {
                 let [a, b, c] = scene.corners(t);
-                let tri = super::super::accel::brute(a, b, c, o, d);
+                let tri = crate::types::accel::brute(a, b, c, o, d);
                 if let Some(tt) = tri {
                     if best.is_none_or(|(bt, _)| tt < bt) {
                         best = Some((tt, t as u32));
@@ -91,5 +69,16 @@ mod tests {
             }
         }
         assert!(hits > 20, "the test rays hit something: {hits}");
+    }
+
+    #[test]
+    fn the_node_builds_with_the_chosen_quality() {
+        use crate::testing::{id, run_on};
+        use relume_core::{PortValue, Value};
+        let scene = test_scene::spheres();
+        let out = run_on::<BuildBvh>(&[("quality", id("Fast"))], vec![Value::new(scene.clone())]).unwrap();
+        let a = out[0].get::<Accel>().unwrap();
+        assert_eq!(a.encode(), Accel::build(&scene, BuildQuality::Fast).encode());
+        assert_eq!(a.triangle_count(), scene.triangles.len());
     }
 }

@@ -1,13 +1,11 @@
 //! Geometry nodes: acceleration structures and surface sampling.
 
-pub mod accel;
 pub mod build_bvh;
 pub mod sample_surface;
-pub mod surface;
 
 use relume_core::Registry;
 
 pub fn register(reg: &mut Registry) {
-    reg.add(build_bvh::BuildBvh);
-    reg.add(sample_surface::SampleSurface);
+    reg.add::<build_bvh::BuildBvh>();
+    reg.add::<sample_surface::SampleSurface>();
 }

@@ -2,57 +2,54 @@
 
 use crate::math::rng::uniform;
 use crate::math::sampling::{uniform_triangle, Distribution1D};
-use crate::types::{Scene, SurfacePoints, MAX_IMAGE_BYTES};
+use crate::types::{Material, Scene, SurfacePoints, MAX_IMAGE_BYTES};
 use glam::{Vec2, Vec3};
-use relume_core::{node_doc, Caching, Io, Node, NodeError, ParamValues, Params, Ports, RunCtx, Schema};
+use relume_core::{inputs, node, outputs, CancelToken, NodeError, ParamEnum, Params, RunCtx};
 use std::collections::HashMap;
 
-node_doc! {
-    /// Samples points on every surface of a scene. `AreaCdf`: exactly `count` points, each
-    /// triangle chosen in proportion to its area, uniform inside it (seeded). `PoissonDisk`:
-    /// dart throwing over area-CDF candidates (8 per requested point) with a grid, keeping a
-    /// point only if no kept point lies within r = sqrt(A / (count π)) · 0.75; it keeps fewer
-    /// than `count` points and says how many. Each point carries position, shading normal, the
-    /// radius of the disk of area A / n it stands for, object and material. Emissive objects
-    /// are left out unless `emitters` is set.
-    pub struct SampleSurface;
+/// Samples points on every surface of a scene. `AreaCdf`: exactly `count` points, each
+/// triangle chosen in proportion to its area, uniform inside it (seeded). `PoissonDisk`:
+/// dart throwing over area-CDF candidates (8 per requested point) with a grid, keeping a
+/// point only if no kept point lies within r = sqrt(A / (count π)) · 0.75; it keeps fewer
+/// than `count` points and says how many. Each point carries position, shading normal, the
+/// radius of the disk of area A / n it stands for, object and material. Emissive objects
+/// are left out unless `emitters` is set.
+#[derive(Params)]
+pub struct SampleSurface {
+    /// area-proportional random points, or a Poisson-disk subset of them
+    #[param(default = AreaCdf)]
+    pub method: Method,
+    /// points requested
+    #[param(default = 100_000, range = 1..=100_000_000, unit = "points")]
+    pub count: usize,
+    /// random seed
+    #[param(default = 0, range = 0..=u32::MAX)]
+    pub seed: u64,
+    /// also sample emissive objects (lights); off for PBGI, whose direct pass handles them
+    #[param(default = false)]
+    pub emitters: bool,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ParamEnum)]
 pub enum Method {
     AreaCdf,
     PoissonDisk,
 }
 
-pub struct SampleSurfaceParams {
-    pub method: Method,
-    pub count: usize,
-    pub seed: u64,
-    /// Sample emissive objects too (PBGI leaves them out: direct lighting handles them).
-    pub emitters: bool,
-}
+inputs!(pub SampleSurfaceIn { scene: Scene });
+outputs!(pub SampleSurfaceOut { points: SurfacePoints });
 
-impl Params for SampleSurfaceParams {
-    fn schema() -> Schema {
-        Schema::new()
-            .enumeration("method", &["AreaCdf", "PoissonDisk"], "AreaCdf")
-            .help("area-proportional random points, or a Poisson-disk subset of them")
-            .int("count", 100_000, 1, 100_000_000)
-            .unit("points")
-            .help("points requested")
-            .int("seed", 0, 0, i64::from(u32::MAX))
-            .help("random seed")
-            .bool("emitters", false)
-            .help("also sample emissive objects (lights); off for PBGI, whose direct pass handles them")
-    }
-    fn from_values(v: &ParamValues) -> Self {
-        let method = if v.variant("method") == "PoissonDisk" { Method::PoissonDisk } else { Method::AreaCdf };
-        SampleSurfaceParams { method, count: v.int("count") as usize, seed: v.int("seed") as u64, emitters: v.bool("emitters") }
-    }
-}
+/// Points generated per parallel work item.
+const CHUNK: usize = 4096;
 
 /// Samples points; errors name the parameter.
-pub fn sample_surface(scene: &Scene, p: &SampleSurfaceParams) -> Result<SurfacePoints, NodeError> {
+pub fn sample_surface(scene: &Scene, p: &SampleSurface) -> Result<SurfacePoints, NodeError> {
+    let cancel = CancelToken::new();
+    sample_surface_with(scene, p, &RunCtx::new("sample_surface", &cancel, None))
+}
+
+/// As `sample_surface`, reporting progress to `cx` and stopping once it is cancelled.
+pub fn sample_surface_with(scene: &Scene, p: &SampleSurface, cx: &RunCtx) -> Result<SurfacePoints, NodeError> {
     let candidates = if p.method == Method::PoissonDisk { p.count.saturating_mul(8) } else { p.count };
     let bytes = candidates.saturating_mul(SurfacePoints::BYTES_PER_POINT);
     if bytes > MAX_IMAGE_BYTES {
@@ -68,8 +65,8 @@ pub fn sample_surface(scene: &Scene, p: &SampleSurfaceParams) -> Result<SurfaceP
     if total <= 0.0 {
         return Err(NodeError::input("scene", "the scene's surfaces have no area"));
     }
-    let mut pts = SurfacePoints::default();
-    let push = |pts: &mut SurfacePoints, i: usize| {
+    // Point i: (position, normal, object, material), a function of i and the seed alone.
+    let point = |i: usize| -> (Vec3, Vec3, u32, Material) {
         let (t, _) = dist.sample_discrete(uniform(p.seed, i as u64, 0));
         let (b0, b1) = uniform_triangle(Vec2::new(uniform(p.seed, i as u64, 1), uniform(p.seed, i as u64, 2)));
         let [a, b, c] = scene.corners(t);
@@ -82,26 +79,38 @@ pub fn sample_surface(scene: &Scene, p: &SampleSurfaceParams) -> Result<SurfaceP
             (scene.normals[i0] * b0 + scene.normals[i1] * b1 + scene.normals[i2] * (1.0 - b0 - b1)).try_normalize().unwrap_or(ng)
         };
         let obj = scene.tri_object[t];
-        pts.position.push(pos);
-        pts.normal.push(if n.dot(ng) < 0.0 { -n } else { n });
-        pts.object.push(obj);
-        pts.material.push(scene.objects[obj as usize].material);
+        (pos, if n.dot(ng) < 0.0 { -n } else { n }, obj, scene.objects[obj as usize].material)
     };
-    match p.method {
-        Method::AreaCdf => {
-            for i in 0..p.count {
-                push(&mut pts, i);
-            }
+    // The first `n` points, in order, generated in parallel chunks.
+    let generate = |n: usize| -> Result<SurfacePoints, NodeError> {
+        let chunks = cx.par_map(n.div_ceil(CHUNK), |c| (c * CHUNK..((c + 1) * CHUNK).min(n)).map(point).collect::<Vec<_>>())?;
+        let mut pts = SurfacePoints::default();
+        pts.position.reserve_exact(n);
+        pts.normal.reserve_exact(n);
+        pts.object.reserve_exact(n);
+        pts.material.reserve_exact(n);
+        // Each chunk is freed once copied.
+        for (pos, nrm, obj, mat) in chunks.into_iter().flatten() {
+            pts.position.push(pos);
+            pts.normal.push(nrm);
+            pts.object.push(obj);
+            pts.material.push(mat);
         }
+        Ok(pts)
+    };
+    let mut pts = match p.method {
+        Method::AreaCdf => generate(p.count)?,
         Method::PoissonDisk => {
             let r = (total / (p.count as f64 * std::f64::consts::PI)).sqrt() as f32 * 0.75;
-            let mut all = SurfacePoints::default();
-            for i in 0..candidates {
-                push(&mut all, i);
-            }
+            let all = generate(candidates)?;
+            let mut pts = SurfacePoints::default();
             let cell = |q: Vec3| ((q / r).floor().as_ivec3()).to_array();
+            // Only looked up, never iterated: the result does not depend on its order.
             let mut grid: HashMap<[i32; 3], Vec<u32>> = HashMap::new();
             for i in 0..all.len() {
+                if i % CHUNK == 0 {
+                    cx.tick(i as u64, all.len() as u64)?;
+                }
                 let q = all.position[i];
                 let c = cell(q);
                 let near = (-1..=1).flat_map(|dx| (-1..=1).flat_map(move |dy| (-1..=1).map(move |dz| [c[0] + dx, c[1] + dy, c[2] + dz])));
@@ -116,31 +125,23 @@ pub fn sample_surface(scene: &Scene, p: &SampleSurfaceParams) -> Result<SurfaceP
                     pts.material.push(all.material[i]);
                 }
             }
+            pts
         }
-    }
+    };
     let radius = (total / (pts.len() as f64 * std::f64::consts::PI)).sqrt() as f32;
     pts.radius = vec![radius; pts.len()];
     Ok(pts)
 }
 
-impl Node for SampleSurface {
-    const KIND: &'static str = "SampleSurface";
-    const VERSION: u32 = 1;
-    const CATEGORY: &'static str = "geometry";
-    const CACHING: Caching = Caching::Memory;
-    type Params = SampleSurfaceParams;
-
-    fn ports() -> Ports {
-        Ports::new().input::<Scene>("scene").output::<SurfacePoints>("points")
-    }
-
-    fn run(&self, p: &SampleSurfaceParams, io: &mut Io, cx: &RunCtx) -> Result<(), NodeError> {
-        let pts = sample_surface(io.input::<Scene>("scene")?, p)?;
+#[node(category = "geometry")]
+impl SampleSurface {
+    fn run(&self, i: SampleSurfaceIn, cx: &RunCtx) -> Result<SampleSurfaceOut, NodeError> {
+        let pts = sample_surface_with(i.scene, self, cx)?;
         cx.metric("points", pts.len() as f64);
-        if p.method == Method::PoissonDisk {
-            cx.note(format!("Poisson-disk sampling kept {} of {} requested points", pts.len(), p.count));
+        if self.method == Method::PoissonDisk {
+            cx.note(format!("Poisson-disk sampling kept {} of {} requested points", pts.len(), self.count));
         }
-        io.set("points", pts)
+        Ok(SampleSurfaceOut { points: pts })
     }
 }
 
@@ -149,8 +150,8 @@ mod tests {
     use super::*;
     use crate::testing::test_scene;
 
-    fn params(method: Method, count: usize, seed: u64) -> SampleSurfaceParams {
-        SampleSurfaceParams { method, count, seed, emitters: true }
+    fn params(method: Method, count: usize, seed: u64) -> SampleSurface {
+        SampleSurface { method, count, seed, emitters: true }
     }
 
     #[test]
@@ -196,5 +197,21 @@ mod tests {
         let scene = test_scene::spheres();
         let e = sample_surface(&scene, &params(Method::PoissonDisk, 100_000_000, 0)).unwrap_err();
         assert!(e.to_string().contains("GiB"), "{e}");
+    }
+
+    #[test]
+    fn the_node_matches_the_kernel_and_cancels_midway() {
+        use crate::testing::{cancels_midway, first, i, id, run_on};
+        use relume_core::Value;
+        let scene = test_scene::spheres();
+        let pts: SurfacePoints = first(
+            &run_on::<SampleSurface>(&[("count", i(5000)), ("seed", i(3)), ("method", id("PoissonDisk"))], vec![Value::new(scene.clone())])
+                .unwrap(),
+        );
+        let want = sample_surface(&scene, &SampleSurface { method: Method::PoissonDisk, count: 5000, seed: 3, emitters: false }).unwrap();
+        assert_eq!((pts.position, pts.radius), (want.position, want.radius));
+        for method in Method::VARIANTS {
+            cancels_midway::<SampleSurface>(&[("count", i(400_000)), ("method", id(method))], vec![Value::new(scene.clone())]);
+        }
     }
 }

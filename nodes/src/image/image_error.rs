@@ -1,63 +1,67 @@
 //! ImageError node.
 
-use crate::image::io::srgb_encode;
+use crate::math::srgb::srgb_encode;
 use crate::math::ssim::ssim;
 use crate::types::{Image, Metrics};
-use relume_core::{node_doc, Caching, Io, Node, NodeError, ParamValues, Params, Ports, RunCtx, Schema};
+use relume_core::{inputs, node, outputs, CancelToken, NodeError, Params, RunCtx};
 
-node_doc! {
-    /// Error of an image against a reference of the same size, into the run report:
-    /// MSE (mean over pixels and channels of (x − r)²), relative MSE (mean of
-    /// (x − r)² / (r² + ε)), PSNR = 10 log10(peak² / MSE) in dB, the theses' L2 % =
-    /// 100 · ‖x − r‖₂ / ‖r‖₂, and two perceptual figures of the images as a display shows them
-    /// (linear / `peak` clamped to [0, 1], sRGB-encoded, as in a PNG): `flip`, the mean of
-    /// NVIDIA's LDR-ꟻLIP error map (Andersson et al. 2020, `nv-flip` crate, 67 pixels per degree,
-    /// 8-bit input; 0 = identical, 1 = maximal; the crate has no HDR-ꟻLIP, so differences above
-    /// `peak` are not seen), which models what a viewer sees flipping between the two, so it
-    /// punishes a brightness shift as much as blotches and forgives pixel-scale noise; and
-    /// `ssim`, mean SSIM (Wang et al. 2004; 11 × 11 Gaussian window, σ = 1.5, K1 = 0.01,
-    /// K2 = 0.03, L = 1) of the Rec. 709 luma, 1 = identical, which punishes lost structure
-    /// more than a brightness shift. Pixels where either image is not finite are left out of
-    /// every figure and counted in `nonfinite_pixels` (ꟻLIP gets the same finite value in
-    /// both images there; SSIM's windows skip them). Also outputs the per-pixel squared-error
-    /// map.
-    pub struct ImageError;
-}
-
-pub struct ImageErrorParams {
+/// Error of an image against a reference of the same size, into the run report:
+/// MSE (mean over pixels and channels of (x − r)²), relative MSE (mean of
+/// (x − r)² / (r² + ε)), PSNR = 10 log10(peak² / MSE) in dB, the theses' L2 % =
+/// 100 · ‖x − r‖₂ / ‖r‖₂, and two perceptual figures of the images as a display shows them
+/// (linear / `peak` clamped to [0, 1], sRGB-encoded, as in a PNG): `flip`, the mean of
+/// NVIDIA's LDR-ꟻLIP error map (Andersson et al. 2020, `nv-flip` crate, 67 pixels per degree,
+/// 8-bit input; 0 = identical, 1 = maximal; the crate has no HDR-ꟻLIP, so differences above
+/// `peak` are not seen), which models what a viewer sees flipping between the two, so it
+/// punishes a brightness shift as much as blotches and forgives pixel-scale noise; and
+/// `ssim`, mean SSIM (Wang et al. 2004; 11 × 11 Gaussian window, σ = 1.5, K1 = 0.01,
+/// K2 = 0.03, L = 1) of the Rec. 709 luma, 1 = identical, which punishes lost structure
+/// more than a brightness shift. Pixels where either image is not finite are left out of
+/// every figure and counted in `nonfinite_pixels` (ꟻLIP gets the same finite value in
+/// both images there; SSIM's windows skip them). Also outputs the per-pixel squared-error
+/// map.
+#[derive(Params)]
+pub struct ImageError {
+    /// signal peak: PSNR's peak, and the linear value ꟻLIP shows as display white
+    #[param(default = 1.0, range = 1e-6..=1e6)]
     pub peak: f64,
+    /// ε in relative MSE's denominator (r² + ε), keeps dark pixels from dominating
+    #[param(default = 1e-2, range = 1e-8..=1.0)]
     pub epsilon: f64,
 }
 
-impl Params for ImageErrorParams {
-    fn schema() -> Schema {
-        Schema::new()
-            .float("peak", 1.0, 1e-6, 1e6)
-            .help("signal peak: PSNR's peak, and the linear value ꟻLIP shows as display white")
-            .float("epsilon", 1e-2, 1e-8, 1.0)
-            .help("ε in relative MSE's denominator (r² + ε), keeps dark pixels from dominating")
-    }
-    fn from_values(v: &ParamValues) -> Self {
-        ImageErrorParams { peak: v.float("peak"), epsilon: v.float("epsilon") }
-    }
+inputs!(pub ImageErrorIn { image: Image, reference: Image });
+outputs!(pub ImageErrorOut { metrics: Metrics, error_map: Image });
+
+/// Error figures of `x` against `r` (same size), in the order the report lists them; outside
+/// a node run (never cancelled).
+pub fn error_metrics(x: &Image, r: &Image, peak: f64, epsilon: f64) -> Metrics {
+    let cancel = CancelToken::new();
+    error_metrics_with(x, r, peak, epsilon, &RunCtx::new("error_metrics", &cancel, None)).expect("never cancelled")
 }
 
-/// Error figures of `x` against `r` (same size), in the order the report lists them.
-pub fn error_metrics(x: &Image, r: &Image, peak: f64, epsilon: f64) -> Metrics {
+/// `error_metrics` with `cx`'s progress and cancellation. The sums run over the pixels in
+/// order (one row per tick), so the figures are the same bits on any thread count.
+pub fn error_metrics_with(x: &Image, r: &Image, peak: f64, epsilon: f64, cx: &RunCtx) -> Result<Metrics, NodeError> {
     let (mut se, mut rel, mut ref2, mut n, mut bad) = (0.0f64, 0.0f64, 0.0f64, 0usize, 0usize);
-    for (a, b) in x.pixels.iter().zip(&r.pixels) {
-        if a.iter().chain(b).any(|c| !c.is_finite()) {
-            bad += 1;
-            continue;
+    let w = x.width.max(1);
+    let rows = x.pixels.len().div_ceil(w) as u64;
+    for (y, (xrow, rrow)) in x.pixels.chunks(w).zip(r.pixels.chunks(w)).enumerate() {
+        cx.tick(y as u64, rows)?;
+        for (a, b) in xrow.iter().zip(rrow) {
+            if a.iter().chain(b).any(|c| !c.is_finite()) {
+                bad += 1;
+                continue;
+            }
+            for c in 0..3 {
+                let (a, b) = (a[c] as f64, b[c] as f64);
+                let d2 = (a - b) * (a - b);
+                se += d2;
+                rel += d2 / (b * b + epsilon);
+                ref2 += b * b;
+            }
+            n += 3;
         }
-        for c in 0..3 {
-            let (a, b) = (a[c] as f64, b[c] as f64);
-            let d2 = (a - b) * (a - b);
-            se += d2;
-            rel += d2 / (b * b + epsilon);
-            ref2 += b * b;
-        }
-        n += 3;
     }
     let count = n.max(1) as f64;
     let mse = se / count;
@@ -69,49 +73,73 @@ pub fn error_metrics(x: &Image, r: &Image, peak: f64, epsilon: f64) -> Metrics {
     } else {
         f64::INFINITY
     };
-    Metrics(vec![
+    let flip = flip_mean_with(x, r, peak, cx)?;
+    cx.check()?;
+    let ssim = ssim(x, r, peak);
+    Ok(Metrics(vec![
         ("mse".into(), mse),
         ("rel_mse".into(), rel / count),
         ("psnr_db".into(), psnr),
         ("l2_percent".into(), l2),
-        ("flip".into(), flip_mean(x, r, peak)),
-        ("ssim".into(), ssim(x, r, peak)),
+        ("flip".into(), flip),
+        ("ssim".into(), ssim),
         ("nonfinite_pixels".into(), bad as f64),
-    ])
+    ]))
 }
 
 /// Mean LDR-ꟻLIP error of `x` against `r` (same size) over the pixels where both are finite,
 /// each shown as a PNG would show it (`x / peak` clamped to [0, 1], sRGB, 8 bits); 0 when no
-/// pixel is left to compare.
+/// pixel is left to compare. Outside a node run (never cancelled).
 pub fn flip_mean(x: &Image, r: &Image, peak: f64) -> f64 {
-    let (Ok(w), Ok(h)) = (u32::try_from(x.width), u32::try_from(x.height)) else { return f64::NAN };
+    let cancel = CancelToken::new();
+    flip_mean_with(x, r, peak, &RunCtx::new("flip_mean", &cancel, None)).expect("never cancelled")
+}
+
+/// `flip_mean` with `cx`'s progress and cancellation (the 8-bit images are made row by row
+/// in parallel; the ꟻLIP call itself cannot be interrupted).
+pub fn flip_mean_with(x: &Image, r: &Image, peak: f64, cx: &RunCtx) -> Result<f64, NodeError> {
+    let (Ok(w), Ok(h)) = (u32::try_from(x.width), u32::try_from(x.height)) else { return Ok(f64::NAN) };
     if x.pixels.is_empty() {
-        return 0.0;
+        return Ok(0.0);
     }
     let scale = (1.0 / peak) as f32;
     let to8 = |p: [f32; 3]| p.map(|c| (srgb_encode(c * scale) * 255.0 + 0.5) as u8);
-    let (mut xb, mut rb, mut ok) = (Vec::with_capacity(x.pixels.len() * 3), Vec::with_capacity(x.pixels.len() * 3), Vec::new());
-    for (a, b) in x.pixels.iter().zip(&r.pixels) {
-        let finite = |p: &[f32; 3]| p.iter().all(|c| c.is_finite());
-        let good = finite(a) && finite(b);
-        // Where one side is not finite, both get the other side's value (or black) so that
-        // ꟻLIP's spatial filters see no difference there.
-        let (a, b) = if good {
-            (*a, *b)
-        } else {
-            let fill = if finite(b) {
-                *b
-            } else if finite(a) {
-                *a
+    type Row<'a> = &'a [[f32; 3]];
+    let rows: Vec<(Row, Row)> = x.pixels.chunks(x.width.max(1)).zip(r.pixels.chunks(x.width.max(1))).collect();
+    let rows = cx.par_map(rows.len(), |y| {
+        let (xrow, rrow) = rows[y];
+        let (mut xb, mut rb, mut ok) =
+            (Vec::with_capacity(xrow.len() * 3), Vec::with_capacity(xrow.len() * 3), Vec::with_capacity(xrow.len()));
+        for (a, b) in xrow.iter().zip(rrow) {
+            let finite = |p: &[f32; 3]| p.iter().all(|c| c.is_finite());
+            let good = finite(a) && finite(b);
+            // Where one side is not finite, both get the other side's value (or black) so that
+            // ꟻLIP's spatial filters see no difference there.
+            let (a, b) = if good {
+                (*a, *b)
             } else {
-                [0.0; 3]
+                let fill = if finite(b) {
+                    *b
+                } else if finite(a) {
+                    *a
+                } else {
+                    [0.0; 3]
+                };
+                (fill, fill)
             };
-            (fill, fill)
-        };
-        xb.extend(to8(a));
-        rb.extend(to8(b));
-        ok.push(good);
+            xb.extend(to8(a));
+            rb.extend(to8(b));
+            ok.push(good);
+        }
+        (xb, rb, ok)
+    })?;
+    let (mut xb, mut rb, mut ok) = (Vec::with_capacity(x.pixels.len() * 3), Vec::with_capacity(x.pixels.len() * 3), Vec::new());
+    for (xr, rr, okr) in rows {
+        xb.extend(xr);
+        rb.extend(rr);
+        ok.extend(okr);
     }
+    cx.check()?;
     let map = nv_flip::flip(
         nv_flip::FlipImageRgb8::with_data(w, h, &rb),
         nv_flip::FlipImageRgb8::with_data(w, h, &xb),
@@ -119,37 +147,31 @@ pub fn flip_mean(x: &Image, r: &Image, peak: f64) -> f64 {
     )
     .to_vec();
     let (sum, n) = map.iter().zip(&ok).filter(|(_, &g)| g).fold((0.0f64, 0usize), |(s, n), (&e, _)| (s + e as f64, n + 1));
-    if n == 0 {
-        0.0
-    } else {
-        sum / n as f64
-    }
+    Ok(if n == 0 { 0.0 } else { sum / n as f64 })
 }
 
-impl Node for ImageError {
-    const KIND: &'static str = "ImageError";
-    const VERSION: u32 = 2;
-    const CATEGORY: &'static str = "quality";
-    const CACHING: Caching = Caching::Disk;
-    type Params = ImageErrorParams;
-
-    fn ports() -> Ports {
-        Ports::new().input::<Image>("image").input::<Image>("reference").output::<Metrics>("metrics").output::<Image>("error_map")
-    }
-
-    fn run(&self, p: &ImageErrorParams, io: &mut Io, cx: &RunCtx) -> Result<(), NodeError> {
-        let (x, r) = (io.input::<Image>("image")?, io.input::<Image>("reference")?);
+#[node(category = "quality", version = 2)]
+impl ImageError {
+    fn run(&self, i: ImageErrorIn, cx: &RunCtx) -> Result<ImageErrorOut, NodeError> {
+        let (x, r) = (i.image, i.reference);
         r.check_same_size(x, "reference", "image")?;
-        let m = error_metrics(x, r, p.peak, p.epsilon);
+        cx.phase(0.0, 0.9);
+        let m = error_metrics_with(x, r, self.peak, self.epsilon, cx)?;
         for (k, v) in &m.0 {
             cx.metric(k, *v);
         }
         if m.get("nonfinite_pixels").unwrap_or(0.0) > 0.0 {
             cx.note(format!("{} pixels with NaN or infinity were left out of the error", m.get("nonfinite_pixels").unwrap()));
         }
-        let map = x.pixels.iter().zip(&r.pixels).map(|(a, b)| std::array::from_fn(|c| (a[c] - b[c]) * (a[c] - b[c]))).collect();
-        io.set("error_map", Image { width: x.width, height: x.height, pixels: map })?;
-        io.set("metrics", m)
+        let mut map = vec![[0.0f32; 3]; x.pixels.len()];
+        cx.phase(0.9, 1.0);
+        cx.par_chunks_mut(&mut map, x.width, |y, o| {
+            let (xrow, rrow) = (&x.pixels[y * x.width..], &r.pixels[y * x.width..]);
+            for ((m, a), b) in o.iter_mut().zip(xrow).zip(rrow) {
+                *m = std::array::from_fn(|c| (a[c] - b[c]) * (a[c] - b[c]));
+            }
+        })?;
+        Ok(ImageErrorOut { metrics: m, error_map: Image { width: x.width, height: x.height, pixels: map } })
     }
 }
 
@@ -157,7 +179,7 @@ impl Node for ImageError {
 mod tests {
     use super::*;
     use crate::math::rng::uniform;
-    use crate::testing::run_full;
+    use crate::testing::{cancels_midway, run_full};
     use relume_core::Value;
     use std::path::Path;
 
@@ -177,7 +199,7 @@ mod tests {
     fn nonfinite_pixels_are_counted_not_propagated() {
         let r = Image::from_fn(3, 1, |_, _| [0.0; 3]);
         let x = Image::from_fn(3, 1, |i, _| [[f32::NAN, f32::INFINITY, 0.5][i]; 3]);
-        let e = run_full(ImageError, &[], Path::new("."), vec![Value::new(x), Value::new(r)]).unwrap();
+        let e = run_full::<ImageError>(&[], Path::new("."), vec![Value::new(x), Value::new(r)]).unwrap();
         let m: Metrics = e.outputs[0].get::<Metrics>().unwrap().clone();
         assert_eq!(m.get("nonfinite_pixels"), Some(2.0));
         assert!((m.get("mse").unwrap() - 0.25).abs() < 1e-12);
@@ -259,5 +281,25 @@ mod tests {
         assert_eq!(m.get("nonfinite_pixels"), Some(2.0));
         let all_nan = Image::from_fn(3, 3, |_, _| [f32::NAN; 3]);
         assert_eq!(flip_mean(&all_nan, &all_nan, 1.0), 0.0, "nothing left to compare");
+    }
+
+    #[test]
+    fn cancels_midway_through_a_large_image() {
+        let r = Image::from_fn(512, 512, |x, y| [x as f32 / 512.0, y as f32 / 512.0, 0.5]);
+        let x = with_noise(&r, 0.05, 1);
+        cancels_midway::<ImageError>(&[], vec![Value::new(x), Value::new(r)]);
+    }
+
+    #[test]
+    fn the_node_outputs_the_squared_error_map() {
+        let r = scene();
+        let x = with_noise(&r, 0.05, 2);
+        let e = run_full::<ImageError>(&[], Path::new("."), vec![Value::new(x.clone()), Value::new(r.clone())]).unwrap();
+        let map = e.outputs[1].get::<Image>().unwrap();
+        assert_eq!((map.width, map.height), (r.width, r.height));
+        for ((m, a), b) in map.pixels.iter().zip(&x.pixels).zip(&r.pixels) {
+            assert_eq!(*m, std::array::from_fn(|c| (a[c] - b[c]) * (a[c] - b[c])));
+        }
+        assert_eq!(e.outputs[0].get::<Metrics>().unwrap(), &error_metrics(&x, &r, 1.0, 0.01));
     }
 }

@@ -1,29 +1,11 @@
 //! Reading and writing image files (EXR linear; PNG sRGB-encoded). Shared by LoadImage,
 //! SaveImage and the command line.
 
+use crate::math::srgb::{srgb_decode, srgb_encode};
 use crate::types::Image;
 use relume_core::graph::write_atomic;
 use std::io::Cursor;
 use std::path::Path;
-
-/// sRGB transfer function (linear → encoded), input clamped to [0, 1].
-pub fn srgb_encode(x: f32) -> f32 {
-    let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
-    if x <= 0.003_130_8 {
-        12.92 * x
-    } else {
-        1.055 * x.powf(1.0 / 2.4) - 0.055
-    }
-}
-
-/// sRGB decoding (encoded → linear).
-pub fn srgb_decode(x: f32) -> f32 {
-    if x <= 0.040_45 {
-        x / 12.92
-    } else {
-        ((x + 0.055) / 1.055).powf(2.4)
-    }
-}
 
 fn ext(path: &Path) -> String {
     path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default()
@@ -124,14 +106,5 @@ mod tests {
         std::fs::write(&bad, b"not an exr").unwrap();
         assert!(read_image(&bad).unwrap_err().contains("not a readable EXR"));
         assert!(read_image(&dir.path().join("x.jpg")).unwrap_err().contains("unsupported"));
-    }
-
-    #[test]
-    fn srgb_curves_invert() {
-        for i in 0..=100 {
-            let x = i as f32 / 100.0;
-            assert!((srgb_decode(srgb_encode(x)) - x).abs() < 1e-5);
-        }
-        assert_eq!(srgb_encode(f32::NAN), 0.0);
     }
 }

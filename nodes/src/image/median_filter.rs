@@ -1,37 +1,36 @@
 //! MedianFilter node.
 
 use crate::types::Image;
-use rayon::prelude::*;
-use relume_core::{node_doc, Caching, Io, Node, NodeError, ParamValues, Params, Ports, RunCtx, Schema};
+use relume_core::{inputs, node, outputs, CancelToken, NodeError, Params, RunCtx};
 
-node_doc! {
-    /// Per-channel median over a (2·radius + 1)² window with clamp-to-edge borders: removes
-    /// isolated outliers (fireflies) while keeping edges. NaN sorts above every number
-    /// (total order), so a lone NaN pixel is replaced by its neighbours' median.
-    pub struct MedianFilter;
-}
-
-pub struct MedianFilterParams {
+/// Per-channel median over a (2·radius + 1)² window with clamp-to-edge borders: removes
+/// isolated outliers (fireflies) while keeping edges. NaN sorts above every number
+/// (total order), so a lone NaN pixel is replaced by its neighbours' median.
+#[derive(Params)]
+pub struct MedianFilter {
+    /// window half-size; 0 returns the input
+    #[param(default = 1, range = 0..=16, unit = "px")]
     pub radius: usize,
 }
 
-impl Params for MedianFilterParams {
-    fn schema() -> Schema {
-        Schema::new().int("radius", 1, 0, 16).unit("px").help("window half-size; 0 returns the input")
-    }
-    fn from_values(v: &ParamValues) -> Self {
-        MedianFilterParams { radius: v.int("radius") as usize }
-    }
+inputs!(pub MedianFilterIn { image: Image });
+outputs!(pub MedianFilterOut { image: Image });
+
+/// Median-filters an image (shared with later pipeline stages), outside a node run: never
+/// cancelled.
+pub fn median_filter(img: &Image, radius: usize) -> Image {
+    let cancel = CancelToken::new();
+    median_filter_with(img, radius, &RunCtx::new("median_filter", &cancel, None)).expect("never cancelled")
 }
 
-/// Median-filters an image (shared with later pipeline stages).
-pub fn median_filter(img: &Image, radius: usize) -> Image {
+/// Median-filters an image row by row in parallel, with `cx`'s progress and cancellation.
+pub fn median_filter_with(img: &Image, radius: usize, cx: &RunCtx) -> Result<Image, NodeError> {
     if radius == 0 {
-        return img.clone();
+        return Ok(img.clone());
     }
     let (w, h, r) = (img.width as i64, img.height as i64, radius as i64);
     let mut out = vec![[0.0f32; 3]; img.pixels.len()];
-    out.par_chunks_mut(img.width).enumerate().for_each(|(y, row)| {
+    cx.par_chunks_mut(&mut out, img.width, |y, row| {
         let mut win = Vec::with_capacity(((2 * r + 1) * (2 * r + 1)) as usize);
         for (x, px) in row.iter_mut().enumerate() {
             for (c, out_c) in px.iter_mut().enumerate() {
@@ -48,32 +47,21 @@ pub fn median_filter(img: &Image, radius: usize) -> Image {
                 *out_c = win[mid];
             }
         }
-    });
-    Image { width: img.width, height: img.height, pixels: out }
+    })?;
+    Ok(Image { width: img.width, height: img.height, pixels: out })
 }
 
-impl Node for MedianFilter {
-    const KIND: &'static str = "MedianFilter";
-    const VERSION: u32 = 1;
-    const CATEGORY: &'static str = "image";
-    const CACHING: Caching = Caching::Disk;
-    type Params = MedianFilterParams;
-
-    fn ports() -> Ports {
-        Ports::new().input::<Image>("image").output::<Image>("image")
-    }
-
-    fn run(&self, p: &MedianFilterParams, io: &mut Io, cx: &RunCtx) -> Result<(), NodeError> {
-        cx.check()?;
-        let out = median_filter(io.input::<Image>("image")?, p.radius);
-        io.set("image", out)
+#[node(category = "image")]
+impl MedianFilter {
+    fn run(&self, i: MedianFilterIn, cx: &RunCtx) -> Result<MedianFilterOut, NodeError> {
+        Ok(MedianFilterOut { image: median_filter_with(i.image, self.radius, cx)? })
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::{first, i, run_on};
+    use crate::testing::{cancels_midway, first, i, run_on};
     use relume_core::Value;
 
     #[test]
@@ -87,7 +75,7 @@ mod tests {
                 1.0
             }; 3]
         });
-        let out: Image = first(&run_on(MedianFilter, &[("radius", i(1))], vec![Value::new(img)]).unwrap());
+        let out: Image = first(&run_on::<MedianFilter>(&[("radius", i(1))], vec![Value::new(img)]).unwrap());
         assert_eq!(out.get(3, 3), [1.0; 3]);
         assert_eq!(out.get(1, 5), [0.0; 3]);
         assert_eq!(out.get(5, 5), [1.0; 3]);
@@ -99,5 +87,11 @@ mod tests {
         assert_eq!(median_filter(&img, 1).get(1, 1), [0.5; 3]);
         let one = Image::from_fn(1, 1, |_, _| [4.0; 3]);
         assert_eq!(median_filter(&one, 16), one);
+    }
+
+    #[test]
+    fn cancels_midway_through_a_large_image() {
+        let img = Image::from_fn(512, 512, |x, y| [x as f32, y as f32, 1.0]);
+        cancels_midway::<MedianFilter>(&[("radius", i(2))], vec![Value::new(img)]);
     }
 }

@@ -2,48 +2,31 @@
 
 use crate::types::Image;
 use rayon::prelude::*;
-use relume_core::{node_doc, Caching, Io, Node, NodeError, ParamValues, Params, Ports, RunCtx, Schema};
+use relume_core::{inputs, node, outputs, NodeError, ParamEnum, Params, RunCtx};
 
-node_doc! {
-    /// Maps linear HDR radiance to display-referred values in [0, 1]: exposure in stops, then
-    /// a curve (Clamp, Reinhard x/(1+x), or the ACES filmic fit of Narkowicz 2015). The output
-    /// stays linear; PNG writing applies the sRGB encoding. NaN becomes 0 and +∞ becomes 1,
-    /// so a broken pixel shows instead of poisoning the picture.
-    pub struct Tonemap;
+/// Maps linear HDR radiance to display-referred values in [0, 1]: exposure in stops, then
+/// a curve (Clamp, Reinhard x/(1+x), or the ACES filmic fit of Narkowicz 2015). The output
+/// stays linear; PNG writing applies the sRGB encoding. NaN becomes 0 and +∞ becomes 1,
+/// so a broken pixel shows instead of poisoning the picture.
+#[derive(Params)]
+pub struct Tonemap {
+    /// scale by 2^exposure before the curve
+    #[param(default = 0.0, range = -20.0..=20.0, unit = "stops")]
+    pub exposure: f32,
+    /// tone curve
+    #[param(default = Aces)]
+    pub operator: Operator,
 }
 
-pub const OPERATORS: &[&str] = &["Clamp", "Reinhard", "Aces"];
-
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, ParamEnum)]
 pub enum Operator {
     Clamp,
     Reinhard,
     Aces,
 }
 
-pub struct TonemapParams {
-    pub exposure: f32,
-    pub operator: Operator,
-}
-
-impl Params for TonemapParams {
-    fn schema() -> Schema {
-        Schema::new()
-            .float("exposure", 0.0, -20.0, 20.0)
-            .unit("stops")
-            .help("scale by 2^exposure before the curve")
-            .enumeration("operator", OPERATORS, "Aces")
-            .help("tone curve")
-    }
-    fn from_values(v: &ParamValues) -> Self {
-        let operator = match v.variant("operator") {
-            "Clamp" => Operator::Clamp,
-            "Reinhard" => Operator::Reinhard,
-            _ => Operator::Aces,
-        };
-        TonemapParams { exposure: v.float("exposure") as f32, operator }
-    }
-}
+inputs!(pub TonemapIn { image: Image });
+outputs!(pub TonemapOut { image: Image });
 
 /// One channel through exposure scale and curve; always finite, in [0, 1].
 pub fn tonemap_channel(x: f32, scale: f32, op: Operator) -> f32 {
@@ -76,22 +59,12 @@ pub fn tonemap_channel(x: f32, scale: f32, op: Operator) -> f32 {
     }
 }
 
-impl Node for Tonemap {
-    const KIND: &'static str = "Tonemap";
-    const VERSION: u32 = 1;
-    const CATEGORY: &'static str = "image";
-    const CACHING: Caching = Caching::Disk;
-    type Params = TonemapParams;
-
-    fn ports() -> Ports {
-        Ports::new().input::<Image>("image").output::<Image>("image")
-    }
-
-    fn run(&self, p: &TonemapParams, io: &mut Io, _cx: &RunCtx) -> Result<(), NodeError> {
-        let src = io.input::<Image>("image")?;
-        let scale = 2f32.powf(p.exposure);
-        let pixels = src.pixels.par_iter().map(|c| c.map(|x| tonemap_channel(x, scale, p.operator))).collect();
-        io.set("image", Image { width: src.width, height: src.height, pixels })
+#[node(category = "image")]
+impl Tonemap {
+    fn run(&self, i: TonemapIn, _cx: &RunCtx) -> Result<TonemapOut, NodeError> {
+        let scale = 2f32.powf(self.exposure);
+        let pixels = i.image.pixels.par_iter().map(|c| c.map(|x| tonemap_channel(x, scale, self.operator))).collect();
+        Ok(TonemapOut { image: Image { width: i.image.width, height: i.image.height, pixels } })
     }
 }
 
@@ -117,9 +90,9 @@ mod tests {
     #[test]
     fn extreme_values_give_finite_output() {
         let img = Image::from_fn(4, 1, |x, _| [[f32::NAN, f32::INFINITY, -5.0, 1e30][x]; 3]);
-        for op in OPERATORS {
+        for op in Operator::VARIANTS {
             let out: Image =
-                first(&run_on(Tonemap, &[("operator", id(op)), ("exposure", f(20.0))], vec![Value::new(img.clone())]).unwrap());
+                first(&run_on::<Tonemap>(&[("operator", id(op)), ("exposure", f(20.0))], vec![Value::new(img.clone())]).unwrap());
             assert!(out.as_floats().iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)), "{op}: {:?}", out.pixels);
             assert_eq!(out.pixels[0], [0.0; 3]);
             assert_eq!(out.pixels[1], [1.0; 3]);

@@ -1,41 +1,31 @@
 //! ZTest node.
 
 use crate::types::{Image, Metrics};
-use relume_core::{node_doc, Caching, Io, Node, NodeError, ParamValues, Params, Ports, RunCtx, Schema};
+use relume_core::{inputs, node, outputs, CancelToken, NodeError, Params, RunCtx};
 
-node_doc! {
-    /// Per-pixel z-test of a noisy estimate against a reference, both given with the variance
-    /// of their mean: per pixel and channel z = (x − r) / sqrt(var_x + var_r + tiny), tiny =
-    /// the smallest normal f64 (negative variances, round-off of E[x²] − E[x]², count as 0).
-    /// A pixel passes when all its channels have |z| ≤ `z`, so equal values with zero variance
-    /// pass and unequal ones fail. A pixel with any value not finite fails and is counted in
-    /// `nonfinite_pixels`. Metrics: `pass_fraction` (of all pixels), `max_abs_z` and signed
-    /// `mean_z` (bias shows as mean_z away from 0; both over the finite pixels' channels),
-    /// `pixels`; a note says whether pass_fraction ≥ `min_pass`. Under an unbiased Gaussian
-    /// estimate with exact variances about 1 − 3 · P(|N| > z) of pixels pass (99.7 % at 3.29);
-    /// variances estimated from few samples have heavier tails: use more samples or a larger
-    /// `z`. Outputs the |z| map (f32::MAX where not finite or too large).
-    pub struct ZTest;
-}
-
-pub struct ZTestParams {
+/// Per-pixel z-test of a noisy estimate against a reference, both given with the variance
+/// of their mean: per pixel and channel z = (x − r) / sqrt(var_x + var_r + tiny), tiny =
+/// the smallest normal f64 (negative variances, round-off of E[x²] − E[x]², count as 0).
+/// A pixel passes when all its channels have |z| ≤ `z`, so equal values with zero variance
+/// pass and unequal ones fail. A pixel with any value not finite fails and is counted in
+/// `nonfinite_pixels`. Metrics: `pass_fraction` (of all pixels), `max_abs_z` and signed
+/// `mean_z` (bias shows as mean_z away from 0; both over the finite pixels' channels),
+/// `pixels`; a note says whether pass_fraction ≥ `min_pass`. Under an unbiased Gaussian
+/// estimate with exact variances about 1 − 3 · P(|N| > z) of pixels pass (99.7 % at 3.29);
+/// variances estimated from few samples have heavier tails: use more samples or a larger
+/// `z`. Outputs the |z| map (f32::MAX where not finite or too large).
+#[derive(Params)]
+pub struct ZTest {
+    /// largest |z| a channel may have (3.29: two-sided 0.1 %)
+    #[param(default = 3.29, range = 0.5..=10.0, unit = "σ")]
     pub z: f64,
+    /// fraction of pixels that must pass for the note to say the test passes
+    #[param(default = 0.995, range = 0.0..=1.0)]
     pub min_pass: f64,
 }
 
-impl Params for ZTestParams {
-    fn schema() -> Schema {
-        Schema::new()
-            .float("z", 3.29, 0.5, 10.0)
-            .unit("σ")
-            .help("largest |z| a channel may have (3.29: two-sided 0.1 %)")
-            .float("min_pass", 0.995, 0.0, 1.0)
-            .help("fraction of pixels that must pass for the note to say the test passes")
-    }
-    fn from_values(v: &ParamValues) -> Self {
-        ZTestParams { z: v.float("z"), min_pass: v.float("min_pass") }
-    }
-}
+inputs!(pub ZTestIn { image: Image, image_variance: Image, reference: Image, reference_variance: Image });
+outputs!(pub ZTestOut { metrics: Metrics, z_map: Image });
 
 /// Result of `z_test`.
 #[derive(Clone, Debug, PartialEq)]
@@ -73,13 +63,27 @@ impl ZTestOutcome {
 
 /// The z-test statistic (see the node's doc): `image` with the per-pixel variance of its mean
 /// against `reference` with its own, pixels passing at |z| ≤ `z` in every channel. Errors,
-/// naming the port, unless all four have the same size.
+/// naming the port, unless all four have the same size. Outside a node run (never cancelled).
 pub fn z_test(
     image: &Image,
     image_variance: &Image,
     reference: &Image,
     reference_variance: &Image,
     z: f64,
+) -> Result<ZTestOutcome, NodeError> {
+    let cancel = CancelToken::new();
+    z_test_with(image, image_variance, reference, reference_variance, z, &RunCtx::new("z_test", &cancel, None))
+}
+
+/// `z_test` with `cx`'s progress and cancellation. The pixels are visited in order (one row
+/// per tick), so `mean_z` is the same bits on any thread count.
+pub fn z_test_with(
+    image: &Image,
+    image_variance: &Image,
+    reference: &Image,
+    reference_variance: &Image,
+    z: f64,
+    cx: &RunCtx,
 ) -> Result<ZTestOutcome, NodeError> {
     image.check_same_size(image_variance, "image", "image_variance")?;
     image.check_same_size(reference, "image", "reference")?;
@@ -88,26 +92,31 @@ pub fn z_test(
     let (mut passed, mut bad, mut channels) = (0usize, 0usize, 0usize);
     let (mut max_abs, mut sum) = (0.0f64, 0.0f64);
     let mut map = Vec::with_capacity(image.pixels.len());
-    for i in 0..image.pixels.len() {
-        let (x, vx, r, vr) = (image.pixels[i], image_variance.pixels[i], reference.pixels[i], reference_variance.pixels[i]);
-        if [x, vx, r, vr].iter().flatten().any(|c| !c.is_finite()) {
-            bad += 1;
-            map.push([f32::MAX; 3]);
-            continue;
+    let (n, w) = (image.pixels.len(), image.width.max(1));
+    let rows = n.div_ceil(w);
+    for y in 0..rows {
+        cx.tick(y as u64, rows as u64)?;
+        for i in y * w..((y + 1) * w).min(n) {
+            let (x, vx, r, vr) = (image.pixels[i], image_variance.pixels[i], reference.pixels[i], reference_variance.pixels[i]);
+            if [x, vx, r, vr].iter().flatten().any(|c| !c.is_finite()) {
+                bad += 1;
+                map.push([f32::MAX; 3]);
+                continue;
+            }
+            let mut px = [0.0f32; 3];
+            let mut ok = true;
+            for c in 0..3 {
+                let v = (vx[c] as f64).max(0.0) + (vr[c] as f64).max(0.0);
+                let zc = (x[c] as f64 - r[c] as f64) / (v + tiny).sqrt();
+                ok &= zc.abs() <= z;
+                max_abs = max_abs.max(zc.abs());
+                sum += zc;
+                px[c] = zc.abs().min(f32::MAX as f64) as f32;
+            }
+            channels += 3;
+            passed += ok as usize;
+            map.push(px);
         }
-        let mut px = [0.0f32; 3];
-        let mut ok = true;
-        for c in 0..3 {
-            let v = (vx[c] as f64).max(0.0) + (vr[c] as f64).max(0.0);
-            let zc = (x[c] as f64 - r[c] as f64) / (v + tiny).sqrt();
-            ok &= zc.abs() <= z;
-            max_abs = max_abs.max(zc.abs());
-            sum += zc;
-            px[c] = zc.abs().min(f32::MAX as f64) as f32;
-        }
-        channels += 3;
-        passed += ok as usize;
-        map.push(px);
     }
     let pixels = image.pixels.len();
     Ok(ZTestOutcome {
@@ -120,50 +129,26 @@ pub fn z_test(
     })
 }
 
-impl Node for ZTest {
-    const KIND: &'static str = "ZTest";
-    const VERSION: u32 = 1;
-    const CATEGORY: &'static str = "quality";
-    const CACHING: Caching = Caching::Disk;
-    type Params = ZTestParams;
-
-    fn ports() -> Ports {
-        Ports::new()
-            .input::<Image>("image")
-            .input::<Image>("image_variance")
-            .input::<Image>("reference")
-            .input::<Image>("reference_variance")
-            .output::<Metrics>("metrics")
-            .output::<Image>("z_map")
-    }
-
-    fn run(&self, p: &ZTestParams, io: &mut Io, cx: &RunCtx) -> Result<(), NodeError> {
-        cx.check()?;
-        let t = z_test(
-            io.input::<Image>("image")?,
-            io.input::<Image>("image_variance")?,
-            io.input::<Image>("reference")?,
-            io.input::<Image>("reference_variance")?,
-            p.z,
-        )?;
+#[node(category = "quality")]
+impl ZTest {
+    fn run(&self, i: ZTestIn, cx: &RunCtx) -> Result<ZTestOut, NodeError> {
+        let t = z_test_with(i.image, i.image_variance, i.reference, i.reference_variance, self.z, cx)?;
         let m = t.metrics();
         for (k, v) in &m.0 {
             cx.metric(k, *v);
         }
-        let verdict = if t.passes(p.min_pass) { "passes" } else { "fails" };
+        let verdict = if t.passes(self.min_pass) { "passes" } else { "fails" };
         cx.note(format!(
             "z-test {verdict}: {:.2} % of {} pixels within |z| ≤ {} (needed {:.2} %)",
             100.0 * t.pass_fraction,
             t.pixels,
-            p.z,
-            100.0 * p.min_pass
+            self.z,
+            100.0 * self.min_pass
         ));
         if t.nonfinite_pixels > 0 {
             cx.note(format!("{} pixels with NaN or infinity counted as failures", t.nonfinite_pixels));
         }
-        cx.progress(1, 1);
-        io.set("z_map", t.z_map)?;
-        io.set("metrics", m)
+        Ok(ZTestOut { metrics: m, z_map: t.z_map })
     }
 }
 
@@ -171,7 +156,7 @@ impl Node for ZTest {
 mod tests {
     use super::*;
     use crate::math::rng::uniform;
-    use crate::testing::{f, run_full};
+    use crate::testing::{cancels_midway, f, run_full};
     use relume_core::Value;
     use std::path::Path;
 
@@ -273,7 +258,7 @@ mod tests {
         assert!(e.contains("reference_variance") && e.contains("8 × 7"), "{e}");
         let e = z_test(&a, &b, &a, &a, 3.29).unwrap_err().to_string();
         assert!(e.starts_with("input `image_variance`"), "{e}");
-        let e = run_full(ZTest, &[], Path::new("."), vec![Value::new(a.clone()), Value::new(a.clone()), Value::new(b), Value::new(a)])
+        let e = run_full::<ZTest>(&[], Path::new("."), vec![Value::new(a.clone()), Value::new(a.clone()), Value::new(b), Value::new(a)])
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("input `reference`"), "{e}");
@@ -302,7 +287,7 @@ mod tests {
         let (x, vx) = estimate(&t, [0.1; 3], 0.0, 4);
         let zero = Image::from_fn(32, 32, |_, _| [0.0; 3]);
         let inputs = || vec![Value::new(x.clone()), Value::new(vx.clone()), Value::new(t.clone()), Value::new(zero.clone())];
-        let e = run_full(ZTest, &[], Path::new("."), inputs()).unwrap();
+        let e = run_full::<ZTest>(&[], Path::new("."), inputs()).unwrap();
         let m: Metrics = e.outputs[0].get::<Metrics>().unwrap().clone();
         let names: Vec<_> = e.metrics.iter().map(|(k, _)| k.as_str()).collect();
         assert_eq!(names, ["pass_fraction", "max_abs_z", "mean_z", "pixels", "nonfinite_pixels"]);
@@ -310,9 +295,17 @@ mod tests {
         assert!(e.notes[0].starts_with("z-test passes"), "{:?}", e.notes);
         let zmap: Image = e.outputs[1].get::<Image>().unwrap().clone();
         assert_eq!((zmap.width, zmap.height), (32, 32));
-        let e = run_full(ZTest, &[("z", f(0.5))], Path::new("."), inputs()).unwrap();
+        let e = run_full::<ZTest>(&[("z", f(0.5))], Path::new("."), inputs()).unwrap();
         assert!(e.notes[0].starts_with("z-test fails"), "{:?}", e.notes);
-        let e = run_full(ZTest, &[("min_pass", f(0.0)), ("z", f(0.5))], Path::new("."), inputs()).unwrap();
+        let e = run_full::<ZTest>(&[("min_pass", f(0.0)), ("z", f(0.5))], Path::new("."), inputs()).unwrap();
         assert!(e.notes[0].starts_with("z-test passes"), "{:?}", e.notes);
+    }
+
+    #[test]
+    fn cancels_midway_through_a_large_image() {
+        let t = truth(512, 512);
+        let (x, vx) = estimate(&t, [0.1; 3], 0.0, 5);
+        let zero = Image::from_fn(512, 512, |_, _| [0.0; 3]);
+        cancels_midway::<ZTest>(&[], vec![Value::new(x), Value::new(vx), Value::new(t), Value::new(zero)]);
     }
 }

@@ -5,4 +5,5 @@ pub mod kmeans;
 pub mod rng;
 pub mod sampling;
 pub mod sh;
+pub mod srgb;
 pub mod ssim;

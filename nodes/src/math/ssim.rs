@@ -9,7 +9,7 @@
 //! image, and are renormalised over what is left, so borders, tiny images and NaN need no
 //! special case; non-finite pixels are also left out of the mean.
 
-use crate::image::io::srgb_encode;
+use crate::math::srgb::srgb_encode;
 use crate::types::Image;
 use rayon::prelude::*;
 
@@ -63,18 +63,26 @@ pub fn ssim_plane(a: &[f64], b: &[f64], w: usize, h: usize, l: f64) -> f64 {
         x >= RADIUS && y >= RADIUS && x + RADIUS < w && y + RADIUS < h
     };
     let any_interior = w > 2 * RADIUS && h > 2 * RADIUS;
-    let (sum, n) = filtered
-        .par_iter()
+    // Per-row partial sums in parallel, then the rows in order: the same bits on any
+    // thread count (an unordered parallel reduce is not).
+    let ssim_at = |m: &[f64; 6]| {
+        let inv = 1.0 / m[0];
+        let (mx, my) = (m[1] * inv, m[2] * inv);
+        let (vx, vy, cxy) = (m[3] * inv - mx * mx, m[4] * inv - my * my, m[5] * inv - mx * my);
+        (2.0 * mx * my + c1) * (2.0 * cxy + c2) / ((mx * mx + my * my + c1) * (vx.max(0.0) + vy.max(0.0) + c2))
+    };
+    let rows: Vec<(f64, usize)> = filtered
+        .par_chunks(w)
         .enumerate()
-        .filter(|&(i, _)| moments[i][0] > 0.0 && (!any_interior || interior(i)))
-        .map(|(_, m)| {
-            let inv = 1.0 / m[0];
-            let (mx, my) = (m[1] * inv, m[2] * inv);
-            let (vx, vy, cxy) = (m[3] * inv - mx * mx, m[4] * inv - my * my, m[5] * inv - mx * my);
-            let s = (2.0 * mx * my + c1) * (2.0 * cxy + c2) / ((mx * mx + my * my + c1) * (vx.max(0.0) + vy.max(0.0) + c2));
-            (s, 1usize)
+        .map(|(y, row)| {
+            row.iter()
+                .enumerate()
+                .map(|(x, m)| (y * w + x, m))
+                .filter(|&(i, _)| moments[i][0] > 0.0 && (!any_interior || interior(i)))
+                .fold((0.0, 0), |(s, n), (_, m)| (s + ssim_at(m), n + 1))
         })
-        .reduce(|| (0.0, 0), |p, q| (p.0 + q.0, p.1 + q.1));
+        .collect();
+    let (sum, n) = rows.iter().fold((0.0, 0usize), |(s, n), &(rs, rn)| (s + rs, n + rn));
     if n == 0 {
         1.0
     } else {
@@ -124,6 +132,16 @@ mod tests {
     fn mse(a: &Image, b: &Image) -> f64 {
         let d = a.as_floats().iter().zip(b.as_floats()).map(|(x, y)| ((x - y) as f64).powi(2));
         d.sum::<f64>() / a.as_floats().len() as f64
+    }
+
+    #[test]
+    fn the_same_bits_on_one_thread_and_on_four() {
+        let (a, b) = (scene(), with_noise(&scene(), 0.05, 3));
+        let on = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap().install(|| ssim(&a, &b, 1.0));
+        let one = on(1);
+        for _ in 0..8 {
+            assert_eq!(on(4).to_bits(), one.to_bits());
+        }
     }
 
     #[test]

@@ -1,113 +1,41 @@
-//! ClusterReceivers node (FPBGI receiver clustering, PIPELINES.md pipeline 4 step 6; [P] 3.3.2)
-//! and the `Clusters` port type.
+//! ClusterReceivers node (FPBGI receiver clustering, PIPELINES.md pipeline 4 step 6; [P] 3.3.2).
 
 use crate::math::kmeans::{KMeans, Metric};
 use crate::math::rng::mix64;
-use crate::types::Receivers;
+use crate::types::{Cluster, Clusters, Receivers};
 use glam::{DVec3, Vec3};
-use rayon::prelude::*;
-use relume_core::{node_doc, Caching, Hash, Hasher, Io, Node, NodeError, ParamValues, Params, PortValue, Ports, RunCtx, Schema};
-use std::sync::atomic::{AtomicU64, Ordering};
+use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
-node_doc! {
-    /// Groups the receivers into clusters of similar position and normal, for the factorized
-    /// gather ([P] 3.3.2). The image is cut into `tile` × `tile` pixel tiles and each tile's
-    /// receivers are clustered on their own by k-means (k-means++ seeding where [P] picks random
-    /// receivers, at most `iterations` Lloyd iterations, a random stream per tile from `seed`)
-    /// with D = ‖p_c − p_x‖² + α‖n_c − n_x‖², α = the diagonal of the bounding box of the tile's
-    /// receiver positions, as the spec and [P] set it. α is a length and the position term a
-    /// squared length, so D is not scale-invariant: normals weigh more in small scenes (see
-    /// `PositionNormal`). A cluster's centre is the mean position and the normalised summed
-    /// normal of its members. A tile with no more receivers than k gets one cluster per
-    /// receiver; no cluster is ever empty. The active receiver of a cluster is its member
-    /// closest (by D) to the final centre. Same inputs and seed give the same clusters on any
-    /// thread count.
-    pub struct ClusterReceivers;
-}
-
-/// One cluster of receivers, all in one tile.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Cluster {
-    /// Tile index: (y / tile) · ceil(width / tile) + x / tile.
-    pub tile: u32,
-    /// The active receiver (a receiver index, one of `members`).
-    pub active: u32,
-    /// Receiver indices, ascending.
-    pub members: Vec<u32>,
-    /// Mean member position.
-    pub center: Vec3,
-    /// Normalised sum of the member normals.
-    pub normal: Vec3,
-    /// Largest distance of a member position from `center`.
-    pub radius: f32,
-}
-
-/// Receiver clusters: tile by tile in tile-index order, within a tile in k-means order.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Clusters {
-    /// Tile size in pixels.
+/// Groups the receivers into clusters of similar position and normal, for the factorized
+/// gather ([P] 3.3.2). The image is cut into `tile` × `tile` pixel tiles and each tile's
+/// receivers are clustered on their own by k-means (k-means++ seeding where [P] picks random
+/// receivers, at most `iterations` Lloyd iterations, a random stream per tile from `seed`)
+/// with D = ‖p_c − p_x‖² + α‖n_c − n_x‖², α = the diagonal of the bounding box of the tile's
+/// receiver positions, as the spec and [P] set it. α is a length and the position term a
+/// squared length, so D is not scale-invariant: normals weigh more in small scenes (see
+/// `PositionNormal`). A cluster's centre is the mean position and the normalised summed
+/// normal of its members. A tile with no more receivers than k gets one cluster per
+/// receiver; no cluster is ever empty. The active receiver of a cluster is its member
+/// closest (by D) to the final centre. Same inputs and seed give the same clusters on any
+/// thread count.
+#[derive(Params)]
+pub struct ClusterReceivers {
+    /// side of the square image tiles clustered independently
+    #[param(default = 32, range = 1..=1024, unit = "px")]
     pub tile: usize,
-    pub clusters: Vec<Cluster>,
-    /// Cluster index (into `clusters`) of each receiver.
-    pub of_receiver: Vec<u32>,
-}
-
-impl PortValue for Clusters {
-    const NAME: &'static str = "Clusters";
-    const COLOR: [u8; 3] = [200, 160, 70];
-    const DOC: &'static str = "receiver clusters per image tile: members, active receiver, centre, normal, radius";
-    fn fingerprint(&self) -> Hash {
-        let mut h = Hasher::new();
-        h.str(Self::NAME).u64(self.tile as u64).u64(self.clusters.len() as u64);
-        let mut ints: Vec<u8> = Vec::new();
-        let mut floats: Vec<f32> = Vec::with_capacity(self.clusters.len() * 7);
-        for c in &self.clusters {
-            for v in [c.tile, c.active, c.members.len() as u32].into_iter().chain(c.members.iter().copied()) {
-                ints.extend_from_slice(&v.to_le_bytes());
-            }
-            floats.extend(c.center.to_array().into_iter().chain(c.normal.to_array()).chain([c.radius]));
-        }
-        for v in &self.of_receiver {
-            ints.extend_from_slice(&v.to_le_bytes());
-        }
-        h.bytes(&ints).f32s(&floats);
-        h.finish()
-    }
-    fn byte_size(&self) -> usize {
-        self.clusters.len() * std::mem::size_of::<Cluster>() + self.of_receiver.len() * 8
-    }
-}
-
-pub struct ClusterReceiversParams {
-    pub tile: usize,
+    /// clusters per tile (a tile with fewer receivers gets one per receiver)
+    #[param(default = 100, range = 1..=4096, unit = "clusters")]
     pub k: usize,
+    /// most k-means (Lloyd) iterations per tile; a tile stops earlier once nothing moves
+    #[param(default = 10, range = 1..=1000)]
     pub iterations: usize,
+    /// random seed of the k-means++ seeding
+    #[param(default = 0, range = 0..=u32::MAX)]
     pub seed: u64,
 }
 
-impl Params for ClusterReceiversParams {
-    fn schema() -> Schema {
-        Schema::new()
-            .int("tile", 32, 1, 1024)
-            .unit("px")
-            .help("side of the square image tiles clustered independently")
-            .int("k", 100, 1, 4096)
-            .unit("clusters")
-            .help("clusters per tile (a tile with fewer receivers gets one per receiver)")
-            .int("iterations", 10, 1, 1000)
-            .help("most k-means (Lloyd) iterations per tile; a tile stops earlier once nothing moves")
-            .int("seed", 0, 0, i64::from(u32::MAX))
-            .help("random seed of the k-means++ seeding")
-    }
-    fn from_values(v: &ParamValues) -> Self {
-        ClusterReceiversParams {
-            tile: v.int("tile") as usize,
-            k: v.int("k") as usize,
-            iterations: v.int("iterations") as usize,
-            seed: v.int("seed") as u64,
-        }
-    }
-}
+inputs!(pub ClusterReceiversIn { receivers: Receivers });
+outputs!(pub ClusterReceiversOut { clusters: Clusters });
 
 /// A receiver (or a cluster centre) as k-means sees it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -196,7 +124,7 @@ fn check_receivers(rx: &Receivers) -> Result<(), NodeError> {
 }
 
 /// Clusters one tile's receivers (`members`: receiver indices, ascending).
-fn cluster_tile(rx: &Receivers, tile: u32, members: &[u32], p: &ClusterReceiversParams) -> TileResult {
+fn cluster_tile(rx: &Receivers, tile: u32, members: &[u32], p: &ClusterReceivers) -> TileResult {
     let points: Vec<Oriented> =
         members.iter().map(|&i| Oriented { position: rx.position[i as usize], normal: rx.normal[i as usize] }).collect();
     let (lo, hi) = points.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), x| (lo.min(x.position), hi.max(x.position)));
@@ -235,8 +163,8 @@ fn cluster_tile(rx: &Receivers, tile: u32, members: &[u32], p: &ClusterReceivers
 }
 
 /// Clusters the receivers tile by tile (tiles in parallel; the result does not depend on the
-/// thread count). `cx`, when given, gets progress and may cancel.
-pub fn cluster_receivers(rx: &Receivers, p: &ClusterReceiversParams, cx: Option<&RunCtx>) -> Result<(Clusters, ClusterStats), NodeError> {
+/// thread count), with progress and cancellation through `cx`.
+pub fn cluster_receivers(rx: &Receivers, p: &ClusterReceivers, cx: &RunCtx) -> Result<(Clusters, ClusterStats), NodeError> {
     check_receivers(rx)?;
     let t = p.tile.max(1);
     let tiles_x = rx.width.div_ceil(t);
@@ -248,21 +176,7 @@ pub fn cluster_receivers(rx: &Receivers, p: &ClusterReceiversParams, cx: Option<
     }
     let occupied: Vec<(u32, Vec<u32>)> =
         by_tile.into_iter().enumerate().filter(|(_, m)| !m.is_empty()).map(|(i, m)| (i as u32, m)).collect();
-    let done = AtomicU64::new(0);
-    let total = occupied.len() as u64;
-    let results: Vec<TileResult> = occupied
-        .par_iter()
-        .map(|(tile, members)| {
-            if let Some(cx) = cx {
-                cx.check()?;
-            }
-            let r = cluster_tile(rx, *tile, members, p);
-            if let Some(cx) = cx {
-                cx.progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
-            }
-            Ok(r)
-        })
-        .collect::<Result<_, NodeError>>()?;
+    let results: Vec<TileResult> = cx.par_map(occupied.len(), |k| cluster_tile(rx, occupied[k].0, &occupied[k].1, p))?;
     let mut stats = ClusterStats { tiles: results.len(), ..Default::default() };
     let mut out = Clusters { tile: t, clusters: Vec::new(), of_receiver: vec![u32::MAX; rx.len()] };
     for r in results {
@@ -279,20 +193,11 @@ pub fn cluster_receivers(rx: &Receivers, p: &ClusterReceiversParams, cx: Option<
     Ok((out, stats))
 }
 
-impl Node for ClusterReceivers {
-    const KIND: &'static str = "ClusterReceivers";
-    const VERSION: u32 = 1;
-    const CATEGORY: &'static str = "pbgi";
-    const CACHING: Caching = Caching::Memory;
-    type Params = ClusterReceiversParams;
-
-    fn ports() -> Ports {
-        Ports::new().input::<Receivers>("receivers").output::<Clusters>("clusters")
-    }
-
-    fn run(&self, p: &ClusterReceiversParams, io: &mut Io, cx: &RunCtx) -> Result<(), NodeError> {
-        let rx = io.input::<Receivers>("receivers")?;
-        let (clusters, stats) = cluster_receivers(rx, p, Some(cx))?;
+#[node(category = "pbgi")]
+impl ClusterReceivers {
+    fn run(&self, i: ClusterReceiversIn, cx: &RunCtx) -> Result<ClusterReceiversOut, NodeError> {
+        let rx = i.receivers;
+        let (clusters, stats) = cluster_receivers(rx, self, cx)?;
         let n = clusters.clusters.len();
         cx.metric("clusters", n as f64);
         cx.metric("tiles", stats.tiles as f64);
@@ -304,16 +209,16 @@ impl Node for ClusterReceivers {
         if stats.tiles_below_k > 0 {
             cx.note(format!(
                 "{} of {} tiles had fewer receivers than k = {}: one cluster per receiver there",
-                stats.tiles_below_k, stats.tiles, p.k
+                stats.tiles_below_k, stats.tiles, self.k
             ));
         }
         if stats.tiles_unconverged > 0 {
             cx.note(format!(
                 "k-means stopped at the {}-iteration limit before converging in {} of {} tiles",
-                p.iterations, stats.tiles_unconverged, stats.tiles
+                self.iterations, stats.tiles_unconverged, stats.tiles
             ));
         }
-        io.set("clusters", clusters)
+        Ok(ClusterReceiversOut { clusters })
     }
 }
 
@@ -321,11 +226,17 @@ impl Node for ClusterReceivers {
 mod tests {
     use super::*;
     use crate::math::rng::uniform;
-    use crate::testing::{first, i, run_full};
+    use crate::testing::{cancels_midway, first, i, run_full};
     use crate::types::Material;
     use proptest::prelude::*;
-    use relume_core::Value;
+    use relume_core::{CancelToken, PortValue, Value};
     use std::path::Path;
+
+    /// `cluster_receivers` outside a run (never cancelled).
+    fn cluster(rx: &Receivers, p: &ClusterReceivers) -> Result<(Clusters, ClusterStats), NodeError> {
+        let cancel = CancelToken::new();
+        cluster_receivers(rx, p, &RunCtx::new("t", &cancel, None))
+    }
 
     /// Receivers at the given pixels of a `width` × `height` image, with the given positions and
     /// normals (view direction = normal).
@@ -369,8 +280,8 @@ mod tests {
         receivers(width, height, pixel, position, normal)
     }
 
-    fn params(tile: usize, k: usize, iterations: usize, seed: u64) -> ClusterReceiversParams {
-        ClusterReceiversParams { tile, k, iterations, seed }
+    fn params(tile: usize, k: usize, iterations: usize, seed: u64) -> ClusterReceivers {
+        ClusterReceivers { tile, k, iterations, seed }
     }
 
     fn tile_of(rx: &Receivers, r: u32, tile: usize) -> u32 {
@@ -379,7 +290,7 @@ mod tests {
     }
 
     /// Every structural promise of `Clusters`, asserted.
-    fn check_invariants(rx: &Receivers, c: &Clusters, p: &ClusterReceiversParams) {
+    fn check_invariants(rx: &Receivers, c: &Clusters, p: &ClusterReceivers) {
         assert_eq!(c.tile, p.tile);
         assert_eq!(c.of_receiver.len(), rx.len());
         let mut seen = vec![0u32; rx.len()];
@@ -421,7 +332,7 @@ mod tests {
         ) {
             let rx = random_receivers(width, height, density, mode, data);
             let p = params(tile, k, iterations, seed);
-            let (c, stats) = cluster_receivers(&rx, &p, None).unwrap();
+            let (c, stats) = cluster(&rx, &p).unwrap();
             check_invariants(&rx, &c, &p);
             prop_assert!(stats.max_iterations_used <= iterations);
         }
@@ -431,7 +342,7 @@ mod tests {
     fn the_active_receiver_is_the_member_closest_to_the_centre_by_d() {
         let rx = random_receivers(64, 64, 0.8, 0, 11);
         let p = params(16, 20, 10, 3);
-        let (c, _) = cluster_receivers(&rx, &p, None).unwrap();
+        let (c, _) = cluster(&rx, &p).unwrap();
         check_invariants(&rx, &c, &p);
         for cl in &c.clusters {
             let tile_members: Vec<u32> = (0..rx.len() as u32).filter(|&r| tile_of(&rx, r, 16) == cl.tile).collect();
@@ -467,7 +378,7 @@ mod tests {
         }
         let rx = receivers(8, 8, pixel, position, normal);
         for seed in 0..10 {
-            let (c, _) = cluster_receivers(&rx, &params(8, 2, 20, seed), None).unwrap();
+            let (c, _) = cluster(&rx, &params(8, 2, 20, seed)).unwrap();
             assert_eq!(c.clusters.len(), 2);
             for cl in &c.clusters {
                 let wall = cl.members[0] % 8 < 4;
@@ -481,7 +392,7 @@ mod tests {
     fn coincident_receivers_in_a_tile_still_give_k_clusters() {
         let rx = random_receivers(20, 20, 1.0, 2, 0);
         let p = params(20, 7, 10, 1);
-        let (c, stats) = cluster_receivers(&rx, &p, None).unwrap();
+        let (c, stats) = cluster(&rx, &p).unwrap();
         check_invariants(&rx, &c, &p);
         assert_eq!(c.clusters.len(), 7);
         assert!(c.clusters.iter().all(|cl| cl.radius == 0.0 && cl.center == rx.position[0] && cl.normal == Vec3::Y));
@@ -491,7 +402,7 @@ mod tests {
     #[test]
     fn a_tile_with_one_receiver_gets_one_cluster_around_it() {
         let rx = receivers(4, 4, vec![5], vec![Vec3::new(1.0, 2.0, 3.0)], vec![Vec3::Z]);
-        let (c, stats) = cluster_receivers(&rx, &params(32, 100, 10, 0), None).unwrap();
+        let (c, stats) = cluster(&rx, &params(32, 100, 10, 0)).unwrap();
         assert_eq!(
             c.clusters,
             vec![Cluster { tile: 0, active: 0, members: vec![0], center: Vec3::new(1.0, 2.0, 3.0), normal: Vec3::Z, radius: 0.0 }]
@@ -504,7 +415,7 @@ mod tests {
     fn k_of_one_makes_one_cluster_per_occupied_tile() {
         let rx = random_receivers(50, 30, 0.7, 0, 5);
         let p = params(16, 1, 10, 0);
-        let (c, stats) = cluster_receivers(&rx, &p, None).unwrap();
+        let (c, stats) = cluster(&rx, &p).unwrap();
         check_invariants(&rx, &c, &p);
         assert_eq!(c.clusters.len(), 4 * 2);
         assert_eq!(stats.tiles, 8);
@@ -519,7 +430,7 @@ mod tests {
     #[test]
     fn empty_receivers_give_no_clusters() {
         let rx = receivers(10, 10, vec![], vec![], vec![]);
-        let (c, stats) = cluster_receivers(&rx, &params(4, 5, 10, 0), None).unwrap();
+        let (c, stats) = cluster(&rx, &params(4, 5, 10, 0)).unwrap();
         assert!(c.clusters.is_empty() && c.of_receiver.is_empty());
         assert_eq!(stats.tiles, 0);
     }
@@ -528,23 +439,21 @@ mod tests {
     fn cluster_results_are_the_same_bytes_on_one_and_four_threads() {
         let rx = random_receivers(96, 80, 0.9, 0, 2);
         let p = params(16, 30, 10, 7);
-        let run = |threads| {
-            rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| cluster_receivers(&rx, &p, None).unwrap().0)
-        };
+        let run = |threads| rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| cluster(&rx, &p).unwrap().0);
         let (a, b) = (run(1), run(4));
         assert_eq!(a.fingerprint(), b.fingerprint());
         assert_eq!(a, b);
-        let other = cluster_receivers(&rx, &params(16, 30, 10, 8), None).unwrap().0;
+        let other = cluster(&rx, &params(16, 30, 10, 8)).unwrap().0;
         assert_ne!(a.fingerprint(), other.fingerprint(), "the seed reaches the result");
     }
 
     #[test]
     fn malformed_receivers_are_refused_with_the_reason() {
         let bad_pixel = receivers(4, 4, vec![16], vec![Vec3::ZERO], vec![Vec3::Z]);
-        let e = cluster_receivers(&bad_pixel, &params(4, 2, 10, 0), None).unwrap_err();
+        let e = cluster(&bad_pixel, &params(4, 2, 10, 0)).unwrap_err();
         assert!(e.to_string().contains("outside"), "{e}");
         let nan = receivers(4, 4, vec![1], vec![Vec3::NAN], vec![Vec3::Z]);
-        let e = cluster_receivers(&nan, &params(4, 2, 10, 0), None).unwrap_err();
+        let e = cluster(&nan, &params(4, 2, 10, 0)).unwrap_err();
         assert!(e.to_string().contains("non-finite"), "{e}");
     }
 
@@ -553,7 +462,7 @@ mod tests {
         // 40 × 40 image, tile 32: one full tile of 1024 receivers and three partial ones (256,
         // 256 and 64 receivers); k = 100 leaves the 64-receiver corner tile below k.
         let rx = random_receivers(40, 40, 1.0, 0, 9);
-        let e = run_full(ClusterReceivers, &[("k", i(100)), ("iterations", i(5))], Path::new("."), vec![Value::new(rx.clone())]).unwrap();
+        let e = run_full::<ClusterReceivers>(&[("k", i(100)), ("iterations", i(5))], Path::new("."), vec![Value::new(rx.clone())]).unwrap();
         let c: Clusters = first(&e.outputs);
         check_invariants(&rx, &c, &params(32, 100, 5, 0));
         let m = |name: &str| e.metrics.iter().find(|(n, _)| n == name).map(|(_, v)| *v).unwrap();
@@ -562,5 +471,12 @@ mod tests {
         assert!((m("mean_cluster_size") - 1600.0 / 364.0).abs() < 1e-12);
         assert!((1.0..=5.0).contains(&m("max_iterations_used")));
         assert!(e.notes.iter().any(|n| n.contains("1 of 4 tiles had fewer receivers than k = 100")), "{:?}", e.notes);
+    }
+
+    #[test]
+    fn the_cluster_node_stops_when_cancelled() {
+        // 128 × 128 receivers in 16 × 16 tiles: 64 tiles to cancel between.
+        let rx = random_receivers(128, 128, 1.0, 0, 4);
+        cancels_midway::<ClusterReceivers>(&[("tile", i(16)), ("k", i(8))], vec![Value::new(rx)]);
     }
 }

@@ -1,35 +1,37 @@
 //! GBuffer node.
 
-use crate::geometry::accel::Accel;
-use crate::geometry::surface::Surface;
-use crate::reference::camera::CameraRays;
+use crate::render::camera::CameraRays;
+use crate::render::surface::Surface;
+use crate::types::accel::Accel;
 use crate::types::{Material, Receivers, Scene};
-use rayon::prelude::*;
-use relume_core::{node_doc, Caching, Io, Node, NodeError, Ports, RunCtx};
+use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
-node_doc! {
-    /// The camera's primary hits at pixel centres, as receivers: pixel, position, shading normal
-    /// turned toward the camera, direction to the camera, object and material. Pixels that see
-    /// the background, the back of a one-sided surface or a dielectric get no receiver.
-    pub struct GBuffer;
-}
+/// The camera's primary hits at pixel centres, as receivers: pixel, position, shading normal
+/// turned toward the camera, direction to the camera, object and material. Pixels that see
+/// the background, the back of a one-sided surface or a dielectric get no receiver.
+#[derive(Params)]
+pub struct GBuffer;
 
-/// Receivers of every pixel centre.
-pub fn gbuffer(scene: &Scene, accel: &Accel) -> Receivers {
+inputs!(pub GBufferIn { scene: Scene, accel: Accel });
+outputs!(pub GBufferOut { receivers: Receivers });
+
+/// Receivers of every pixel centre, row by row in parallel.
+pub fn gbuffer(scene: &Scene, accel: &Accel, cx: &RunCtx) -> Result<Receivers, NodeError> {
     let cam = CameraRays::new(&scene.camera);
     let (w, h) = (scene.camera.width, scene.camera.height);
-    let hits: Vec<Option<(u32, Surface, glam::Vec3)>> = (0..w * h)
-        .into_par_iter()
-        .map(|i| {
-            let (o, d) = cam.ray((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-            let hit = accel.intersect(o, d, 0.0, f32::INFINITY)?;
-            let s = Surface::at(scene, &hit, o, d);
-            let m = scene.objects[s.object as usize].material;
-            (d.dot(s.ng) < 0.0 && !matches!(m, Material::Dielectric { .. })).then_some((i as u32, s, -d))
-        })
-        .collect();
+    let rows: Vec<Vec<(u32, Surface, glam::Vec3)>> = cx.par_map(h, |y| {
+        (y * w..(y + 1) * w)
+            .filter_map(|i| {
+                let (o, d) = cam.ray((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+                let hit = accel.intersect(o, d, 0.0, f32::INFINITY)?;
+                let s = Surface::at(scene, &hit, o, d);
+                let m = scene.objects[s.object as usize].material;
+                (d.dot(s.ng) < 0.0 && !matches!(m, Material::Dielectric { .. })).then_some((i as u32, s, -d))
+            })
+            .collect()
+    })?;
     let mut r = Receivers { width: w, height: h, ..Default::default() };
-    for (pixel, s, wo) in hits.into_iter().flatten() {
+    for (pixel, s, wo) in rows.into_iter().flatten() {
         r.pixel.push(pixel);
         r.position.push(s.p);
         r.normal.push(s.ns);
@@ -37,38 +39,31 @@ pub fn gbuffer(scene: &Scene, accel: &Accel) -> Receivers {
         r.object.push(s.object);
         r.material.push(scene.objects[s.object as usize].material);
     }
-    r
+    Ok(r)
 }
 
-impl Node for GBuffer {
-    const KIND: &'static str = "GBuffer";
-    const VERSION: u32 = 1;
-    const CATEGORY: &'static str = "pbgi";
-    const CACHING: Caching = Caching::Memory;
-    type Params = ();
-
-    fn ports() -> Ports {
-        Ports::new().input::<Scene>("scene").input::<Accel>("accel").output::<Receivers>("receivers")
-    }
-
-    fn run(&self, _: &(), io: &mut Io, cx: &RunCtx) -> Result<(), NodeError> {
-        let r = gbuffer(io.input::<Scene>("scene")?, io.input::<Accel>("accel")?);
+#[node(category = "pbgi")]
+impl GBuffer {
+    fn run(&self, i: GBufferIn, cx: &RunCtx) -> Result<GBufferOut, NodeError> {
+        let r = gbuffer(i.scene, i.accel, cx)?;
         cx.metric("receivers", r.len() as f64);
-        io.set("receivers", r)
+        Ok(GBufferOut { receivers: r })
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::accel::BuildQuality;
-    use crate::testing::test_scene;
+    use crate::testing::{cancels_midway, test_scene};
+    use crate::types::accel::BuildQuality;
+    use relume_core::{CancelToken, Value};
 
     #[test]
     fn receivers_are_the_visible_hits_with_normals_toward_the_camera() {
         let scene = test_scene::spheres();
         let accel = Accel::build(&scene, BuildQuality::Fast);
-        let r = gbuffer(&scene, &accel);
+        let cancel = CancelToken::new();
+        let r = gbuffer(&scene, &accel, &RunCtx::new("t", &cancel, None)).unwrap();
         assert!(r.len() > 100 && r.len() <= 16 * 16, "{}", r.len());
         for i in 0..r.len() {
             assert!(r.normal[i].dot(r.wo[i]) > 0.0, "faces the camera");
@@ -78,5 +73,12 @@ mod tests {
         let mut px = r.pixel.clone();
         px.dedup();
         assert_eq!(px.len(), r.len(), "one receiver per pixel, in pixel order");
+    }
+
+    #[test]
+    fn the_node_stops_when_cancelled() {
+        let scene = test_scene::spheres();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        cancels_midway::<GBuffer>(&[], vec![Value::new(scene), Value::new(accel)]);
     }
 }

@@ -7,14 +7,15 @@ pub mod microbuffer;
 pub mod pbgi_gather;
 pub mod point_tree;
 pub mod shade_direct;
+pub mod traversal;
 
 use relume_core::Registry;
 
 pub fn register(reg: &mut Registry) {
-    reg.add(shade_direct::ShadeDirect);
-    reg.add(point_tree::BuildPointTree);
-    reg.add(gbuffer::GBuffer);
-    reg.add(pbgi_gather::PbgiGather);
-    reg.add(cluster_receivers::ClusterReceivers);
-    reg.add(factorized_gather::FactorizedGather);
+    reg.add::<shade_direct::ShadeDirect>();
+    reg.add::<point_tree::BuildPointTree>();
+    reg.add::<gbuffer::GBuffer>();
+    reg.add::<pbgi_gather::PbgiGather>();
+    reg.add::<cluster_receivers::ClusterReceivers>();
+    reg.add::<factorized_gather::FactorizedGather>();
 }

@@ -1,58 +1,42 @@
 //! DirectLight node.
 
-use super::camera::CameraRays;
-use super::integrator::{Counts, Settings, Tracer};
 use crate::brdf;
-use crate::geometry::accel::Accel;
-use crate::geometry::surface::Surface;
 use crate::math::frame::Frame;
 use crate::math::rng::{mix64, uniform};
 use crate::math::sampling::cmj;
+use crate::render::camera::CameraRays;
+use crate::render::film::{per_pixel, with_ctx};
+use crate::render::integrator::{Counts, Settings, Tracer};
+use crate::render::surface::Surface;
+use crate::types::accel::Accel;
 use crate::types::{Image, Material, Scene};
 use glam::{Vec2, Vec3};
-use rayon::prelude::*;
-use relume_core::{node_doc, Caching, Io, Node, NodeError, ParamValues, Params, Ports, RunCtx, Schema};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
-node_doc! {
-    /// Direct light only, what `PathTrace` with `max_depth` 2 estimates (emitters seen plus
-    /// light arriving straight from the lights), at less cost and noise: each pixel takes
-    /// `pixel_samples` camera rays jittered over the pixel (box filter, correlated
-    /// multi-jittered) and each opaque hit `light_samples` shadow rays toward points chosen by
-    /// the light sampler, stratified over all of the pixel's light samples together. Light
-    /// sampling only (no BSDF sampling): unbiased, but noisier than `PathTrace` on sharp
-    /// highlights of large lights. Hits on delta surfaces (dielectrics) and misses are left to
-    /// the path tracer with `max_depth` 2. Each pixel's random numbers depend only on (seed,
-    /// pixel), so the image has the same bytes on any thread count.
-    pub struct DirectLight;
-}
-
-pub struct DirectLightParams {
+/// Direct light only, what `PathTrace` with `max_depth` 2 estimates (emitters seen plus
+/// light arriving straight from the lights), at less cost and noise: each pixel takes
+/// `pixel_samples` camera rays jittered over the pixel (box filter, correlated
+/// multi-jittered) and each opaque hit `light_samples` shadow rays toward points chosen by
+/// the light sampler, stratified over all of the pixel's light samples together. Light
+/// sampling only (no BSDF sampling): unbiased, but noisier than `PathTrace` on sharp
+/// highlights of large lights. Hits on delta surfaces (dielectrics) and misses are left to
+/// the path tracer with `max_depth` 2. Each pixel's random numbers depend only on (seed,
+/// pixel), so the image has the same bytes on any thread count.
+#[derive(Params)]
+pub struct DirectLight {
+    /// camera rays per pixel, jittered over the pixel (antialiasing)
+    #[param(default = 16, range = 1..=(1 << 16), unit = "rays/pixel")]
     pub pixel_samples: u32,
+    /// shadow rays toward the lights per camera hit
+    #[param(default = 4, range = 1..=1024, unit = "rays/hit")]
     pub light_samples: u32,
+    /// random seed
+    #[param(default = 0, range = 0..=u32::MAX)]
     pub seed: u64,
 }
 
-impl Params for DirectLightParams {
-    fn schema() -> Schema {
-        Schema::new()
-            .int("pixel_samples", 16, 1, 1 << 16)
-            .unit("rays/pixel")
-            .help("camera rays per pixel, jittered over the pixel (antialiasing)")
-            .int("light_samples", 4, 1, 1024)
-            .unit("rays/hit")
-            .help("shadow rays toward the lights per camera hit")
-            .int("seed", 0, 0, i64::from(u32::MAX))
-            .help("random seed")
-    }
-    fn from_values(v: &ParamValues) -> Self {
-        DirectLightParams {
-            pixel_samples: v.int("pixel_samples") as u32,
-            light_samples: v.int("light_samples") as u32,
-            seed: v.int("seed") as u64,
-        }
-    }
-}
+inputs!(pub DirectLightIn { scene: Scene, accel: Accel });
+outputs!(pub DirectLightOut { image: Image });
 
 /// Direct light arriving at an opaque front-facing hit and leaving toward `-d`, from the
 /// `light_samples` light samples `first..` of the pixel's `total`.
@@ -90,23 +74,15 @@ fn shade(
     sum / count as f32
 }
 
-/// Renders the direct-light image; returns it with the number of rays traced.
-pub fn render(scene: &Scene, accel: &Accel, p: &DirectLightParams, cx: Option<&RunCtx>) -> Result<(Image, u64), NodeError> {
+/// Renders the direct-light image; returns it with the number of rays traced. `cx` reports
+/// progress and cancels; `None` outside a graph.
+pub fn render(scene: &Scene, accel: &Accel, p: &DirectLight, cx: Option<&RunCtx>) -> Result<(Image, u64), NodeError> {
     let (w, h) = (scene.camera.width, scene.camera.height);
-    let mut img = Image::try_new(w, h)?;
     let t = Tracer::new(scene, accel, Settings { max_depth: 2, rr_depth: 5, seed: p.seed ^ 0xD1EC_7000 });
     let rays = CameraRays::new(&scene.camera);
     let (spp, ls) = (p.pixel_samples.max(1), p.light_samples.max(1));
-    let ray_count = AtomicU64::new(0);
-    let done = AtomicU64::new(0);
-    let cancelled = AtomicBool::new(false);
-    img.pixels.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        if cancelled.load(Ordering::Relaxed) || cx.is_some_and(|c| c.check().is_err()) {
-            cancelled.store(true, Ordering::Relaxed);
-            return;
-        }
-        let mut counts = Counts::default();
-        for (x, out) in row.iter_mut().enumerate() {
+    with_ctx(cx, |cx| {
+        per_pixel(cx, w, h, |x, y, counts| {
             let pixel = (y * w + x) as u64;
             let pattern = mix64(p.seed ^ pixel.wrapping_mul(0x9E37_79B9_7F4A_7C15)) as u32;
             let mut sum = Vec3::ZERO;
@@ -122,63 +98,43 @@ pub fn render(scene: &Scene, accel: &Accel, p: &DirectLightParams, cx: Option<&R
                         let obj = &scene.objects[surf.object as usize];
                         let front = d.dot(surf.ng) < 0.0;
                         if brdf::is_delta(&obj.material) {
-                            t.radiance(o, d, id, &mut counts)
+                            t.radiance(o, d, id, counts)
                         } else if front {
                             let sample = (s * ls, ls, spp * ls);
-                            obj.emission + shade(&t, &surf, &obj.material, d, sample, (p.seed, pattern ^ 0x5bd1_e995), id, &mut counts)
+                            obj.emission + shade(&t, &surf, &obj.material, d, sample, (p.seed, pattern ^ 0x5bd1_e995), id, counts)
                         } else {
                             Vec3::ZERO
                         }
                     }
-                    None => t.radiance(o, d, id, &mut counts),
+                    None => t.radiance(o, d, id, counts),
                 };
             }
-            *out = (sum / spp as f32).to_array();
-        }
-        ray_count.fetch_add(counts.rays, Ordering::Relaxed);
-        let d = done.fetch_add(w as u64, Ordering::Relaxed) + w as u64;
-        if let Some(c) = cx {
-            c.progress(d, (w * h) as u64);
-        }
-    });
-    if cancelled.load(Ordering::Relaxed) {
-        return Err(NodeError::Cancelled);
-    }
-    Ok((img, ray_count.into_inner()))
+            (sum / spp as f32).to_array()
+        })
+    })
 }
 
-impl Node for DirectLight {
-    const KIND: &'static str = "DirectLight";
-    const VERSION: u32 = 1;
-    const CATEGORY: &'static str = "reference";
-    const CACHING: Caching = Caching::Disk;
-    type Params = DirectLightParams;
-
-    fn ports() -> Ports {
-        Ports::new().input::<Scene>("scene").input::<Accel>("accel").output::<Image>("image")
-    }
-
-    fn run(&self, p: &DirectLightParams, io: &mut Io, cx: &RunCtx) -> Result<(), NodeError> {
-        let scene = io.input::<Scene>("scene")?;
-        let accel = io.input::<Accel>("accel")?;
-        let (img, rays) = render(scene, accel, p, Some(cx))?;
+#[node(category = "reference")]
+impl DirectLight {
+    fn run(&self, i: DirectLightIn, cx: &RunCtx) -> Result<DirectLightOut, NodeError> {
+        let (img, rays) = render(i.scene, i.accel, self, Some(cx))?;
         let bad = img.as_floats().iter().filter(|v| !v.is_finite()).count();
         if bad > 0 {
             cx.note(format!("{bad} pixel channels are NaN or infinite"));
         }
         cx.metric("rays", rays as f64);
         cx.metric("rays_per_pixel", rays as f64 / (img.width * img.height) as f64);
-        io.set("image", img)
+        Ok(DirectLightOut { image: img })
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::accel::BuildQuality;
-    use crate::reference::path_trace::{self, PathTraceParams};
+    use crate::reference::path_trace::{self, PathTrace};
     use crate::scene::builder::SceneBuilder;
-    use crate::testing::{i, run_on, test_scene};
+    use crate::testing::{cancels_midway, i, run_on, test_scene};
+    use crate::types::accel::BuildQuality;
     use crate::types::{Environment, Light};
     use relume_core::Value;
 
@@ -194,8 +150,8 @@ mod tests {
             .build()
     }
 
-    fn params(pixel_samples: u32, light_samples: u32, seed: u64) -> DirectLightParams {
-        DirectLightParams { pixel_samples, light_samples, seed }
+    fn params(pixel_samples: u32, light_samples: u32, seed: u64) -> DirectLight {
+        DirectLight { pixel_samples, light_samples, seed }
     }
 
     #[test]
@@ -203,7 +159,7 @@ mod tests {
         let scene = area_lit();
         let accel = Accel::build(&scene, BuildQuality::Fast);
         let (img, rays) = render(&scene, &accel, &params(64, 4, 1), None).unwrap();
-        let pt = PathTraceParams { spp: 1024, max_depth: 2, rr_depth: 5, seed: 3 };
+        let pt = PathTrace { spp: 1024, max_depth: 2, rr_depth: 5, seed: 3 };
         let (mean, var, _, _) = path_trace::render(&scene, &accel, &pt, None).unwrap();
         assert!(rays >= 16 * 16 * 64, "{rays}");
         let (a, b) = (img.as_floats(), mean.as_floats());
@@ -225,9 +181,9 @@ mod tests {
         let spread =
             |imgs: [Image; 2]| imgs[0].as_floats().iter().zip(imgs[1].as_floats()).map(|(x, y)| ((x - y) as f64).powi(2)).sum::<f64>();
         let dl = spread([1, 2].map(|s| render(&scene, &accel, &params(16, 4, s), None).unwrap().0));
-        let pt = spread([1, 2].map(|s| {
-            path_trace::render(&scene, &accel, &PathTraceParams { spp: 64, max_depth: 2, rr_depth: 5, seed: s }, None).unwrap().0
-        }));
+        let pt = spread(
+            [1, 2].map(|s| path_trace::render(&scene, &accel, &PathTrace { spp: 64, max_depth: 2, rr_depth: 5, seed: s }, None).unwrap().0),
+        );
         assert!(dl < 0.5 * pt, "{dl} vs {pt}");
     }
 
@@ -266,10 +222,17 @@ mod tests {
         let scene = test_scene::spheres();
         let accel = Accel::build(&scene, BuildQuality::Fast);
         let out =
-            run_on(DirectLight, &[("pixel_samples", i(4)), ("light_samples", i(2))], vec![Value::new(scene), Value::new(accel)]).unwrap();
+            run_on::<DirectLight>(&[("pixel_samples", i(4)), ("light_samples", i(2))], vec![Value::new(scene), Value::new(accel)]).unwrap();
         let img = out[0].get::<Image>().unwrap();
         assert!(img.as_floats().iter().any(|x| *x > 0.0));
         let reg = crate::registry();
         assert_eq!(reg.node("DirectLight").expect("registered").category(), "reference");
+    }
+
+    #[test]
+    fn the_node_stops_midway_when_cancelled() {
+        let scene = test_scene::spheres();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        cancels_midway::<DirectLight>(&[("pixel_samples", i(16))], vec![Value::new(scene), Value::new(accel)]);
     }
 }

@@ -1,14 +1,13 @@
-//! The reference path tracer and what it is built from.
+//! The reference renderers, `PathTrace` and `DirectLight`: nodes only, built on the shared
+//! `render` library. No other module of the crate imports from here; tests and benchmarks call
+//! the nodes' `render` functions.
 
-pub mod camera;
 pub mod direct_light;
-pub mod integrator;
-pub mod lights;
 pub mod path_trace;
 
 use relume_core::Registry;
 
 pub fn register(reg: &mut Registry) {
-    reg.add(path_trace::PathTrace);
-    reg.add(direct_light::DirectLight);
+    reg.add::<path_trace::PathTrace>();
+    reg.add::<direct_light::DirectLight>();
 }

@@ -1,163 +1,92 @@
 //! PathTrace node.
 
-use super::camera::CameraRays;
-use super::integrator::{Counts, Settings, Tracer};
-use crate::geometry::accel::Accel;
+use crate::render::camera::CameraRays;
+use crate::render::film::{with_ctx, Film};
+use crate::render::integrator::{Settings, Tracer};
+use crate::types::accel::Accel;
 use crate::types::{Image, Scene};
-use rayon::prelude::*;
-use relume_core::{node_doc, Caching, Io, Node, NodeError, ParamValues, Params, Ports, RunCtx, Schema};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
-node_doc! {
-    /// Reference path tracer (the ground truth every pipeline reports its error against):
-    /// unbiased; next-event estimation with MIS (power heuristic) against BSDF sampling;
-    /// importance-sampled environment maps; smooth dielectrics with homogeneous media;
-    /// `max_depth` as in Mitsuba 3 (1: emitters only, 2: direct light, 3: one bounce, −1:
-    /// unbounded with Russian roulette from `rr_depth`); box pixel filter. Samples are taken
-    /// in passes of doubling size (progress and cancellation between rows); each pixel's
-    /// random numbers depend only on (seed, pixel, sample), so the image has the same bytes on
-    /// any thread count. Outputs the mean and the per-pixel variance of the mean.
-    pub struct PathTrace;
-}
-
-pub struct PathTraceParams {
+/// Reference path tracer (the ground truth every pipeline reports its error against):
+/// unbiased; next-event estimation with MIS (power heuristic) against BSDF sampling;
+/// importance-sampled environment maps; smooth dielectrics with homogeneous media;
+/// `max_depth` as in Mitsuba 3 (1: emitters only, 2: direct light, 3: one bounce, −1:
+/// unbounded with Russian roulette from `rr_depth`); box pixel filter. Samples are taken
+/// in passes of doubling size (progress and cancellation between rows); each pixel's
+/// random numbers depend only on (seed, pixel, sample), so the image has the same bytes on
+/// any thread count. Outputs the mean and the per-pixel variance of the mean.
+#[derive(Params)]
+pub struct PathTrace {
+    /// samples per pixel
+    #[param(default = 16, range = 1..=(1 << 20), unit = "samples/pixel")]
     pub spp: u32,
+    /// maximum path segments (Mitsuba's meaning); -1 = unbounded
+    #[param(default = -1, range = -1..=1024)]
     pub max_depth: i32,
+    /// depth at which Russian roulette starts
+    #[param(default = 5, range = 1..=1024)]
     pub rr_depth: u32,
+    /// random seed
+    #[param(default = 0, range = 0..=u32::MAX)]
     pub seed: u64,
 }
 
-impl Params for PathTraceParams {
-    fn schema() -> Schema {
-        Schema::new()
-            .int("spp", 16, 1, 1 << 20)
-            .unit("samples/pixel")
-            .help("samples per pixel")
-            .int("max_depth", -1, -1, 1024)
-            .help("maximum path segments (Mitsuba's meaning); -1 = unbounded")
-            .int("rr_depth", 5, 1, 1024)
-            .help("depth at which Russian roulette starts")
-            .int("seed", 0, 0, i64::from(u32::MAX))
-            .help("random seed")
-    }
-    fn from_values(v: &ParamValues) -> Self {
-        PathTraceParams {
-            spp: v.int("spp") as u32,
-            max_depth: v.int("max_depth") as i32,
-            rr_depth: v.int("rr_depth") as u32,
-            seed: v.int("seed") as u64,
-        }
-    }
-}
+inputs!(pub PathTraceIn { scene: Scene, accel: Accel });
+outputs!(pub PathTraceOut { image: Image, variance: Image });
 
-/// Renders `spp` samples per pixel; returns (mean, variance of the mean, counts).
-pub fn render(scene: &Scene, accel: &Accel, p: &PathTraceParams, cx: Option<&RunCtx>) -> Result<(Image, Image, u64, u64), NodeError> {
+/// Renders `p.spp` samples per pixel; returns (mean, variance of the mean, rays, samples
+/// dropped as NaN or infinite). `cx` reports progress and cancels; `None` outside a graph.
+pub fn render(scene: &Scene, accel: &Accel, p: &PathTrace, cx: Option<&RunCtx>) -> Result<(Image, Image, u64, u64), NodeError> {
     let cam = &scene.camera;
-    let (w, h) = (cam.width, cam.height);
-    let mut mean = Image::try_new(w, h)?;
-    let mut var = Image::try_new(w, h)?;
+    let mut film = Film::try_new(cam.width, cam.height)?;
     let tracer = Tracer::new(scene, accel, Settings { max_depth: p.max_depth, rr_depth: p.rr_depth, seed: p.seed });
     let rays = CameraRays::new(cam);
-    let mut sum = vec![[0f64; 3]; w * h];
-    let mut sum2 = vec![[0f64; 3]; w * h];
-    let total = (w * h) as u64 * p.spp as u64;
-    let done = AtomicU64::new(0);
-    let ray_count = AtomicU64::new(0);
-    let nonfinite = AtomicU64::new(0);
-    let cancelled = AtomicBool::new(false);
-    let mut first = 0u32;
-    let mut pass = 1u32;
-    while first < p.spp {
-        let n = pass.min(p.spp - first);
-        sum.par_chunks_mut(w).zip(sum2.par_chunks_mut(w)).enumerate().for_each(|(y, (srow, s2row))| {
-            if cancelled.load(Ordering::Relaxed) || cx.is_some_and(|c| c.check().is_err()) {
-                cancelled.store(true, Ordering::Relaxed);
-                return;
-            }
-            let mut counts = Counts::default();
-            for x in 0..w {
-                let pixel = (y * w + x) as u64;
-                for s in first..first + n {
-                    let id = pixel << 32 | s as u64;
-                    let jitter = (crate::math::rng::uniform(p.seed ^ 0x5EED, id, 0), crate::math::rng::uniform(p.seed ^ 0x5EED, id, 1));
-                    let (o, d) = rays.ray(x as f32 + jitter.0, y as f32 + jitter.1);
-                    let l = tracer.radiance(o, d, id, &mut counts);
-                    if !l.is_finite() {
-                        nonfinite.fetch_add(1, Ordering::Relaxed);
-                        continue;
-                    }
-                    for c in 0..3 {
-                        srow[x][c] += l[c] as f64;
-                        s2row[x][c] += (l[c] as f64) * (l[c] as f64);
-                    }
-                }
-            }
-            ray_count.fetch_add(counts.rays, Ordering::Relaxed);
-            let d = done.fetch_add(w as u64 * n as u64, Ordering::Relaxed) + w as u64 * n as u64;
-            if let Some(c) = cx {
-                c.progress(d, total);
-            }
-        });
-        if cancelled.load(Ordering::Relaxed) {
-            return Err(NodeError::Cancelled);
-        }
-        first += n;
-        pass *= 2;
-    }
-    let n = p.spp as f64;
-    for i in 0..w * h {
-        for c in 0..3 {
-            let m = sum[i][c] / n;
-            mean.pixels[i][c] = m as f32;
-            var.pixels[i][c] = if p.spp > 1 { ((sum2[i][c] / n - m * m).max(0.0) / (n - 1.0)) as f32 } else { 0.0 };
-        }
-    }
-    Ok((mean, var, ray_count.into_inner(), nonfinite.into_inner()))
+    let w = cam.width;
+    with_ctx(cx, |cx| {
+        film.add_passes(cx, p.spp, |x, y, s, counts| {
+            let id = ((y * w + x) as u64) << 32 | s as u64;
+            let jitter = (crate::math::rng::uniform(p.seed ^ 0x5EED, id, 0), crate::math::rng::uniform(p.seed ^ 0x5EED, id, 1));
+            let (o, d) = rays.ray(x as f32 + jitter.0, y as f32 + jitter.1);
+            tracer.radiance(o, d, id, counts)
+        })
+    })?;
+    let (ray_count, nonfinite) = (film.rays(), film.nonfinite());
+    let (mean, var) = film.finish();
+    Ok((mean, var, ray_count, nonfinite))
 }
 
-impl Node for PathTrace {
-    const KIND: &'static str = "PathTrace";
-    const VERSION: u32 = 1;
-    const CATEGORY: &'static str = "reference";
-    const CACHING: Caching = Caching::Disk;
-    type Params = PathTraceParams;
-
-    fn ports() -> Ports {
-        Ports::new().input::<Scene>("scene").input::<Accel>("accel").output::<Image>("image").output::<Image>("variance")
-    }
-
-    fn run(&self, p: &PathTraceParams, io: &mut Io, cx: &RunCtx) -> Result<(), NodeError> {
-        let scene = io.input::<Scene>("scene")?;
-        let accel = io.input::<Accel>("accel")?;
+#[node(category = "reference")]
+impl PathTrace {
+    fn run(&self, i: PathTraceIn, cx: &RunCtx) -> Result<PathTraceOut, NodeError> {
+        let (scene, accel) = (i.scene, i.accel);
         if !scene.has_lights() {
             cx.note("the scene has no light: the image is black (nothing was traced)");
             let (w, h) = (scene.camera.width, scene.camera.height);
-            io.set("image", Image::try_new(w, h)?)?;
-            return io.set("variance", Image::try_new(w, h)?);
+            return Ok(PathTraceOut { image: Image::try_new(w, h)?, variance: Image::try_new(w, h)? });
         }
-        let (mean, var, rays, nonfinite) = render(scene, accel, p, Some(cx))?;
-        cx.metric("spp", p.spp as f64);
+        let (mean, var, rays, nonfinite) = render(scene, accel, self, Some(cx))?;
+        cx.metric("spp", self.spp as f64);
         cx.metric("rays", rays as f64);
         cx.metric("nonfinite_samples", nonfinite as f64);
         if nonfinite > 0 {
             cx.note(format!("{nonfinite} samples were NaN or infinite and were dropped"));
         }
-        if p.spp == 1 {
+        if self.spp == 1 {
             cx.note("variance needs spp ≥ 2: it is written as 0");
         }
-        io.set("image", mean)?;
-        io.set("variance", var)
+        Ok(PathTraceOut { image: mean, variance: var })
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::accel::BuildQuality;
-    use crate::testing::test_scene;
+    use crate::testing::{cancels_midway, i, test_scene};
+    use crate::types::accel::BuildQuality;
+    use relume_core::Value;
 
-    fn params(spp: u32, max_depth: i32) -> PathTraceParams {
-        PathTraceParams { spp, max_depth, rr_depth: 5, seed: 1 }
+    fn params(spp: u32, max_depth: i32) -> PathTrace {
+        PathTrace { spp, max_depth, rr_depth: 5, seed: 1 }
     }
 
     #[test]
@@ -188,5 +117,12 @@ mod tests {
         cancel.cancel();
         let cx = RunCtx::new("t", &cancel, None);
         assert_eq!(render(&scene, &accel, &params(4, 3), Some(&cx)).err(), Some(NodeError::Cancelled));
+    }
+
+    #[test]
+    fn the_node_stops_midway_when_cancelled() {
+        let scene = test_scene::spheres();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        cancels_midway::<PathTrace>(&[("spp", i(64)), ("max_depth", i(3))], vec![Value::new(scene), Value::new(accel)]);
     }
 }

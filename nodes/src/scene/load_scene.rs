@@ -2,53 +2,31 @@
 
 use super::format::load_scene_file;
 use crate::types::Scene;
-use relume_core::{node_doc, Caching, Io, Node, NodeError, ParamValues, Params, Ports, RunCtx, Schema};
+use relume_core::{node, outputs, NodeError, Params, RunCtx};
 use std::path::PathBuf;
 
-node_doc! {
-    /// Loads a scene file (RON: camera, materials, OBJ meshes and spheres, lights,
-    /// environment; see nodes/src/scene/format.rs). OBJ `o`/`g` groups become objects. The
-    /// meshes and maps it names are cache dependencies: editing any of them re-runs the node.
-    /// Zero-area triangles are dropped and counted in the report's notes.
-    pub struct LoadScene;
-}
-
-pub struct LoadSceneParams {
+/// Loads a scene file (RON: camera, materials, OBJ meshes and spheres, lights,
+/// environment; see nodes/src/scene/format.rs). OBJ `o`/`g` groups become objects. The
+/// meshes and maps it names are cache dependencies: editing any of them re-runs the node.
+/// Zero-area triangles are dropped and counted in the report's notes.
+#[derive(Params)]
+pub struct LoadScene {
+    /// scene file (.ron), relative to the graph file
     pub path: PathBuf,
+    /// image width; 0 keeps the scene file's camera
+    #[param(default = 0, range = 0..=16384, unit = "px")]
     pub width: usize,
+    /// image height; 0 keeps the scene file's camera
+    #[param(default = 0, range = 0..=16384, unit = "px")]
     pub height: usize,
 }
 
-impl Params for LoadSceneParams {
-    fn schema() -> Schema {
-        Schema::new()
-            .input_file("path")
-            .help("scene file (.ron), relative to the graph file")
-            .int("width", 0, 0, 16384)
-            .unit("px")
-            .help("image width; 0 keeps the scene file's camera")
-            .int("height", 0, 0, 16384)
-            .unit("px")
-            .help("image height; 0 keeps the scene file's camera")
-    }
-    fn from_values(v: &ParamValues) -> Self {
-        LoadSceneParams { path: v.path("path"), width: v.int("width") as usize, height: v.int("height") as usize }
-    }
-}
+outputs!(pub LoadSceneOut { scene: Scene });
 
-impl Node for LoadScene {
-    const KIND: &'static str = "LoadScene";
-    const VERSION: u32 = 1;
-    const CATEGORY: &'static str = "scene";
-    const CACHING: Caching = Caching::Memory;
-    type Params = LoadSceneParams;
-
-    fn ports() -> Ports {
-        Ports::new().output::<Scene>("scene")
-    }
-
-    fn run(&self, p: &LoadSceneParams, io: &mut Io, cx: &RunCtx) -> Result<(), NodeError> {
-        let loaded = load_scene_file(&p.path).map_err(|m| NodeError::param("path", m))?;
+#[node(category = "scene")]
+impl LoadScene {
+    fn run(&self, _: (), cx: &RunCtx) -> Result<LoadSceneOut, NodeError> {
+        let loaded = load_scene_file(&self.path).map_err(|m| NodeError::param("path", m))?;
         for (path, hash) in &loaded.files {
             cx.depends_on_file(path, *hash);
         }
@@ -56,16 +34,15 @@ impl Node for LoadScene {
             cx.note(n);
         }
         let mut scene = loaded.scene;
-        if p.width > 0 {
-            scene.camera.width = p.width;
+        if self.width > 0 {
+            scene.camera.width = self.width;
         }
-        if p.height > 0 {
-            scene.camera.height = p.height;
+        if self.height > 0 {
+            scene.camera.height = self.height;
         }
-        let s = &scene;
-        cx.metric("triangles", s.triangles.len() as f64);
-        cx.metric("objects", s.objects.len() as f64);
-        io.set("scene", scene)
+        cx.metric("triangles", scene.triangles.len() as f64);
+        cx.metric("objects", scene.objects.len() as f64);
+        Ok(LoadSceneOut { scene })
     }
 }
 
@@ -88,8 +65,8 @@ mod tests {
     fn loads_overrides_the_resolution_and_records_the_mesh_as_a_dependency() {
         let dir = tempfile::tempdir().unwrap();
         write_scene(dir.path());
-        let e =
-            run_full(LoadScene, &[("path", ParamValue::Text("s.ron".into())), ("width", ParamValue::Int(16))], dir.path(), vec![]).unwrap();
+        let e = run_full::<LoadScene>(&[("path", ParamValue::Text("s.ron".into())), ("width", ParamValue::Int(16))], dir.path(), vec![])
+            .unwrap();
         let s = e.outputs[0].get::<Scene>().unwrap();
         assert_eq!((s.camera.width, s.camera.height), (16, 48));
         assert_eq!(s.triangles.len(), 1);
@@ -104,7 +81,7 @@ mod tests {
     fn a_broken_scene_is_a_parameter_error_naming_the_file() {
         let dir = tempfile::tempdir().unwrap();
         std::fs::write(dir.path().join("s.ron"), "Scene(camera: (origin: (0, 0, 3)))").unwrap();
-        let e = run_full(LoadScene, &[("path", ParamValue::Text("s.ron".into()))], dir.path(), vec![]).unwrap_err();
+        let e = run_full::<LoadScene>(&[("path", ParamValue::Text("s.ron".into()))], dir.path(), vec![]).unwrap_err();
         assert!(
             matches!(&e, NodeError::Param { name, msg } if name == "path" && msg.contains("s.ron:1:") && msg.contains("camera needs `target`")),
             "{e}"

@@ -12,6 +12,6 @@ pub mod shapes;
 use relume_core::Registry;
 
 pub fn register(reg: &mut Registry) {
-    reg.add(load_scene::LoadScene);
-    reg.add(move_object::MoveObject);
+    reg.add::<load_scene::LoadScene>();
+    reg.add::<move_object::MoveObject>();
 }

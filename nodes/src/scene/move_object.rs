@@ -2,33 +2,23 @@
 
 use crate::types::Scene;
 use glam::Vec3;
-use relume_core::{node_doc, Caching, Io, Node, NodeError, ParamValues, Params, Ports, RunCtx, Schema};
+use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
-node_doc! {
-    /// Translates one object of a scene (an area light, the bunny) by a vector: the
-    /// interactive "move the light" edit. Nodes wired to the scene before this node (surface
-    /// sampling that leaves emitters out) are not re-run when the translation changes.
-    pub struct MoveObject;
-}
-
-pub struct MoveObjectParams {
+/// Translates one object of a scene (an area light, the bunny) by a vector: the
+/// interactive "move the light" edit. Nodes wired to the scene before this node (surface
+/// sampling that leaves emitters out) are not re-run when the translation changes.
+#[derive(Params)]
+pub struct MoveObject {
+    /// name of the object to move
+    #[param(default = "light")]
     pub object: String,
+    /// offset added to its vertices (scene units)
+    #[param(default = (0.0, 0.0, 0.0))]
     pub translation: Vec3,
 }
 
-impl Params for MoveObjectParams {
-    fn schema() -> Schema {
-        Schema::new()
-            .text("object", "light")
-            .help("name of the object to move")
-            .vec3("translation", [0.0, 0.0, 0.0])
-            .help("offset added to its vertices (scene units)")
-    }
-    fn from_values(v: &ParamValues) -> Self {
-        let t = v.triple("translation");
-        MoveObjectParams { object: v.text("object").to_string(), translation: Vec3::new(t[0] as f32, t[1] as f32, t[2] as f32) }
-    }
-}
+inputs!(pub MoveObjectIn { scene: Scene });
+outputs!(pub MoveObjectOut { scene: Scene });
 
 /// The scene with object `name` moved by `t`.
 pub fn move_object(scene: &Scene, name: &str, t: Vec3) -> Result<Scene, NodeError> {
@@ -48,20 +38,10 @@ pub fn move_object(scene: &Scene, name: &str, t: Vec3) -> Result<Scene, NodeErro
     Ok(s)
 }
 
-impl Node for MoveObject {
-    const KIND: &'static str = "MoveObject";
-    const VERSION: u32 = 1;
-    const CATEGORY: &'static str = "scene";
-    const CACHING: Caching = Caching::Memory;
-    type Params = MoveObjectParams;
-
-    fn ports() -> Ports {
-        Ports::new().input::<Scene>("scene").output::<Scene>("scene")
-    }
-
-    fn run(&self, p: &MoveObjectParams, io: &mut Io, _cx: &RunCtx) -> Result<(), NodeError> {
-        let s = move_object(io.input::<Scene>("scene")?, &p.object, p.translation)?;
-        io.set("scene", s)
+#[node(category = "scene")]
+impl MoveObject {
+    fn run(&self, i: MoveObjectIn, _cx: &RunCtx) -> Result<MoveObjectOut, NodeError> {
+        Ok(MoveObjectOut { scene: move_object(i.scene, &self.object, self.translation)? })
     }
 }
 

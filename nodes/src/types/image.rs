@@ -1,6 +1,7 @@
 //! `Image`: a linear-RGB f32 raster, row-major, top row first.
 
 use relume_core::{Hash, Hasher, NodeError, PortValue};
+use std::borrow::Cow;
 
 /// Largest image a node may allocate (2 GiB of pixels); bigger requests are refused before
 /// allocating, with the estimate in the message.
@@ -59,35 +60,60 @@ impl Image {
     }
 }
 
+/// The pixels' bytes as f32 little-endian: a view of the pixels on little-endian machines,
+/// a converted copy elsewhere.
+fn le_bytes(floats: &[f32]) -> Cow<'_, [u8]> {
+    if cfg!(target_endian = "little") {
+        Cow::Borrowed(bytemuck::cast_slice(floats))
+    } else {
+        Cow::Owned(floats.iter().flat_map(|x| x.to_le_bytes()).collect())
+    }
+}
+
+/// Disk encoding: width and height as u64 little-endian, then the pixels as f32
+/// little-endian, row-major.
 impl PortValue for Image {
     const NAME: &'static str = "Image";
     const COLOR: [u8; 3] = [232, 176, 64];
     const DOC: &'static str = "linear RGB f32 image";
 
+    /// The default fingerprint (the hash of the name and the encoding), streamed from the
+    /// pixels without building the encoded copy.
     fn fingerprint(&self) -> Hash {
-        Hasher::new().str(Self::NAME).u64(self.width as u64).u64(self.height as u64).f32s(self.as_floats()).finish()
+        Hasher::new()
+            .str(Self::NAME)
+            .u64(16 + self.pixels.len() as u64 * 12)
+            .raw(&(self.width as u64).to_le_bytes())
+            .raw(&(self.height as u64).to_le_bytes())
+            .raw(&le_bytes(self.as_floats()))
+            .finish()
     }
     fn byte_size(&self) -> usize {
         self.pixels.len() * 12 + 16
     }
-    fn encode(&self) -> Option<Vec<u8>> {
+    fn encode(&self) -> Vec<u8> {
         let mut b = Vec::with_capacity(16 + self.pixels.len() * 12);
         b.extend_from_slice(&(self.width as u64).to_le_bytes());
         b.extend_from_slice(&(self.height as u64).to_le_bytes());
-        for x in self.as_floats() {
-            b.extend_from_slice(&x.to_le_bytes());
-        }
-        Some(b)
+        b.extend_from_slice(&le_bytes(self.as_floats()));
+        b
     }
     fn decode(b: &[u8]) -> Option<Self> {
-        let w = u64::from_le_bytes(b.get(0..8)?.try_into().ok()?) as usize;
-        let h = u64::from_le_bytes(b.get(8..16)?.try_into().ok()?) as usize;
+        let w = usize::try_from(u64::from_le_bytes(b.get(0..8)?.try_into().ok()?)).ok()?;
+        let h = usize::try_from(u64::from_le_bytes(b.get(8..16)?.try_into().ok()?)).ok()?;
         let body = b.get(16..)?;
-        if body.len() != w.checked_mul(h)?.checked_mul(12)? {
+        let n = w.checked_mul(h)?;
+        if body.len() != n.checked_mul(12)? {
             return None;
         }
-        let floats: Vec<f32> = body.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect();
-        let pixels = floats.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        // Copied byte-wise: `body` need not be aligned for f32.
+        let mut pixels = vec![[0.0f32; 3]; n];
+        bytemuck::cast_slice_mut::<[f32; 3], u8>(&mut pixels).copy_from_slice(body);
+        if cfg!(target_endian = "big") {
+            for x in pixels.as_flattened_mut() {
+                *x = f32::from_bits(u32::from_le(x.to_bits()));
+            }
+        }
         Some(Image { width: w, height: h, pixels })
     }
 }
@@ -99,10 +125,50 @@ mod tests {
     #[test]
     fn encodes_and_decodes_to_the_same_fingerprint() {
         let img = Image::from_fn(3, 2, |x, y| [x as f32, y as f32, -0.5]);
-        let back = Image::decode(&img.encode().unwrap()).unwrap();
+        let back = Image::decode(&img.encode()).unwrap();
         assert_eq!(back, img);
         assert_eq!(back.fingerprint(), img.fingerprint());
-        assert!(Image::decode(&img.encode().unwrap()[..20]).is_none(), "truncated payload is refused");
+        assert!(Image::decode(&img.encode()[..20]).is_none(), "truncated payload is refused");
+    }
+
+    #[test]
+    fn the_encoding_is_the_documented_layout_and_the_fingerprint_its_hash() {
+        let img = Image::from_fn(2, 1, |x, _| [x as f32, 0.5, -2.0]);
+        let b = img.encode();
+        assert_eq!(&b[..16], &[2, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0]);
+        assert_eq!(&b[16..20], &0f32.to_le_bytes());
+        assert_eq!(&b[36..40], &(-2f32).to_le_bytes());
+        assert_eq!(b.len(), 16 + 2 * 12);
+        // The streamed fingerprint is the trait's default: the hash of the name and the encoding.
+        assert_eq!(img.fingerprint(), Hasher::new().str(Image::NAME).bytes(&b).finish());
+        let other = Image::from_fn(1, 2, |_, y| [y as f32, 0.5, -2.0]);
+        assert_ne!(img.fingerprint(), other.fingerprint(), "the size is part of the content");
+    }
+
+    #[test]
+    fn bad_payloads_are_refused_without_panicking() {
+        let img = Image::from_fn(3, 2, |x, y| [x as f32, y as f32, -0.5]);
+        let b = img.encode();
+        for len in 0..b.len() {
+            assert!(Image::decode(&b[..len]).is_none(), "{len} bytes");
+        }
+        let mut long = b.clone();
+        long.push(0);
+        assert!(Image::decode(&long).is_none(), "trailing bytes are refused");
+        // Sizes whose product overflows, or far larger than the payload, allocate nothing.
+        let mut huge = Vec::new();
+        huge.extend_from_slice(&u64::MAX.to_le_bytes());
+        huge.extend_from_slice(&3u64.to_le_bytes());
+        assert!(Image::decode(&huge).is_none());
+        let mut big = Vec::new();
+        big.extend_from_slice(&(1u64 << 20).to_le_bytes());
+        big.extend_from_slice(&(1u64 << 20).to_le_bytes());
+        big.extend_from_slice(&[0; 24]);
+        assert!(Image::decode(&big).is_none());
+        // Decoding from an unaligned slice works.
+        let mut shifted = vec![0u8];
+        shifted.extend_from_slice(&b);
+        assert_eq!(Image::decode(&shifted[1..]).unwrap(), img);
     }
 
     #[test]

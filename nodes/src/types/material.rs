@@ -1,16 +1,17 @@
 //! Materials as the scene describes them; `crate::brdf` evaluates and samples them.
 
 use glam::Vec3;
+use serde::{Deserialize, Serialize};
 
 /// A homogeneous participating medium (per unit length), isotropic phase function.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Medium {
     pub sigma_a: Vec3,
     pub sigma_s: Vec3,
 }
 
 /// Surface scattering models. All opaque models are one-sided: black seen from the back.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Material {
     /// ρ = albedo / π.
     Lambert { albedo: Vec3 },

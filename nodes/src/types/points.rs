@@ -1,17 +1,23 @@
 //! `SurfacePoints`: points on a scene's surfaces, each standing for a small disk of area.
 
 use super::material::Material;
+use super::pod_vec;
 use glam::Vec3;
-use relume_core::{Hash, Hasher, PortValue};
+use relume_core::{codec, PortValue};
+use serde::{Deserialize, Serialize};
 
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct SurfacePoints {
+    #[serde(with = "pod_vec")]
     pub position: Vec<Vec3>,
     /// Shading normal at the point.
+    #[serde(with = "pod_vec")]
     pub normal: Vec<Vec3>,
     /// Radius of the disk the point stands for (area = π r²).
+    #[serde(with = "pod_vec")]
     pub radius: Vec<f32>,
     /// Scene object index.
+    #[serde(with = "pod_vec")]
     pub object: Vec<u32>,
     pub material: Vec<Material>,
 }
@@ -27,22 +33,67 @@ impl SurfacePoints {
     pub const BYTES_PER_POINT: usize = 12 + 12 + 4 + 4 + std::mem::size_of::<Material>();
 }
 
+/// Disk encoding: serde through postcard, the per-point numbers as little-endian byte
+/// strings; decoding checks that every array has one entry per point.
 impl PortValue for SurfacePoints {
     const NAME: &'static str = "SurfacePoints";
     const COLOR: [u8; 3] = [220, 110, 150];
     const DOC: &'static str = "surface points with normal, disk radius, object and material";
-    fn fingerprint(&self) -> Hash {
-        let mut h = Hasher::new();
-        h.str(Self::NAME);
-        let f: Vec<f32> = self.position.iter().chain(&self.normal).flat_map(|v| v.to_array()).chain(self.radius.iter().copied()).collect();
-        h.f32s(&f);
-        for o in &self.object {
-            h.u64(*o as u64);
-        }
-        h.str(&format!("{:?}", self.material));
-        h.finish()
+    fn encode(&self) -> Vec<u8> {
+        codec::to_bytes(self)
+    }
+    fn decode(bytes: &[u8]) -> Option<Self> {
+        let p = codec::from_bytes::<SurfacePoints>(bytes)?;
+        let n = p.len();
+        [p.normal.len(), p.radius.len(), p.object.len(), p.material.len()].iter().all(|&l| l == n).then_some(p)
     }
     fn byte_size(&self) -> usize {
         self.len() * Self::BYTES_PER_POINT
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn points() -> SurfacePoints {
+        let n = 5;
+        SurfacePoints {
+            position: (0..n).map(|i| Vec3::new(i as f32, -0.5, 1e-3)).collect(),
+            normal: vec![Vec3::Y; n],
+            radius: vec![0.25; n],
+            object: (0..n as u32).collect(),
+            material: (0..n)
+                .map(|i| {
+                    if i % 2 == 0 {
+                        Material::Lambert { albedo: Vec3::splat(0.5) }
+                    } else {
+                        Material::Dielectric { ior: 1.5, medium: None }
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn encodes_and_decodes_to_the_same_fingerprint() {
+        for p in [SurfacePoints::default(), points()] {
+            let b = p.encode();
+            let back = SurfacePoints::decode(&b).unwrap();
+            assert_eq!(back.fingerprint(), p.fingerprint());
+            assert_eq!(
+                (back.position, back.normal, back.radius, back.object, back.material),
+                (p.position, p.normal, p.radius, p.object, p.material)
+            );
+            assert!(SurfacePoints::decode(&b[..b.len() - 1]).is_none(), "truncated");
+        }
+        let b = points().encode();
+        assert!(SurfacePoints::decode(&b[..b.len() / 2]).is_none(), "truncated");
+        let mut p = points();
+        p.radius.pop();
+        assert!(SurfacePoints::decode(&p.encode()).is_none(), "arrays of different lengths");
+        let mut q = points();
+        q.object[0] = 9;
+        assert_ne!(q.fingerprint(), points().fingerprint());
     }
 }

@@ -2,13 +2,15 @@
 //! environment and a camera. Conventions (Mitsuba 3's): right-handed, y up, linear RGB.
 
 use super::material::Material;
+use super::pod_vec;
 use crate::math::sampling::Distribution2D;
 use glam::{Vec2, Vec3};
-use relume_core::{Hash, Hasher, PortValue};
+use relume_core::{codec, PortValue};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::ops::Range;
 
 /// Look-at pinhole camera; `fov_deg` is measured on the smaller image axis.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Camera {
     pub origin: Vec3,
     pub target: Vec3,
@@ -19,7 +21,7 @@ pub struct Camera {
 }
 
 /// Delta lights. Area lights are objects with emission; the environment is separate.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Light {
     /// Radiant intensity in W/sr per channel.
     Point { position: Vec3, intensity: Vec3 },
@@ -39,14 +41,14 @@ pub struct EnvMap {
     pub distribution: Distribution2D,
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub enum Environment {
     Constant(Vec3),
     Map(EnvMap),
 }
 
 /// One object: a contiguous range of triangles sharing a material.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Object {
     pub name: String,
     pub material: Material,
@@ -57,17 +59,22 @@ pub struct Object {
     pub triangles: Range<u32>,
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Scene {
     pub objects: Vec<Object>,
+    #[serde(with = "pod_vec")]
     pub positions: Vec<Vec3>,
     /// Per-vertex shading normals (same length as positions), or empty for flat shading
     /// (the geometric normal everywhere).
+    #[serde(with = "pod_vec")]
     pub normals: Vec<Vec3>,
     /// Per-vertex UVs, empty when the meshes have none.
+    #[serde(with = "pod_vec")]
     pub uvs: Vec<Vec2>,
+    #[serde(with = "pod_vec")]
     pub triangles: Vec<[u32; 3]>,
     /// Object index of each triangle.
+    #[serde(with = "pod_vec")]
     pub tri_object: Vec<u32>,
     pub lights: Vec<Light>,
     pub environment: Option<Environment>,
@@ -110,39 +117,50 @@ impl Scene {
     }
 }
 
-fn hash_vec3s(h: &mut Hasher, v: &[Vec3]) {
-    let floats: Vec<f32> = v.iter().flat_map(|p| p.to_array()).collect();
-    h.f32s(&floats);
+/// Encoded as width, height and texels; decoding rebuilds the sampling distribution (the
+/// same bytes as at load time: `EnvMap::new` is deterministic) and refuses inconsistent maps.
+impl Serialize for EnvMap {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        (self.width, self.height, pod_vec::Slice(&self.texels)).serialize(s)
+    }
 }
 
+impl<'de> Deserialize<'de> for EnvMap {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        struct Data(usize, usize, #[serde(with = "pod_vec")] Vec<Vec3>);
+        let Data(width, height, texels) = Data::deserialize(d)?;
+        EnvMap::new(width, height, texels).map_err(serde::de::Error::custom)
+    }
+}
+
+impl Scene {
+    /// Whether every index points inside its array (what a decoded scene must satisfy before
+    /// anything indexes with it).
+    fn is_consistent(&self) -> bool {
+        let (nv, nt) = (self.positions.len(), self.triangles.len());
+        (self.normals.is_empty() || self.normals.len() == nv)
+            && (self.uvs.is_empty() || self.uvs.len() == nv)
+            && self.triangles.iter().all(|t| t.iter().all(|&i| (i as usize) < nv))
+            && self.tri_object.len() == nt
+            && self.tri_object.iter().all(|&o| (o as usize) < self.objects.len())
+            && self.objects.iter().all(|o| o.triangles.start <= o.triangles.end && o.triangles.end as usize <= nt)
+    }
+}
+
+/// Disk encoding: serde through postcard, the big arrays (positions, normals, UVs, triangles,
+/// triangle objects, environment texels) as little-endian byte strings; decoding checks that
+/// every index is in range.
 impl PortValue for Scene {
     const NAME: &'static str = "Scene";
     const COLOR: [u8; 3] = [96, 160, 230];
     const DOC: &'static str = "triangles, objects, materials, lights, environment, camera";
 
-    fn fingerprint(&self) -> Hash {
-        let mut h = Hasher::new();
-        h.str(Self::NAME);
-        hash_vec3s(&mut h, &self.positions);
-        hash_vec3s(&mut h, &self.normals);
-        let uv: Vec<f32> = self.uvs.iter().flat_map(|p| p.to_array()).collect();
-        h.f32s(&uv);
-        for t in &self.triangles {
-            h.u64(t[0] as u64 | (t[1] as u64) << 21 | (t[2] as u64) << 42);
-        }
-        // Objects, lights, environment and camera are small: hash their debug text, which
-        // prints every float exactly (shortest round-trip form).
-        h.str(&format!("{:?}{:?}{:?}{:?}", self.objects, self.lights, self.tri_object.len(), self.camera));
-        match &self.environment {
-            None => h.tag(0),
-            Some(Environment::Constant(c)) => h.tag(1).str(&format!("{c:?}")),
-            Some(Environment::Map(m)) => {
-                h.tag(2).u64(m.width as u64).u64(m.height as u64);
-                hash_vec3s(&mut h, &m.texels);
-                &mut h
-            }
-        };
-        h.finish()
+    fn encode(&self) -> Vec<u8> {
+        codec::to_bytes(self)
+    }
+    fn decode(bytes: &[u8]) -> Option<Self> {
+        codec::from_bytes::<Scene>(bytes).filter(Scene::is_consistent)
     }
 
     fn byte_size(&self) -> usize {
@@ -151,5 +169,66 @@ impl PortValue for Scene {
             _ => 0,
         };
         self.positions.len() * 24 + self.uvs.len() * 8 + self.triangles.len() * 16 + env
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::test_scene;
+
+    fn with_env_map() -> Scene {
+        let mut s = test_scene::spheres();
+        let texels = (0..8 * 4).map(|i| Vec3::new(i as f32, 1.0, 0.5)).collect();
+        s.environment = Some(Environment::Map(EnvMap::new(8, 4, texels).unwrap()));
+        s.uvs = vec![Vec2::new(0.25, 0.5); s.positions.len()];
+        s
+    }
+
+    #[test]
+    fn encodes_and_decodes_to_the_same_fingerprint() {
+        for s in [test_scene::spheres(), with_env_map()] {
+            let b = s.encode();
+            let back = Scene::decode(&b).unwrap();
+            assert_eq!(back.fingerprint(), s.fingerprint());
+            assert_eq!(back.encode(), b, "deterministic");
+            assert_eq!((back.positions, back.triangles, back.objects), (s.positions, s.triangles, s.objects));
+            assert!(Scene::decode(&b[..b.len() - 1]).is_none(), "truncated");
+            assert!(Scene::decode(&b[..b.len() / 2]).is_none(), "truncated");
+            assert!(Scene::decode(&[b.as_slice(), &[0]].concat()).is_none(), "trailing bytes");
+        }
+        let Some(Environment::Map(m)) = Scene::decode(&with_env_map().encode()).unwrap().environment else { panic!("a map") };
+        assert_eq!(m.distribution.marginal.cdf, with_env_map_distribution().marginal.cdf, "the distribution is rebuilt");
+    }
+
+    fn with_env_map_distribution() -> Distribution2D {
+        match with_env_map().environment {
+            Some(Environment::Map(m)) => m.distribution,
+            _ => unreachable!(),
+        }
+    }
+
+    #[test]
+    fn the_fingerprint_sees_every_part() {
+        let s = test_scene::spheres();
+        let mut t = s.clone();
+        t.tri_object[0] = 1;
+        assert_ne!(t.fingerprint(), s.fingerprint(), "triangle objects, not only their count");
+        let mut t = s.clone();
+        t.camera.fov_deg = 41.0;
+        assert_ne!(t.fingerprint(), s.fingerprint());
+        let mut t = s.clone();
+        t.objects[0].dynamic = true;
+        assert_ne!(t.fingerprint(), s.fingerprint());
+    }
+
+    #[test]
+    fn indices_out_of_range_are_refused() {
+        let mut s = test_scene::spheres();
+        s.triangles[0][1] = s.positions.len() as u32;
+        assert!(Scene::decode(&s.encode()).is_none());
+        let mut s = test_scene::spheres();
+        s.tri_object.pop();
+        assert!(Scene::decode(&s.encode()).is_none());
     }
 }

@@ -1,6 +1,6 @@
 //! The surface point a ray hit: position, geometric and shading normals, object.
 
-use super::accel::Hit;
+use crate::types::accel::Hit;
 use crate::types::Scene;
 use glam::Vec3;
 

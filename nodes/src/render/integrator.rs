@@ -1,15 +1,16 @@
-//! The unidirectional path tracer behind `PathTrace`: next-event estimation with multiple
-//! importance sampling (power heuristic) against BSDF sampling, smooth dielectrics with
-//! homogeneous interior media, Russian roulette, and Mitsuba 3's `max_depth` meaning
-//! (1: emitters seen directly; 2: direct lighting; −1: unbounded).
+//! The unidirectional path tracer (`Tracer::radiance`) behind `PathTrace`, and behind the rays
+//! `DirectLight` leaves to it: next-event estimation with multiple importance sampling (power
+//! heuristic) against BSDF sampling, smooth dielectrics with homogeneous interior media,
+//! Russian roulette, and Mitsuba 3's `max_depth` meaning (1: emitters seen directly; 2: direct
+//! lighting; −1: unbounded). Also its `Settings` and the per-sample work `Counts`.
 
-use super::lights::LightSampler;
 use crate::brdf;
-use crate::geometry::accel::Accel;
-use crate::geometry::surface::Surface;
 use crate::math::frame::Frame;
 use crate::math::rng::uniform;
 use crate::math::sampling::{power_heuristic, uniform_sphere, UNIFORM_SPHERE_PDF};
+use crate::render::lights::LightSampler;
+use crate::render::surface::Surface;
+use crate::types::accel::Accel;
 use crate::types::{Environment, Material, Medium, Scene};
 use glam::{Vec2, Vec3};
 

@@ -1,0 +1,378 @@
+//! Procedural macros behind relume's node API, re-exported by relume-core:
+//!
+//! - `#[derive(Params)]` on a node struct: each field is a parameter (its doc comment is the
+//!   help text; `#[param(default = …, range = a..=b, unit = "…", rgb, output)]` the rest), the
+//!   struct's doc comment is the node's doc (the editor tooltip).
+//! - `#[derive(ParamEnum)]` on an enum of unit variants: a choice parameter whose variants are
+//!   listed once; an unknown name is a load error, never a fallback.
+//! - `#[node(category = "…", version = N, caching = Never, kind = "…")]` on `impl X { fn run … }`:
+//!   turns the block into `impl Node for X`, taking the port types from `run`'s signature.
+
+use proc_macro::TokenStream;
+use proc_macro2::{Span, TokenStream as Tokens};
+use quote::{format_ident, quote};
+use syn::{
+    parse_macro_input, spanned::Spanned, Data, DeriveInput, Expr, Fields, GenericArgument, ImplItem, ItemImpl, Lit, PathArguments,
+    ReturnType, Type,
+};
+
+/// The doc comment of an item, one string per line (leading space kept, as rustdoc has it).
+fn doc_lines(attrs: &[syn::Attribute]) -> Vec<String> {
+    attrs
+        .iter()
+        .filter(|a| a.path().is_ident("doc"))
+        .filter_map(|a| match &a.meta {
+            syn::Meta::NameValue(nv) => match &nv.value {
+                Expr::Lit(syn::ExprLit { lit: Lit::Str(s), .. }) => Some(s.value()),
+                _ => None,
+            },
+            _ => None,
+        })
+        .collect()
+}
+
+fn err(span: Span, msg: &str) -> Tokens {
+    syn::Error::new(span, msg).to_compile_error()
+}
+
+/// What a field's Rust type makes of the parameter.
+enum Shape {
+    Float,
+    Int,
+    Bool,
+    Text,
+    File,
+    Triple,
+    Enum,
+}
+
+fn last_ident(ty: &Type) -> Option<String> {
+    match ty {
+        Type::Path(p) => p.path.segments.last().map(|s| s.ident.to_string()),
+        _ => None,
+    }
+}
+
+fn shape_of(ty: &Type) -> Shape {
+    if let Type::Array(a) = ty {
+        if let Expr::Lit(syn::ExprLit { lit: Lit::Int(n), .. }) = &a.len {
+            if n.base10_digits() == "3" {
+                return Shape::Triple;
+            }
+        }
+    }
+    match last_ident(ty).as_deref() {
+        Some("f32" | "f64") => Shape::Float,
+        Some("i8" | "i16" | "i32" | "i64" | "u8" | "u16" | "u32" | "u64" | "usize" | "isize") => Shape::Int,
+        Some("bool") => Shape::Bool,
+        Some("String") => Shape::Text,
+        Some("PathBuf") => Shape::File,
+        Some("Vec3" | "Vec3A" | "DVec3") => Shape::Triple,
+        _ => Shape::Enum,
+    }
+}
+
+#[derive(Default)]
+struct FieldAttrs {
+    default: Option<Expr>,
+    range: Option<(Expr, Expr)>,
+    unit: Option<String>,
+    rgb: bool,
+    output: bool,
+}
+
+fn field_attrs(f: &syn::Field) -> syn::Result<FieldAttrs> {
+    let mut out = FieldAttrs::default();
+    for a in f.attrs.iter().filter(|a| a.path().is_ident("param")) {
+        a.parse_nested_meta(|meta| {
+            if meta.path.is_ident("default") {
+                out.default = Some(meta.value()?.parse()?);
+            } else if meta.path.is_ident("range") {
+                let e: Expr = meta.value()?.parse()?;
+                match e {
+                    Expr::Range(r) if r.start.is_some() && r.end.is_some() && matches!(r.limits, syn::RangeLimits::Closed(_)) => {
+                        out.range = Some((*r.start.unwrap(), *r.end.unwrap()));
+                    }
+                    _ => return Err(meta.error("range must be written `min..=max`")),
+                }
+            } else if meta.path.is_ident("unit") {
+                let s: syn::LitStr = meta.value()?.parse()?;
+                out.unit = Some(s.value());
+            } else if meta.path.is_ident("rgb") {
+                out.rgb = true;
+            } else if meta.path.is_ident("output") {
+                out.output = true;
+            } else {
+                return Err(meta.error("unknown #[param] key (default, range, unit, rgb, output)"));
+            }
+            Ok(())
+        })?;
+    }
+    Ok(out)
+}
+
+/// `#[derive(Params)]`: the parameter schema and typed construction of a node's parameters,
+/// and its doc comment as `Documented::DOC`.
+#[proc_macro_derive(Params, attributes(param))]
+pub fn derive_params(input: TokenStream) -> TokenStream {
+    let input = parse_macro_input!(input as DeriveInput);
+    match params_impl(&input) {
+        Ok(t) => t.into(),
+        Err(e) => e.to_compile_error().into(),
+    }
+}
+
+fn params_impl(input: &DeriveInput) -> syn::Result<Tokens> {
+    let name = &input.ident;
+    let doc = doc_lines(&input.attrs).join("\n");
+    let Data::Struct(data) = &input.data else {
+        return Err(syn::Error::new(input.span(), "derive(Params) takes a struct"));
+    };
+    let fields: Vec<&syn::Field> = match &data.fields {
+        Fields::Named(n) => n.named.iter().collect(),
+        Fields::Unit => Vec::new(),
+        Fields::Unnamed(_) => return Err(syn::Error::new(input.span(), "derive(Params) takes named fields or a unit struct")),
+    };
+    let c = quote!(::relume_core);
+    let mut specs = Vec::new();
+    let mut inits = Vec::new();
+    for f in &fields {
+        let ident = f.ident.as_ref().unwrap();
+        let pname = ident.to_string();
+        let ty = &f.ty;
+        let a = field_attrs(f)?;
+        let help = doc_lines(&f.attrs).iter().map(|l| l.trim()).collect::<Vec<_>>().join(" ");
+        let unit = a.unit.clone().unwrap_or_default();
+        let range = |kind: &str| -> syn::Result<(Expr, Expr)> {
+            a.range
+                .clone()
+                .ok_or_else(|| syn::Error::new(f.span(), format!("{kind} parameter `{pname}` needs #[param(range = min..=max)]")))
+        };
+        let (kind, default, init) = match shape_of(ty) {
+            Shape::Float => {
+                let (lo, hi) = range("float")?;
+                let d = a.default.as_ref().map(|e| quote!(#c::ParamValue::Float((#e) as f64)));
+                (quote!(#c::ParamKind::Float { min: (#lo) as f64, max: (#hi) as f64 }), d, quote!(v.float(#pname) as #ty))
+            }
+            Shape::Int => {
+                let (lo, hi) = range("integer")?;
+                let d = a.default.as_ref().map(|e| quote!(#c::ParamValue::Int((#e) as i64)));
+                let init = quote!(<#ty as ::core::convert::TryFrom<i64>>::try_from(v.int(#pname))
+                    .map_err(|_| #c::NodeError::param(#pname, "does not fit its Rust type"))?);
+                (quote!(#c::ParamKind::Int { min: (#lo) as i64, max: (#hi) as i64 }), d, init)
+            }
+            Shape::Bool => {
+                (quote!(#c::ParamKind::Bool), a.default.as_ref().map(|e| quote!(#c::ParamValue::Bool(#e))), quote!(v.bool(#pname)))
+            }
+            Shape::Text => (
+                quote!(#c::ParamKind::Text),
+                Some(
+                    a.default
+                        .as_ref()
+                        .map(|e| quote!(#c::ParamValue::Text(::std::string::String::from(#e))))
+                        .unwrap_or(quote!(#c::ParamValue::Text(::std::string::String::new()))),
+                ),
+                quote!(v.text(#pname).to_string()),
+            ),
+            Shape::File => {
+                let kind = if a.output { quote!(#c::ParamKind::OutputFile) } else { quote!(#c::ParamKind::InputFile) };
+                (kind, a.default.as_ref().map(|e| quote!(#c::ParamValue::Text(::std::string::String::from(#e)))), quote!(v.path(#pname)))
+            }
+            Shape::Triple => {
+                let kind = if a.rgb {
+                    let (lo, hi) = range("rgb")?;
+                    quote!(#c::ParamKind::Rgb { min: (#lo) as f64, max: (#hi) as f64 })
+                } else {
+                    quote!(#c::ParamKind::Vec3)
+                };
+                let d = match &a.default {
+                    None => None,
+                    Some(Expr::Tuple(t)) if t.elems.len() == 3 => {
+                        let e = t.elems.iter();
+                        Some(quote!(#c::ParamValue::Tuple(vec![#(#c::ParamValue::Float((#e) as f64)),*])))
+                    }
+                    Some(e) => return Err(syn::Error::new(e.span(), "a triple's default is written (x, y, z)")),
+                };
+                (kind, d, quote!(::core::convert::From::from(v.triple(#pname).map(|x| x as f32))))
+            }
+            Shape::Enum => {
+                let d = match &a.default {
+                    None => None,
+                    Some(Expr::Path(p)) if p.path.get_ident().is_some() => {
+                        let var = p.path.get_ident().unwrap();
+                        Some(quote!(#c::ParamValue::Ident(#c::ParamEnum::name(&<#ty>::#var).to_string())))
+                    }
+                    Some(e) => return Err(syn::Error::new(e.span(), "an enum parameter's default is a variant name")),
+                };
+                let init = quote!(<#ty as #c::ParamEnum>::from_name(v.variant(#pname))
+                    .ok_or_else(|| #c::NodeError::param(#pname, format!("`{}` is not one of {}", v.variant(#pname), <#ty as #c::ParamEnum>::VARIANTS.join(", "))))?);
+                (quote!(#c::ParamKind::Enum(<#ty as #c::ParamEnum>::VARIANTS)), d, init)
+            }
+        };
+        let default = match default {
+            Some(d) => quote!(::core::option::Option::Some(#d)),
+            None => quote!(::core::option::Option::None),
+        };
+        specs.push(quote!(#c::ParamSpec { name: #pname, kind: #kind, default: #default, unit: #unit, help: #help }));
+        inits.push(quote!(#ident: #init));
+    }
+    let construct = match &data.fields {
+        Fields::Unit => quote!(#name),
+        _ => quote!(#name { #(#inits),* }),
+    };
+    let (ig, tg, wc) = input.generics.split_for_impl();
+    Ok(quote! {
+        impl #ig #c::Params for #name #tg #wc {
+            fn schema() -> #c::Schema {
+                #c::Schema(vec![#(#specs),*])
+            }
+            #[allow(unused_variables)]
+            fn from_values(v: &#c::ParamValues) -> ::core::result::Result<Self, #c::NodeError> {
+                ::core::result::Result::Ok(#construct)
+            }
+        }
+        impl #ig #c::Documented for #name #tg #wc {
+            const DOC: &'static str = #doc;
+        }
+    })
+}
+
+/// `#[derive(ParamEnum)]`: a choice parameter; variants are named once, in declaration order.
+#[proc_macro_derive(ParamEnum)]
+pub fn derive_param_enum(input: TokenStream) -> TokenStream {
+    let input = parse_macro_input!(input as DeriveInput);
+    let name = &input.ident;
+    let Data::Enum(data) = &input.data else {
+        return err(input.span(), "derive(ParamEnum) takes an enum").into();
+    };
+    if let Some(v) = data.variants.iter().find(|v| !matches!(v.fields, Fields::Unit)) {
+        return err(v.span(), "ParamEnum variants carry no data").into();
+    }
+    let idents: Vec<_> = data.variants.iter().map(|v| &v.ident).collect();
+    let names: Vec<String> = idents.iter().map(|i| i.to_string()).collect();
+    let c = quote!(::relume_core);
+    quote! {
+        impl #c::ParamEnum for #name {
+            const VARIANTS: &'static [&'static str] = &[#(#names),*];
+            fn from_name(s: &str) -> ::core::option::Option<Self> {
+                match s {
+                    #(#names => ::core::option::Option::Some(#name::#idents),)*
+                    _ => ::core::option::Option::None,
+                }
+            }
+            fn name(&self) -> &'static str {
+                match self {
+                    #(#name::#idents => #names,)*
+                }
+            }
+        }
+    }
+    .into()
+}
+
+#[derive(Default)]
+struct NodeArgs {
+    category: Option<String>,
+    version: Option<syn::LitInt>,
+    kind: Option<String>,
+    caching: Option<syn::Ident>,
+}
+
+/// `#[node(category = "image", version = 2, caching = Never, kind = "Name")]` on an inherent
+/// `impl X { fn run(&self, inputs: In, cx: &RunCtx) -> Result<Out, NodeError> { … } … }`:
+/// implements `Node` for `X` (kind defaults to the type's name, version to 1, caching to
+/// `Auto`); `Inputs` and `Outputs` come from `run`'s signature; other items stay in `impl X`.
+#[proc_macro_attribute]
+pub fn node(attr: TokenStream, item: TokenStream) -> TokenStream {
+    let mut args = NodeArgs::default();
+    let parser = syn::meta::parser(|meta| {
+        if meta.path.is_ident("category") {
+            args.category = Some(meta.value()?.parse::<syn::LitStr>()?.value());
+        } else if meta.path.is_ident("version") {
+            args.version = Some(meta.value()?.parse()?);
+        } else if meta.path.is_ident("kind") {
+            args.kind = Some(meta.value()?.parse::<syn::LitStr>()?.value());
+        } else if meta.path.is_ident("caching") {
+            args.caching = Some(meta.value()?.parse()?);
+        } else {
+            return Err(meta.error("unknown #[node] key (category, version, caching, kind)"));
+        }
+        Ok(())
+    });
+    parse_macro_input!(attr with parser);
+    let imp = parse_macro_input!(item as ItemImpl);
+    match node_impl(args, imp) {
+        Ok(t) => t.into(),
+        Err(e) => e.to_compile_error().into(),
+    }
+}
+
+fn node_impl(args: NodeArgs, imp: ItemImpl) -> syn::Result<Tokens> {
+    if imp.trait_.is_some() {
+        return Err(syn::Error::new(imp.span(), "#[node] goes on an inherent `impl X { fn run … }`"));
+    }
+    let self_ty = &imp.self_ty;
+    let kind = match args.kind {
+        Some(k) => k,
+        None => last_ident(self_ty).ok_or_else(|| syn::Error::new(self_ty.span(), "#[node] needs a named type"))?,
+    };
+    let category = args.category.ok_or_else(|| syn::Error::new(Span::call_site(), "#[node] needs category = \"…\""))?;
+    let version = args.version.map(|v| quote!(#v)).unwrap_or(quote!(1));
+    let caching = args.caching.unwrap_or_else(|| format_ident!("Auto"));
+    let mut run = None;
+    let mut rest = Vec::new();
+    for item in imp.items {
+        match item {
+            ImplItem::Fn(f) if f.sig.ident == "run" => run = Some(f),
+            other => rest.push(other),
+        }
+    }
+    let run = run.ok_or_else(|| syn::Error::new(Span::call_site(), "#[node] impl has no `fn run`"))?;
+    let inputs = match run.sig.inputs.iter().nth(1) {
+        Some(syn::FnArg::Typed(t)) => input_type(&t.ty)?,
+        _ => return Err(syn::Error::new(run.sig.span(), "run takes (&self, inputs, cx)")),
+    };
+    let outputs = output_type(&run.sig.output)?;
+    let c = quote!(::relume_core);
+    let rest = if rest.is_empty() { quote!() } else { quote!(impl #self_ty { #(#rest)* }) };
+    Ok(quote! {
+        impl #c::Node for #self_ty {
+            const KIND: &'static str = #kind;
+            const VERSION: u32 = #version;
+            const CATEGORY: &'static str = #category;
+            const CACHING: #c::Caching = #c::Caching::#caching;
+            type Inputs<'a> = #inputs;
+            type Outputs = #outputs;
+            #run
+        }
+        #rest
+    })
+}
+
+/// `()` stays `()`; `In`, `In<'_>` or `In<'x>` becomes `In<'a>`.
+fn input_type(ty: &Type) -> syn::Result<Tokens> {
+    match ty {
+        Type::Tuple(t) if t.elems.is_empty() => Ok(quote!(())),
+        Type::Path(p) => {
+            let mut p = p.clone();
+            let last = p.path.segments.last_mut().unwrap();
+            last.arguments = PathArguments::None;
+            Ok(quote!(#p<'a>))
+        }
+        _ => Err(syn::Error::new(ty.span(), "run's inputs are `()` or a struct declared with `inputs!`")),
+    }
+}
+
+/// `Result<Out, NodeError>` → `Out`.
+fn output_type(ret: &ReturnType) -> syn::Result<Tokens> {
+    if let ReturnType::Type(_, ty) = ret {
+        if let Type::Path(p) = ty.as_ref() {
+            if let Some(PathArguments::AngleBracketed(a)) = p.path.segments.last().map(|s| &s.arguments) {
+                if let Some(GenericArgument::Type(t)) = a.args.first() {
+                    return Ok(quote!(#t));
+                }
+            }
+        }
+    }
+    Err(syn::Error::new(ret.span(), "run returns Result<Outputs, NodeError>"))
+}

@@ -1,0 +1,185 @@
+//! The node API end to end: `derive(Params)`, `derive(ParamEnum)`, `inputs!`/`outputs!`,
+//! `#[node]`, and parameter values normalised once into one cache key.
+
+use relume_core::{
+    inputs, node, outputs, Engine, Graph, NodeError, ParamEnum, ParamKind, ParamValue, Params, PortValue, Registry, RunCtx, RunOptions,
+};
+use std::path::PathBuf;
+
+/// A number on an edge.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Num(f64);
+
+impl PortValue for Num {
+    const NAME: &'static str = "Num";
+    const COLOR: [u8; 3] = [1, 2, 3];
+    fn byte_size(&self) -> usize {
+        8
+    }
+    fn encode(&self) -> Vec<u8> {
+        self.0.to_le_bytes().to_vec()
+    }
+    fn decode(b: &[u8]) -> Option<Self> {
+        Some(Num(f64::from_le_bytes(b.try_into().ok()?)))
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, ParamEnum)]
+pub enum Op {
+    Add,
+    Mul,
+}
+
+/// Emits a constant.
+/// Second line of the doc.
+#[derive(Params)]
+pub struct Source {
+    /// the value
+    #[param(default = 1.0, range = -10.0..=10.0, unit = "W")]
+    pub value: f64,
+}
+
+outputs!(pub SourceOut { out: Num });
+
+#[node(category = "test")]
+impl Source {
+    fn run(&self, _: (), _cx: &RunCtx) -> Result<SourceOut, NodeError> {
+        Ok(SourceOut { out: Num(self.value) })
+    }
+}
+
+/// Combines two numbers with every kind of parameter.
+#[derive(Params)]
+pub struct Apply {
+    /// how to combine
+    #[param(default = Add)]
+    pub op: Op,
+    /// a scale
+    #[param(default = 2.0, range = 0.0..=64.0, unit = "px")]
+    pub sigma: f32,
+    /// a count
+    #[param(default = 3, range = 1..=10)]
+    pub n: u32,
+    /// a switch
+    #[param(default = true)]
+    pub on: bool,
+    /// a label
+    #[param(default = "x")]
+    pub label: String,
+    /// a colour
+    #[param(rgb, default = (1.0, 0.5, 0.25), range = 0.0..=1.0)]
+    pub colour: [f32; 3],
+    /// a position
+    #[param(default = (0.0, -1.0, 2.0))]
+    pub at: [f32; 3],
+    /// a file written
+    #[param(output, default = "out.txt")]
+    pub target: PathBuf,
+}
+
+inputs!(pub ApplyIn { a: Num, b: Num });
+outputs!(pub ApplyOut { out: Num, twice: Num });
+
+#[node(category = "test", version = 3)]
+impl Apply {
+    fn run(&self, i: ApplyIn, cx: &RunCtx) -> Result<ApplyOut, NodeError> {
+        let v = match self.op {
+            Op::Add => i.a.0 + i.b.0,
+            Op::Mul => i.a.0 * i.b.0,
+        } * self.sigma as f64;
+        let parts = cx.par_map(self.n as usize, |k| k as f64)?;
+        let v = v + parts.iter().sum::<f64>() * 0.0;
+        Ok(ApplyOut { out: Num(v), twice: Num(2.0 * v) })
+    }
+}
+
+fn registry() -> Registry {
+    let mut r = Registry::new();
+    r.add::<Source>().add::<Apply>();
+    r
+}
+
+#[test]
+fn derive_params_builds_the_schema_from_the_fields() {
+    use relume_core::{Documented, Node};
+    let s = Apply::schema();
+    let names: Vec<_> = s.0.iter().map(|p| p.name).collect();
+    assert_eq!(names, ["op", "sigma", "n", "on", "label", "colour", "at", "target"]);
+    assert_eq!(s.get("op").unwrap().kind, ParamKind::Enum(&["Add", "Mul"]));
+    assert_eq!(s.get("op").unwrap().default, Some(ParamValue::Ident("Add".into())));
+    assert_eq!(s.get("sigma").unwrap().kind, ParamKind::Float { min: 0.0, max: 64.0 });
+    assert_eq!((s.get("sigma").unwrap().unit, s.get("sigma").unwrap().help), ("px", "a scale"));
+    assert_eq!(s.get("n").unwrap().kind, ParamKind::Int { min: 1, max: 10 });
+    assert_eq!(s.get("colour").unwrap().kind, ParamKind::Rgb { min: 0.0, max: 1.0 });
+    assert_eq!(s.get("at").unwrap().kind, ParamKind::Vec3);
+    assert_eq!(s.get("target").unwrap().kind, ParamKind::OutputFile);
+    assert_eq!(Source::schema().get("value").unwrap().default, Some(ParamValue::Float(1.0)));
+    assert_eq!(Source::DOC, " Emits a constant.\n Second line of the doc.");
+    assert_eq!((Apply::KIND, Apply::VERSION, Apply::CATEGORY), ("Apply", 3, "test"));
+    let reg = registry();
+    let apply = reg.node("Apply").unwrap();
+    assert_eq!(apply.doc(), "Combines two numbers with every kind of parameter.");
+    let ports = apply.ports();
+    assert_eq!(ports.inputs.iter().map(|p| p.name).collect::<Vec<_>>(), ["a", "b"]);
+    assert_eq!(ports.outputs.iter().map(|p| (p.name, p.ty.name)).collect::<Vec<_>>(), [("out", "Num"), ("twice", "Num")]);
+}
+
+#[test]
+fn enum_variants_are_listed_once_and_unknown_names_are_refused() {
+    assert_eq!(Op::VARIANTS, ["Add", "Mul"]);
+    assert_eq!(Op::from_name("Mul"), Some(Op::Mul));
+    assert_eq!(Op::from_name("Div"), None, "no fallback to a default variant");
+    assert_eq!(Op::Mul.name(), "Mul");
+    let err = Graph::parse(r#"(version: 1, nodes: { "a": (kind: "Source", params: ()), "x": (kind: "Apply", params: (op: Div)) })"#, None)
+        .unwrap()
+        .validate(&registry())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("`Div` is not one of Add, Mul"), "{err}");
+}
+
+fn graph(apply_params: &str) -> Graph {
+    Graph::parse(
+        &format!(
+            r#"(version: 1, nodes: {{ "a": (kind: "Source", params: (value: 2)), "b": (kind: "Source", params: ()),
+               "x": (kind: "Apply", params: ({apply_params})) }},
+               edges: [("a.out", "x.a"), ("b.out", "x.b")], outputs: {{ "out": "x.out", "twice": "x.twice" }})"#
+        ),
+        None,
+    )
+    .unwrap()
+}
+
+fn key_of(g: &Graph) -> String {
+    let e = Engine::new(registry());
+    let r = e.run(g, &RunOptions::default()).unwrap();
+    r.report.node("x").unwrap().key.clone()
+}
+
+#[test]
+fn typed_ports_carry_values_through_a_run() {
+    let r = Engine::new(registry()).run(&graph(""), &RunOptions::default()).unwrap();
+    assert_eq!(r.output("out").unwrap().get::<Num>(), Some(&Num(6.0)), "(2 + 1) × 2");
+    assert_eq!(r.output("twice").unwrap().get::<Num>(), Some(&Num(12.0)));
+}
+
+#[test]
+fn int_and_float_spellings_defaults_and_set_give_one_cache_key() {
+    let default = key_of(&graph(""));
+    assert_eq!(key_of(&graph("sigma: 2")), default, "an integer for a float parameter");
+    assert_eq!(key_of(&graph("sigma: 2.0")), default);
+    assert_eq!(key_of(&graph("sigma: 2.0, op: Add, n: 3, colour: (1, 0.5, 0.25)")), default, "defaults written out");
+    assert_eq!(key_of(&graph(r#"op: "Add""#)), default, "an enum as a string");
+    let mut g = graph("sigma: 3");
+    g.set_param_text(&registry(), "x.sigma", "2").unwrap();
+    assert_eq!(key_of(&g), default, "--set of the same value");
+    let mut g = graph("at: (0, -1, 2)");
+    g.set_param_text(&registry(), "x.at", "(0.0, -1.0, 2.0)").unwrap();
+    assert_eq!(key_of(&g), default, "a vec3 with integers");
+    assert_ne!(key_of(&graph("sigma: 2.5")).as_str(), default, "a different value is a different key");
+    // Upstream: `value: 2` and `value: 2.0` give the same input fingerprint.
+    let a = graph("");
+    let mut b = graph("");
+    b.set_param_text(&registry(), "a.value", "2.0").unwrap();
+    assert_eq!(key_of(&a), key_of(&b));
+}

@@ -1,0 +1,17 @@
+//! The shared render library: camera rays, lights and their sampling, surface interaction, the
+//! path-tracing integrator core, and the film that assembles images from per-pixel samples.
+//! The reference renderers, point-based GI and the pipelines to come build on it; it is a
+//! library only: no node lives here.
+//!
+//! - `camera`: primary rays of the scene camera.
+//! - `lights`: choosing and sampling lights for next-event estimation.
+//! - `surface`: the surface point a ray hit (position, normals, object).
+//! - `integrator`: the unidirectional path tracer (`Tracer::radiance`) and its settings.
+//! - `film`: per-pixel loops over an image (rows in parallel, with progress and
+//!   cancellation) and the accumulation of progressive passes into mean and variance.
+
+pub mod camera;
+pub mod film;
+pub mod integrator;
+pub mod lights;
+pub mod surface;
