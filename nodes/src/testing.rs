@@ -104,22 +104,53 @@ pub mod images {
     }
 }
 
-/// A small point-based GI set-up on `test_scene::spheres()`: tree and receivers.
+/// A small point-based GI set-up from the pipeline's own graph: `graphs/fpbgi_cornell.ron`
+/// at 16 × 16 with 3,000 points, one shading sample, tiles of 8² pixels with k = 4 clusters.
 pub mod pbgi_setup {
-    use crate::geometry::sample_surface::{sample_surface, Method, SampleSurface};
-    use crate::pbgi::gbuffer::gbuffer;
-    use crate::pbgi::shade_direct::{shade_direct, ShadeDirect};
-    use crate::types::accel::{Accel, BuildQuality};
-    use crate::types::{PointTree, Receivers};
-    use relume_core::{CancelToken, RunCtx};
+    use crate::types::{Clusters, PointTree, Receivers};
+    use relume_core::graph::{Output, PortRef};
+    use relume_core::{Engine, Graph, RunOptions};
+    use std::sync::OnceLock;
+
+    /// The point tree, receivers and clusters (computed once per test binary).
+    pub fn tree_receivers_clusters() -> (PointTree, Receivers, Clusters) {
+        static SETUP: OnceLock<(PointTree, Receivers, Clusters)> = OnceLock::new();
+        SETUP
+            .get_or_init(|| {
+                let reg = crate::registry();
+                let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../graphs/fpbgi_cornell.ron");
+                let mut g = Graph::load(&path, &reg).unwrap_or_else(|e| panic!("{e}"));
+                let sets = [
+                    ("scene.width", "16"),
+                    ("scene.height", "16"),
+                    ("points.count", "3000"),
+                    ("points.seed", "1"),
+                    ("shade.samples", "1"),
+                    ("clusters.tile", "8"),
+                    ("clusters.k", "4"),
+                    ("clusters.iterations", "5"),
+                    ("clusters.seed", "1"),
+                ];
+                for (k, v) in sets {
+                    g.set_param_text(&reg, k, v).unwrap();
+                }
+                for (name, port) in [("tree", "tree.tree"), ("receivers", "gbuffer.receivers"), ("clusters", "clusters.clusters")] {
+                    g.outputs.push(Output { name: name.into(), port: PortRef::parse(port).unwrap(), pos: Default::default() });
+                }
+                let outputs = Some(["tree", "receivers", "clusters"].map(String::from).to_vec());
+                let r = Engine::new(reg).run(&g, &RunOptions { outputs, ..Default::default() }).unwrap_or_else(|e| panic!("{e}"));
+                let get = |n: &str| r.output(n).unwrap().clone();
+                (
+                    get("tree").get::<PointTree>().unwrap().clone(),
+                    get("receivers").get::<Receivers>().unwrap().clone(),
+                    get("clusters").get::<Clusters>().unwrap().clone(),
+                )
+            })
+            .clone()
+    }
 
     pub fn tree_and_receivers() -> (PointTree, Receivers) {
-        let scene = super::test_scene::spheres();
-        let accel = Accel::build(&scene, BuildQuality::Fast);
-        let pts = sample_surface(&scene, &SampleSurface { method: Method::AreaCdf, count: 3000, seed: 1, emitters: false }).unwrap();
-        let cancel = CancelToken::new();
-        let cx = RunCtx::new("pbgi_setup", &cancel, None);
-        let (b, _) = shade_direct(&scene, &accel, &pts, &ShadeDirect { samples: 1, seed: 0 }, &cx).unwrap();
-        (PointTree::build(&pts, &b), gbuffer(&scene, &accel, &cx).unwrap())
+        let (t, r, _) = tree_receivers_clusters();
+        (t, r)
     }
 }

@@ -111,21 +111,15 @@ impl FactorizedGather {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pbgi::cluster_receivers::{cluster_receivers, ClusterReceivers};
     use crate::pbgi::pbgi_gather::{gather, PbgiGather};
     use crate::testing::{cancels_midway, pbgi_setup, run_on};
     use relume_core::{CancelToken, Value};
-
-    fn clusters_of(r: &Receivers, cx: &RunCtx) -> Clusters {
-        cluster_receivers(r, &ClusterReceivers { tile: 8, k: 4, iterations: 5, seed: 1 }, cx).unwrap().0
-    }
 
     #[test]
     fn the_node_matches_the_plain_gather_closely_and_refuses_foreign_clusters() {
         let cancel = CancelToken::new();
         let cx = RunCtx::new("t", &cancel, None);
-        let (tree, r) = pbgi_setup::tree_and_receivers();
-        let clusters = clusters_of(&r, &cx);
+        let (tree, r, clusters) = pbgi_setup::tree_receivers_clusters();
         let out =
             run_on::<FactorizedGather>(&[], vec![Value::new(tree.clone()), Value::new(r.clone()), Value::new(clusters.clone())]).unwrap();
         let img = out[0].get::<Image>().unwrap();
@@ -147,8 +141,7 @@ mod tests {
     fn the_gather_gives_the_same_bytes_on_one_and_four_threads() {
         let cancel = CancelToken::new();
         let cx = RunCtx::new("t", &cancel, None);
-        let (tree, r) = pbgi_setup::tree_and_receivers();
-        let clusters = clusters_of(&r, &cx);
+        let (tree, r, clusters) = pbgi_setup::tree_receivers_clusters();
         let p = FactorizedGather { resolution: 8, threshold: 1.0, epsilon: 1.0 };
         let run = |threads| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
@@ -160,10 +153,7 @@ mod tests {
 
     #[test]
     fn the_node_stops_when_cancelled() {
-        let cancel = CancelToken::new();
-        let cx = RunCtx::new("t", &cancel, None);
-        let (tree, r) = pbgi_setup::tree_and_receivers();
-        let clusters = clusters_of(&r, &cx);
+        let (tree, r, clusters) = pbgi_setup::tree_receivers_clusters();
         assert!(clusters.clusters.len() >= 8, "enough clusters to cancel between: {}", clusters.clusters.len());
         cancels_midway::<FactorizedGather>(&[], vec![Value::new(tree), Value::new(r), Value::new(clusters)]);
     }

@@ -82,7 +82,7 @@ mod tests {
         let img: Image = first(&out);
         assert_eq!((img.width, img.height), (r.width, r.height));
         assert!(img.as_floats().iter().all(|x| x.is_finite() && *x >= 0.0));
-        assert!(img.as_floats().iter().any(|x| *x > 0.0), "light bounces between the spheres and the floor");
+        assert!(img.as_floats().iter().any(|x| *x > 0.0), "light bounces between the walls of the box");
         let stats = out[1].get::<Metrics>().unwrap();
         assert!(stats.get("nodes_rasterised_per_receiver").unwrap() > 0.0);
         assert!(stats.get("nodes_visited_per_receiver").unwrap() >= stats.get("nodes_rasterised_per_receiver").unwrap());
