@@ -108,3 +108,52 @@ fn a_node_failure_exits_1() {
     .unwrap();
     assert_eq!(relume(&["run", g.to_str().unwrap(), "--no-disk-cache", "-q", "--out", dir.path().join("o").to_str().unwrap()]), 1);
 }
+
+#[test]
+fn exr_layers_hold_every_image_output_of_a_real_run_bit_identical_with_its_provenance() {
+    use exr::prelude::*;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    let graph = graphs_dir().join("reference_cornell.ron").to_string_lossy().into_owned();
+    let sets = ["scene.width=16", "scene.height=12", "reference.spp=4", "truth.spp=8"];
+    let mut args = vec!["run", &graph, "--out", out.to_str().unwrap(), "--no-disk-cache", "--quiet", "--exr-layers"];
+    for s in &sets {
+        args.extend(["--set", s]);
+    }
+    assert_eq!(relume(&args), 0);
+    let path = out.join("reference_cornell.layers.exr");
+    let img = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_file(&path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert_eq!(img.layer_data.len(), 1);
+    let layer = &img.layer_data[0];
+    assert_eq!((layer.size.0, layer.size.1), (16, 12));
+    let names: Vec<String> = layer.channel_data.list.iter().map(|c| c.name.to_string()).collect();
+    assert_eq!(names, ["image.B", "image.G", "image.R", "variance.B", "variance.G", "variance.R"]);
+    for output in ["image", "variance"] {
+        let single = relume_nodes::image::io::read_image(&out.join(format!("{output}.exr"))).unwrap();
+        for (c, s) in ["R", "G", "B"].iter().enumerate() {
+            let ch = layer.channel_data.list.iter().find(|ch| ch.name.to_string() == format!("{output}.{s}")).unwrap();
+            assert!(matches!(ch.sample_data, FlatSamples::F32(_)), "full float by default");
+            let got: Vec<u32> = ch.sample_data.values_as_f32().map(f32::to_bits).collect();
+            let want: Vec<u32> = single.pixels.iter().map(|p| p[c].to_bits()).collect();
+            assert_eq!(got, want, "{output}.{s} is bit-identical to {output}.exr");
+        }
+    }
+    let attr = |k: &str| match layer.attributes.other.get(&Text::from(k)) {
+        Some(AttributeValue::Text(t)) => String::from_utf8(t.bytes().to_vec()).unwrap(),
+        other => panic!("{k}: {other:?}"),
+    };
+    assert!(attr("relume.graph").ends_with("reference_cornell.ron"));
+    let layers: serde_json::Value = serde_json::from_str(&attr("relume.layers")).unwrap();
+    assert_eq!(layers[0]["layer"], "image");
+    assert_eq!(layers[0]["node"], "reference");
+    assert_eq!(layers[0]["kind"], "PathTrace");
+    assert!(layers[0]["params"].as_str().unwrap().contains("spp: 4"), "{layers}");
+    assert!(layer.attributes.software_name.as_ref().unwrap().to_string().starts_with("relume "));
+}

@@ -293,6 +293,17 @@ impl ParamValues {
         }
     }
 
+    /// Every parameter with its value, in schema order.
+    pub fn iter(&self) -> impl Iterator<Item = (&'static str, &ParamValue)> {
+        self.values.iter().map(|(n, v)| (*n, v))
+    }
+
+    /// Canonical RON text of every value, defaults included: `(sigma: 1.0, op: Aces)`.
+    pub fn to_text(&self) -> String {
+        let items: Vec<String> = self.iter().map(|(n, v)| format!("{n}: {}", v.to_text())).collect();
+        format!("({})", items.join(", "))
+    }
+
     fn get(&self, name: &str) -> &ParamValue {
         match self.values.iter().find(|(n, _)| *n == name) {
             Some((_, v)) => v,

@@ -3,12 +3,12 @@
 use crate::error::{GraphError, GraphErrors};
 use crate::graph::Graph;
 use crate::registry::Registry;
-use std::collections::{HashMap, VecDeque};
+use std::collections::HashMap;
 
 /// What a run will evaluate.
 #[derive(Clone, Debug)]
 pub struct Plan {
-    /// Indices into `graph.nodes`, each after all of its inputs (file order among equals).
+    /// Indices into `graph.nodes`, each after all of its inputs (petgraph's topological sort).
     pub order: Vec<usize>,
     /// For every graph node: per declared input, the (node index, output index) feeding it.
     pub sources: Vec<Vec<(usize, usize)>>,
@@ -65,43 +65,19 @@ pub fn make_plan(graph: &Graph, reg: &Registry, requested: Option<&[String]>) ->
             .collect();
     }
 
-    // Reverse reachability from the requested outputs.
-    let mut needed = vec![false; graph.nodes.len()];
-    let mut stack: Vec<usize> = outputs.iter().map(|o| o.1).collect();
-    while let Some(i) = stack.pop() {
-        if std::mem::replace(&mut needed[i], true) {
-            continue;
-        }
+    // Demand: every node upstream of a requested output (petgraph, reversed edges).
+    let topology = graph.topology();
+    let needed = topology.upstream_of(&outputs.iter().map(|o| o.1).collect::<Vec<_>>());
+    for i in (0..graph.nodes.len()).filter(|&i| needed[i]) {
         if sources[i].iter().any(|s| s.0 == usize::MAX) {
             errs.extend(graph.unconnected_inputs(reg, &graph.nodes[i].id));
         }
-        stack.extend(sources[i].iter().map(|s| s.0).filter(|&s| s != usize::MAX));
     }
     if !errs.is_empty() {
         return Err(GraphErrors(errs).with_file(&graph.file));
     }
-
-    // Kahn's algorithm over the needed nodes.
-    let mut waiting: Vec<usize> = (0..graph.nodes.len()).map(|i| sources[i].len()).collect();
-    let mut dependents = vec![Vec::new(); graph.nodes.len()];
-    for i in (0..graph.nodes.len()).filter(|&i| needed[i]) {
-        for s in &sources[i] {
-            dependents[s.0].push(i);
-        }
-    }
-    let mut queue: VecDeque<usize> = (0..graph.nodes.len()).filter(|&i| needed[i] && waiting[i] == 0).collect();
-    let mut order = Vec::new();
-    while let Some(i) = queue.pop_front() {
-        order.push(i);
-        for &d in &dependents[i] {
-            waiting[d] -= 1;
-            if waiting[d] == 0 {
-                queue.push_back(d);
-            }
-        }
-    }
-    if order.len() != needed.iter().filter(|&&b| b).count() {
-        return Err(GraphErrors::one(GraphError::new("the needed nodes form a cycle")).with_file(&graph.file));
-    }
+    let order = topology.order(&needed).map_err(|i| {
+        GraphErrors::one(GraphError::new(format!("the needed nodes form a cycle through \"{}\"", graph.nodes[i].id))).with_file(&graph.file)
+    })?;
     Ok(Plan { order, sources, outputs, needed })
 }

@@ -285,6 +285,29 @@ impl EditorApp {
         self.status = "run cancelled".into();
     }
 
+    /// Writes the last run's image outputs as one multi-layer EXR beside the graph file
+    /// (`GRAPH.layers.exr`: a layer per image output, the graph, nodes and parameters in its
+    /// header), as `relume run --exr-layers` does; the status bar says where.
+    pub fn save_exr_layers(&mut self) -> Option<std::path::PathBuf> {
+        if self.last_outputs.is_empty() {
+            self.status = "nothing to save yet: run the graph (F5) first".into();
+            return None;
+        }
+        let dir = self.doc.graph.base_dir.clone();
+        let mut graph = self.doc.graph.clone();
+        graph.file = graph.file.or_else(|| self.doc.path.clone());
+        match relume_nodes::image::exr_layers::write_run_layers(&self.registry, &graph, &self.last_outputs, &dir, false) {
+            Ok(path) => {
+                self.status = format!("saved image layers to {}", path.display());
+                Some(path)
+            }
+            Err(m) => {
+                self.status = m;
+                None
+            }
+        }
+    }
+
     /// Takes in a finished run: report, states, the viewed image, edit-to-image time.
     fn collect_finished(&mut self) {
         if let Some(f) = self.runner.take_finished() {

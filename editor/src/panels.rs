@@ -59,6 +59,14 @@ fn menu_bar(app: &mut EditorApp, ctx: &egui::Context) {
                     app.dialog = Some(save_as_dialog(app));
                     ui.close_menu();
                 }
+                if ui
+                    .button("Save image layers (EXR)")
+                    .on_hover_text("every image output of the last run as one multi-layer EXR beside the graph")
+                    .clicked()
+                {
+                    app.save_exr_layers();
+                    ui.close_menu();
+                }
                 if ui.button("Quit").clicked() {
                     ctx.send_viewport_cmd(egui::ViewportCommand::Close);
                     ui.close_menu();

@@ -276,3 +276,21 @@ fn deleting_a_node_in_the_widget_is_one_undo_step() {
     assert_eq!(app.doc.graph.to_ron(), before, "one undo brings the node and its edges back");
     assert_eq!(app.view.connection_count(), 7);
 }
+
+#[test]
+fn save_image_layers_writes_every_image_output_of_the_last_run_beside_the_graph() {
+    let (dir, mut app, ctx) = filters();
+    assert!(app.save_exr_layers().is_none(), "nothing to save before a run");
+    app.run();
+    app.wait_for_run();
+    frame(&ctx, &mut app);
+    let path = app.save_exr_layers().unwrap_or_else(|| panic!("{}", app.status));
+    assert_eq!(path, dir.path().join("filters.layers.exr"));
+    let bytes = std::fs::read(&path).unwrap();
+    assert_eq!(&bytes[..4], &[0x76, 0x2f, 0x31, 0x01], "an OpenEXR file");
+    let header = String::from_utf8_lossy(&bytes[..bytes.len().min(8192)]).into_owned();
+    for name in ["image.R", "image.G", "image.B", "relume.layers", "filters.ron"] {
+        assert!(header.contains(name), "{name} in the header");
+    }
+    assert!(app.status.contains("filters.layers.exr"), "{}", app.status);
+}

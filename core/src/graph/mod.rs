@@ -4,10 +4,12 @@
 mod load;
 mod migrate;
 mod save;
+mod topology;
 mod validate;
 
 pub use migrate::{Migration, MIGRATIONS};
 pub use save::write_atomic;
+pub use topology::Topology;
 
 use crate::error::GraphError;
 use crate::params::ParamValue;

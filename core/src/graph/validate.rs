@@ -164,65 +164,28 @@ impl Graph {
 
     /// Whether node `to` can be reached from node `from` along edges (a node reaches itself).
     pub fn reaches(&self, from: &str, to: &str) -> bool {
-        let mut seen = std::collections::HashSet::new();
-        let mut stack = vec![from];
-        while let Some(n) = stack.pop() {
-            if n == to {
-                return true;
-            }
-            if seen.insert(n) {
-                stack.extend(self.edges.iter().filter(|e| e.from.node == n).map(|e| e.to.node.as_str()));
-            }
+        match (self.node_index(from), self.node_index(to)) {
+            (Some(a), Some(b)) => self.topology().reaches(a, b),
+            _ => false,
         }
-        false
     }
 
     /// Every node downstream of `id`, itself included, sorted: what an edit of `id` makes stale.
     pub fn downstream(&self, id: &str) -> Vec<String> {
-        let mut out: Vec<String> = self.nodes.iter().filter(|n| self.reaches(id, &n.id)).map(|n| n.id.clone()).collect();
+        let Some(i) = self.node_index(id) else { return Vec::new() };
+        let reached = self.topology().downstream_of(i);
+        let mut out: Vec<String> = self.nodes.iter().zip(reached).filter(|(_, r)| *r).map(|(n, _)| n.id.clone()).collect();
         out.sort();
         out
     }
 
-    /// A cycle as a list of node ids, if the edges have one.
+    /// The graph's topology on petgraph.
+    pub fn topology(&self) -> super::topology::Topology {
+        super::topology::Topology::new(self)
+    }
+
+    /// A cycle as a list of node ids (starting at the one listed first), if the edges have one.
     pub fn find_cycle(&self) -> Option<Vec<String>> {
-        let n = self.nodes.len();
-        let index: HashMap<&str, usize> = self.nodes.iter().enumerate().map(|(i, d)| (d.id.as_str(), i)).collect();
-        let mut succ = vec![Vec::new(); n];
-        for e in &self.edges {
-            if let (Some(&a), Some(&b)) = (index.get(e.from.node.as_str()), index.get(e.to.node.as_str())) {
-                succ[a].push(b);
-            }
-        }
-        // Iterative DFS with colours: 0 new, 1 on stack, 2 done.
-        let mut colour = vec![0u8; n];
-        for start in 0..n {
-            if colour[start] != 0 {
-                continue;
-            }
-            let mut stack = vec![(start, 0usize)];
-            colour[start] = 1;
-            while let Some(&mut (v, ref mut k)) = stack.last_mut() {
-                if *k < succ[v].len() {
-                    let w = succ[v][*k];
-                    *k += 1;
-                    match colour[w] {
-                        0 => {
-                            colour[w] = 1;
-                            stack.push((w, 0));
-                        }
-                        1 => {
-                            let from = stack.iter().position(|&(u, _)| u == w).unwrap();
-                            return Some(stack[from..].iter().map(|&(u, _)| self.nodes[u].id.clone()).collect());
-                        }
-                        _ => {}
-                    }
-                } else {
-                    colour[v] = 2;
-                    stack.pop();
-                }
-            }
-        }
-        None
+        Some(self.topology().cycle()?.into_iter().map(|i| self.nodes[i].id.clone()).collect())
     }
 }

@@ -71,6 +71,14 @@ pub(crate) struct RunArgs {
     /// No progress bars and no table.
     #[arg(long, short)]
     quiet: bool,
+    /// Also write every image output of the run as a layer of one multi-layer EXR,
+    /// `OUT/GRAPH.layers.exr` (`image.R/G/B`, `variance.R/G/B`, …), with the graph, each
+    /// layer's node and its parameters in the header.
+    #[arg(long)]
+    exr_layers: bool,
+    /// Half floats in the multi-layer EXR (default: full 32-bit floats).
+    #[arg(long, requires = "exr_layers")]
+    exr_half: bool,
 }
 
 /// An error for the user and the exit code that goes with it.

@@ -13,7 +13,11 @@ pub(crate) fn run(reg: &Registry, a: &RunArgs) -> Result<(), CliError> {
         other => CliError::run(other),
     })?;
     drop(bars);
-    let files = write_outputs(&a.out, &result.outputs).map_err(CliError::run)?;
+    let mut files = write_outputs(&a.out, &result.outputs).map_err(CliError::run)?;
+    if a.exr_layers {
+        let path = crate::image::exr_layers::write_run_layers(reg, &graph, &result.outputs, &a.out, a.exr_half).map_err(CliError::run)?;
+        files.push(path);
+    }
     if let Some(path) = &a.report {
         relume_core::graph::write_atomic(path, result.report.to_json().as_bytes())
             .map_err(|e| CliError::run(format!("cannot write report {}: {e}", path.display())))?;

@@ -1,6 +1,7 @@
 //! Image nodes: file I/O, tone mapping, filters, error figures and the z-test.
 
 pub mod combine;
+pub mod exr_layers;
 pub mod gaussian_blur;
 pub mod image_error;
 pub mod io;
