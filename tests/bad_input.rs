@@ -28,6 +28,99 @@ fn an_unknown_node_kind_names_the_node_and_suggests_a_kind() {
 }
 
 #[test]
+fn an_unknown_node_kind_gets_the_closest_kind_by_edit_distance_not_only_for_case() {
+    for (typo, want) in
+        [("PathTracer", "PathTrace"), ("Tonemapper", "Tonemap"), ("GausianBlur", "GaussianBlur"), ("imageerror", "ImageError")]
+    {
+        let e = load_error(&format!("{HEAD}        \"n\": (kind: \"{typo}\", params: ()),\n    }},\n)"));
+        assert!(e.contains(&format!("bad.ron:4:9: node \"n\": unknown node kind \"{typo}\" (did you mean \"{want}\"?)")), "{e}");
+    }
+    let e = load_error(&format!("{HEAD}        \"n\": (kind: \"Banana\", params: ()),\n    }},\n)"));
+    assert!(e.contains("unknown node kind \"Banana\"; `relume nodes` lists them"), "no far-fetched suggestion: {e}");
+}
+
+#[test]
+fn an_unknown_parameter_suggests_the_closest_one() {
+    let e = load_error(&format!("{HEAD}        \"blur\": (kind: \"GaussianBlur\", params: (sigam: 1.0)),\n    }},\n)"));
+    assert!(
+        e.contains(
+            "bad.ron:4:49: node \"blur\": parameter `sigam`: unknown parameter for GaussianBlur (did you mean `sigma`? it has parameters: sigma, truncate)"
+        ),
+        "{e}"
+    );
+    let reg = relume_nodes::registry();
+    let mut g = Graph::load(&relume_tests::graphs_dir().join("filters.ron"), &reg).unwrap();
+    let e = g.set_param_text(&reg, "blur.truncat", "3").unwrap_err().to_string();
+    assert!(e.contains("GaussianBlur has no parameter `truncat` (did you mean `truncate`? it has: sigma, truncate)"), "{e}");
+}
+
+#[test]
+fn an_unconnected_input_names_the_graph_file_as_relume_check_reports_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("g.ron");
+    std::fs::write(&path, "Graph(version: 1, nodes: {\n \"t\": (kind: \"Tonemap\", params: ()),\n})").unwrap();
+    let reg = relume_nodes::registry();
+    let g = Graph::load(&path, &reg).unwrap();
+    let e: Vec<String> = g.unconnected_inputs(&reg, "t").iter().map(|e| e.to_string()).collect();
+    assert_eq!(e, [format!("{}:2:2: node \"t\": input `image` (Image) is not connected", path.display())]);
+}
+
+/// A graph in `dir/graph/g.ron` whose SaveImage writes `target` (relative to the graph).
+fn saving_graph(dir: &std::path::Path, target: &str) -> std::path::PathBuf {
+    let path = dir.join("graph").join("g.ron");
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    std::fs::write(
+        &path,
+        format!(
+            "Graph(version: 1, nodes: {{\n  \"p\": (kind: \"TestPattern\", params: (width: 4, height: 4)),\n  \"save\": (kind: \"SaveImage\", params: (path: \"{target}\")),\n}}, edges: [(\"p.image\", \"save.image\")], outputs: {{ \"x\": \"save.image\" }})"
+        ),
+    )
+    .unwrap();
+    path
+}
+
+#[test]
+fn a_graph_cannot_make_save_image_write_outside_its_folder_unless_the_run_allows_it() {
+    use relume_core::{RunOptions, WritePolicy};
+    let dir = tempfile::tempdir().unwrap();
+    let reg = relume_nodes::registry();
+    let escape = dir.path().join("elsewhere").join("x.png");
+    let g = Graph::load(&saving_graph(dir.path(), "../elsewhere/x.png"), &reg).unwrap();
+    let e = relume_tests::engine().run(&g, &RunOptions::default()).err().expect("refused").to_string();
+    assert!(e.contains("node \"save\" (SaveImage) failed: parameter `path`: refusing to write"), "{e}");
+    assert!(e.contains("outside the folders this run may write to") && e.contains("--allow-writes-anywhere"), "{e}");
+    assert!(!escape.exists(), "nothing written outside");
+    // Inside the graph's folder, or in a folder the run allows: written.
+    let inside = Graph::load(&saving_graph(dir.path(), "sub/in.png"), &reg).unwrap();
+    relume_tests::engine().run(&inside, &RunOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+    assert!(dir.path().join("graph/sub/in.png").is_file());
+    let opts = RunOptions { writes: WritePolicy::Within(vec![dir.path().join("elsewhere")]), ..Default::default() };
+    relume_tests::engine().run(&g, &opts).unwrap_or_else(|e| panic!("{e}"));
+    assert!(escape.is_file(), "an extra folder the run allows");
+    std::fs::remove_file(&escape).unwrap();
+    let opts = RunOptions { writes: WritePolicy::Anywhere, ..Default::default() };
+    relume_tests::engine().run(&g, &opts).unwrap_or_else(|e| panic!("{e}"));
+    assert!(escape.is_file(), "--allow-writes-anywhere");
+}
+
+#[test]
+fn a_request_over_a_limit_is_a_refusal_not_a_failure() {
+    let g = Graph::parse(
+        "Graph(version: 1, nodes: {\n \"a\": (kind: \"TestPattern\", params: (width: 16384, height: 16384)),\n}, outputs: { \"x\": \"a.image\" })",
+        Some(std::path::Path::new("g.ron")),
+    )
+    .unwrap();
+    match relume_tests::engine().run(&g, &Default::default()) {
+        Err(relume_core::RunError::Node { id, error, .. }) => {
+            assert_eq!(id, "a");
+            assert!(error.is_over_limit(), "{error:?}");
+            assert_eq!(error.to_string(), "an image of 16384 × 16384 pixels needs 3.0 GiB, over the 2 GiB limit");
+        }
+        other => panic!("expected the node's refusal, got {:?}", other.map(|r| r.report.total_ms)),
+    }
+}
+
+#[test]
 fn an_unknown_parameter_names_node_parameter_and_the_valid_ones() {
     let e =
         load_error(&format!("{HEAD}        \"blur\": (kind: \"GaussianBlur\", params: (sigma: 1.0,\n            radius: 3)),\n    }},\n)"));

@@ -98,15 +98,135 @@ fn check_plan_and_nodes_succeed_and_a_broken_graph_exits_2() {
 }
 
 #[test]
-fn a_node_failure_exits_1() {
+fn a_node_failure_exits_1_and_a_request_over_a_limit_exits_2() {
     let dir = tempfile::tempdir().unwrap();
+    let o = dir.path().join("o");
     let g = dir.path().join("g.ron");
+    // Sizes that only meet at run time: the error node fails.
+    std::fs::write(
+        &g,
+        r#"Graph(version: 1, nodes: { "a": (kind: "TestPattern", params: (width: 8, height: 8)), "b": (kind: "TestPattern", params: (width: 9, height: 8)), "e": (kind: "ImageError") }, edges: [("a.image", "e.image"), ("b.image", "e.reference")], outputs: { "x": "e.metrics" })"#,
+    )
+    .unwrap();
+    assert_eq!(relume(&["run", g.to_str().unwrap(), "--no-disk-cache", "-q", "--out", o.to_str().unwrap()]), 1);
+    // An image over MAX_IMAGE_BYTES is refused: bad input, like an out-of-range parameter.
     std::fs::write(
         &g,
         r#"Graph(version: 1, nodes: { "a": (kind: "TestPattern", params: (width: 16384, height: 16384)) }, outputs: { "x": "a.image" })"#,
     )
     .unwrap();
-    assert_eq!(relume(&["run", g.to_str().unwrap(), "--no-disk-cache", "-q", "--out", dir.path().join("o").to_str().unwrap()]), 1);
+    assert_eq!(relume(&["run", g.to_str().unwrap(), "--no-disk-cache", "-q", "--out", o.to_str().unwrap()]), 2);
+}
+
+/// `relume run` of `filters.ron` into `dir` with a disk cache that keeps every result
+/// (`dir/cache`), plus `extra` arguments.
+fn run_filters(dir: &Path, extra: &[&str]) -> i32 {
+    let g = graphs_dir().join("filters.ron");
+    let cache = dir.join("cache");
+    let mut args = vec!["run", g.to_str().unwrap(), "--cache", cache.to_str().unwrap(), "--cache-all", "-q"];
+    args.extend_from_slice(extra);
+    relume(&args)
+}
+
+#[test]
+fn unwritable_destinations_are_refused_before_anything_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("a-file");
+    std::fs::write(&file, "").unwrap();
+    let f = file.to_str().unwrap();
+    let report_under_file = file.join("r.json");
+    let report_is_a_folder = dir.path().to_str().unwrap().to_string();
+    for extra in [
+        vec!["--out", f],
+        vec!["--out", &*dir.path().join("o").to_string_lossy(), "--report", report_under_file.to_str().unwrap()],
+        vec!["--out", &*dir.path().join("o").to_string_lossy(), "--report", &report_is_a_folder],
+    ] {
+        assert_eq!(run_filters(dir.path(), &extra), 2, "{extra:?}");
+        assert!(!dir.path().join("cache").exists(), "nothing ran, nothing was cached: {extra:?}");
+    }
+    assert_eq!(std::fs::read(&file).unwrap(), b"", "the file is left alone");
+}
+
+#[test]
+fn the_output_and_report_folders_are_created_when_missing() {
+    let dir = tempfile::tempdir().unwrap();
+    let (o, r) = (dir.path().join("new/o"), dir.path().join("reports/today/r.json"));
+    assert_eq!(run_filters(dir.path(), &["--out", o.to_str().unwrap(), "--report", r.to_str().unwrap()]), 0);
+    assert!(o.join("image.png").is_file());
+    assert_eq!(report(&r)["ran"], 7);
+}
+
+#[test]
+fn a_cache_that_cannot_be_written_is_said_in_the_report_and_the_run_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let g = graphs_dir().join("filters.ron");
+    let file = dir.path().join("cache-file");
+    std::fs::write(&file, "").unwrap();
+    let r = dir.path().join("r.json");
+    let o = dir.path().join("o");
+    let run = |cache: &Path| {
+        relume(&[
+            "run",
+            g.to_str().unwrap(),
+            "--cache",
+            cache.to_str().unwrap(),
+            "--out",
+            o.to_str().unwrap(),
+            "--report",
+            r.to_str().unwrap(),
+            "-q",
+        ])
+    };
+    assert_eq!(run(&file), 0);
+    let notes = report(&r)["notes"].clone();
+    let note = notes[0].as_str().unwrap_or_else(|| panic!("a note: {notes}"));
+    assert!(note.contains("cache-file (from --cache) could not be written") && note.contains("is a file, not a folder"), "{note}");
+    assert!(note.contains("results were not kept on disk"), "{note}");
+    // A writable cache: no note.
+    assert_eq!(run(&dir.path().join("cache")), 0);
+    assert!(report(&r)["notes"].is_null(), "{}", report(&r));
+    // A read-only folder (where permissions bind: not for root).
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let ro = dir.path().join("ro");
+        std::fs::create_dir(&ro).unwrap();
+        std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o555)).unwrap();
+        if std::fs::write(ro.join("probe"), "").is_err() {
+            assert_eq!(run(&ro), 0);
+            assert!(report(&r)["notes"][0].as_str().unwrap().contains("cannot write in"), "{}", report(&r));
+        }
+        std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o755)).unwrap();
+    }
+}
+
+#[test]
+fn save_image_outside_the_graph_and_output_folders_needs_allow_writes_anywhere() {
+    let dir = tempfile::tempdir().unwrap();
+    let graph = dir.path().join("graph/g.ron");
+    std::fs::create_dir_all(graph.parent().unwrap()).unwrap();
+    let write = |target: &str| {
+        std::fs::write(
+            &graph,
+            format!("Graph(version: 1, nodes: {{\n  \"p\": (kind: \"TestPattern\", params: (width: 4, height: 4)),\n  \"save\": (kind: \"SaveImage\", params: (path: \"{target}\")),\n}}, edges: [(\"p.image\", \"save.image\")], outputs: {{ \"x\": \"save.image\" }})"),
+        )
+        .unwrap()
+    };
+    write("../elsewhere/x.png");
+    let escape = dir.path().join("elsewhere/x.png");
+    let (g, o) = (graph.to_str().unwrap(), dir.path().join("o"));
+    let o = o.to_str().unwrap();
+    assert_eq!(relume(&["check", g, "--out", o]), 2);
+    assert_eq!(relume(&["plan", g, "--out", o, "--no-disk-cache"]), 2);
+    assert_eq!(relume(&["run", g, "--out", o, "--no-disk-cache", "-q"]), 2);
+    assert!(!escape.exists(), "refused before running");
+    assert_eq!(relume(&["run", g, "--out", o, "--no-disk-cache", "-q", "--allow-writes-anywhere"]), 0);
+    assert!(escape.is_file());
+    // A path into the output folder is allowed without the flag.
+    write("../o/saved.png");
+    assert_eq!(relume(&["check", g, "--out", o]), 0);
+    assert_eq!(relume(&["run", g, "--out", o, "--no-disk-cache", "-q"]), 0);
+    assert!(dir.path().join("o/saved.png").is_file());
 }
 
 #[test]

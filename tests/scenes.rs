@@ -104,3 +104,51 @@ fn degenerate_triangles_are_dropped_and_counted() {
     assert_eq!(l.notes, ["2 zero-area triangles dropped"]);
     assert!(l.scene.normals.iter().all(|n| n.is_finite()));
 }
+
+/// OBJ and MTL mistakes reach the person through the scene loader with the OBJ's or the
+/// MTL's own file and line (the scene file's colours were already checked; the MTL's were
+/// not, and ran with non-finite albedo and emission).
+#[test]
+fn obj_and_mtl_errors_name_their_own_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("s.ron"), "Scene(camera: (origin: (0, 0, 3), target: (0, 0, 0), up: (0, 1, 0), fov: 40, width: 8, height: 8),\n shapes: [Obj(path: \"m.obj\")])").unwrap();
+    let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    let err = |obj: &str, mtl: Option<&str>| {
+        std::fs::write(d.join("m.obj"), obj).unwrap();
+        match mtl {
+            Some(m) => std::fs::write(d.join("m.mtl"), m).unwrap(),
+            None => {
+                let _ = std::fs::remove_file(d.join("m.mtl"));
+            }
+        }
+        let e = load_scene_file(&d.join("s.ron")).err().expect("an error");
+        e.replace(&format!("{}/", d.display()), "")
+    };
+    let obj = format!("mtllib m.mtl\n{tri}usemtl a\nf 1 2 3\n");
+    assert_eq!(err(&obj, Some("newmtl a\nKd -5 nan 2\n")), "m.mtl:2: `Kd` has a non-finite value `nan`");
+    assert_eq!(err(&obj, Some("newmtl a\nKd 0.5 0.5 0.5\nKe inf 0 0\n")), "m.mtl:3: `Ke` has a non-finite value `inf`");
+    assert_eq!(err(&obj, Some("newmtl a\nKd 2 0 0\n")), "m.mtl:2: `Kd` = 2 0 0 must lie in [0, 1]");
+    let mtl = Some("newmtl a\nKd 0.5 0.5 0.5\nnewmtl b\nKd 1 1 1\n");
+    assert_eq!(
+        err(&format!("mtllib m.mtl\n{tri}garbage here\nusemtl a\nf 1 2 3\n"), mtl),
+        "m.obj:5: `garbage here` is not an OBJ statement (expected v, vt, vn, f, o, g, usemtl, mtllib, s or a # comment)"
+    );
+    let e = err(&format!("mtllib other.mtl\n{tri}usemtl a\nf 1 2 3\n"), mtl);
+    assert!(e.starts_with("m.obj:1: cannot read the material library \"other.mtl\""), "{e}");
+    assert_eq!(
+        err(&format!("mtllib m.mtl\n{tri}vn 0 0 1\nusemtl a\nf 1//1 2//1 3//3\n"), mtl),
+        "m.obj:7: face index 3 refers to a normal that does not exist (only 1 so far)"
+    );
+    assert_eq!(
+        err(&format!("mtllib m.mtl\n{tri}usemtl c\nf 1 2 3\n"), mtl),
+        "m.obj:5: `usemtl c`: material \"c\" is not defined in m.mtl (it defines: a, b)"
+    );
+}
+
+/// The MTL a scene's OBJ names is a dependency of the scene (editing it re-runs LoadScene).
+#[test]
+fn the_cornell_mtl_is_a_dependency() {
+    let l = load_scene_file(&graphs_dir().join("scenes/cornell.ron")).unwrap();
+    assert!(l.files.iter().any(|(p, _)| p.ends_with("cornell_box.mtl")), "{:?}", l.files);
+}

@@ -115,13 +115,15 @@ pub struct TestNode {
     ports: Ports,
     schema: Schema,
     run: Box<RunFn>,
+    /// The working memory it states (the memory model's tests).
+    working: u64,
 }
 
 impl TestNode {
     fn erased(kind: &'static str, inputs: &[&'static str], run: Box<RunFn>) -> Arc<dyn DynNode> {
         let ports = Ports { inputs: inputs.iter().map(|n| PortDecl::of::<Num>(n)).collect(), outputs: vec![PortDecl::of::<Num>("out")] };
         let schema = Schema::new().int("salt", 0, i64::MIN, i64::MAX).help("changes the output");
-        Arc::new(TestNode { kind, ports, schema, run })
+        Arc::new(TestNode { kind, ports, schema, run, working: 0 })
     }
 }
 
@@ -150,6 +152,24 @@ impl DynNode for TestNode {
     fn run(&self, params: &ParamValues, inputs: &[Value], cx: &RunCtx) -> Result<Vec<Value>, NodeError> {
         (self.run)(params.int("salt"), inputs, cx)
     }
+    fn memory(&self, _: &ParamValues, _: &[Option<relume_core::PortSize>]) -> Result<relume_core::MemoryEstimate, NodeError> {
+        Ok(relume_core::MemoryEstimate { outputs: vec![Some(relume_core::PortSize::bytes(8))], working: self.working })
+    }
+}
+
+/// Test node `Big`: states `working` bytes of working memory, records when it ran
+/// (start, end) in `log` and sleeps 50 ms in between.
+pub fn big(working: u64, log: &Arc<Mutex<Vec<(std::time::Instant, std::time::Instant)>>>) -> Arc<dyn DynNode> {
+    let log = log.clone();
+    let run: Box<RunFn> = Box::new(move |salt, _, _| {
+        let t0 = std::time::Instant::now();
+        std::thread::sleep(Duration::from_millis(50));
+        log.lock().unwrap().push((t0, std::time::Instant::now()));
+        Ok(vec![Value::new(Num(salt as u64))])
+    });
+    let ports = Ports { inputs: vec![], outputs: vec![PortDecl::of::<Num>("out")] };
+    let schema = Schema::new().int("salt", 0, i64::MIN, i64::MAX).help("changes the output");
+    Arc::new(TestNode { kind: "Big", ports, schema, run, working })
 }
 
 const MIX_KINDS: [&str; 4] = ["Mix0", "Mix1", "Mix2", "Mix3"];

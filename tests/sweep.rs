@@ -197,6 +197,35 @@ fn unknown_nodes_params_metrics_and_empty_lists_exit_2() {
 }
 
 #[test]
+fn a_metric_or_destination_that_cannot_work_is_refused_before_the_first_variant_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let (cache, out) = (dir.path().join("cache"), dir.path().join("o"));
+    let file = dir.path().join("a-file");
+    std::fs::write(&file, "").unwrap();
+    let g = filters();
+    let sweep = |extra: &[&str]| {
+        let mut args = vec!["sweep", g.as_str(), "--vary", "blur.sigma=1,2", "--cache", cache.to_str().unwrap(), "--cache-all", "-q"];
+        args.extend_from_slice(extra);
+        relume(&args)
+    };
+    let o = out.to_str().unwrap();
+    for extra in [
+        vec!["--out", o, "--metric", "nope"],
+        vec!["--out", o, "--metric", "psnr"],
+        vec!["--out", o, "--error-node", "blur"],
+        vec!["--out", file.to_str().unwrap()],
+        vec!["--out", o, "--csv", &*file.join("s.csv").to_string_lossy()],
+        vec!["--out", o, "--plot", &*dir.path().to_string_lossy()],
+    ] {
+        assert_eq!(sweep(&extra), 2, "{extra:?}");
+        assert!(!cache.exists(), "nothing ran: {extra:?}");
+    }
+    // A metric the error node reports: the sweep runs.
+    assert_eq!(sweep(&["--out", o, "--metric", "psnr_db"]), 0);
+    assert!(out.join("sweep.csv").is_file());
+}
+
+#[test]
 fn the_baseline_can_plot_its_own_error_node_and_an_unknown_one_exits_2() {
     let dir = tempfile::tempdir().unwrap();
     let graph = relume_tests::graphs_dir().join("image_error.ron");

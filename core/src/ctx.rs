@@ -23,6 +23,93 @@ impl CancelToken {
     }
 }
 
+/// Where a run's nodes may write files (`ParamKind::OutputFile` parameters): a graph from
+/// someone else must not write outside the folders the person running it chose.
+#[derive(Clone, Debug, PartialEq)]
+pub enum WritePolicy {
+    /// Below the graph file's own folder (the engine adds it) and below these folders (the
+    /// command line adds its output folder). The default, with no extra folder.
+    Within(Vec<PathBuf>),
+    /// Anywhere (`--allow-writes-anywhere`: the person running the graph trusts it).
+    Anywhere,
+}
+
+impl Default for WritePolicy {
+    fn default() -> Self {
+        WritePolicy::Within(Vec::new())
+    }
+}
+
+/// The folders a run may write below, resolved once (`resolve_write_path`); `None`: anywhere.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct WriteRoots(Option<Vec<PathBuf>>);
+
+impl WriteRoots {
+    /// No restriction (a node run on its own, outside a graph).
+    pub fn anywhere() -> Self {
+        WriteRoots(None)
+    }
+
+    /// The roots of `policy` for a graph whose relative paths resolve against `base_dir`.
+    pub fn new(policy: &WritePolicy, base_dir: &Path) -> Self {
+        match policy {
+            WritePolicy::Anywhere => WriteRoots(None),
+            WritePolicy::Within(extra) => {
+                let mut roots = vec![resolve_write_path(base_dir)];
+                roots.extend(extra.iter().map(|d| resolve_write_path(d)));
+                roots.dedup();
+                WriteRoots(Some(roots))
+            }
+        }
+    }
+
+    /// The resolved folders (`None`: anywhere).
+    pub fn folders(&self) -> Option<&[PathBuf]> {
+        self.0.as_deref()
+    }
+
+    /// `Ok` when a file written at `path` lands below one of the roots; otherwise a sentence
+    /// saying where it would land and what to do.
+    pub fn check(&self, path: &Path) -> Result<(), String> {
+        let Some(roots) = &self.0 else { return Ok(()) };
+        let real = resolve_write_path(path);
+        if roots.iter().any(|r| real.starts_with(r)) {
+            return Ok(());
+        }
+        let list: Vec<String> = roots.iter().map(|r| r.display().to_string()).collect();
+        Err(format!(
+            "refusing to write {}: it is outside the folders this run may write to ({}); write below one of them, \
+             or, if you trust this graph, allow it with `--allow-writes-anywhere`",
+            real.display(),
+            list.join(", ")
+        ))
+    }
+}
+
+/// Where a file written at `path` would land: made absolute against the current folder, the
+/// longest part that exists resolved by the file system (symbolic links followed, so a link
+/// cannot lead outside), and `.` and `..` applied to the rest.
+pub fn resolve_write_path(path: &Path) -> PathBuf {
+    use std::path::Component;
+    let abs = if path.is_absolute() { path.to_path_buf() } else { std::env::current_dir().unwrap_or_default().join(path) };
+    let comps: Vec<Component> = abs.components().collect();
+    for k in (1..=comps.len()).rev() {
+        let prefix: PathBuf = comps[..k].iter().collect();
+        let Ok(mut out) = prefix.canonicalize() else { continue };
+        for c in &comps[k..] {
+            match c {
+                Component::ParentDir => {
+                    out.pop();
+                }
+                Component::Normal(n) => out.push(n),
+                _ => {}
+            }
+        }
+        return out;
+    }
+    abs
+}
+
 /// Whether a node's result came from running it or from a cache.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum NodeStatus {
@@ -85,6 +172,7 @@ pub struct RunCtx<'a> {
     pub(crate) metrics: Mutex<Vec<(String, f64)>>,
     pub(crate) notes: Mutex<Vec<String>>,
     pub(crate) deps: Mutex<Vec<(PathBuf, Hash)>>,
+    writes: WriteRoots,
     last_permille: AtomicU64,
     /// The share of the node's whole work that progress reports now cover, in permille
     /// (`from << 32 | to`), set by `phase`.
@@ -100,6 +188,7 @@ impl<'a> RunCtx<'a> {
             metrics: Mutex::default(),
             notes: Mutex::default(),
             deps: Mutex::default(),
+            writes: WriteRoots::anywhere(),
             last_permille: AtomicU64::new(u64::MAX),
             span: AtomicU64::new(1000),
         }
@@ -108,6 +197,18 @@ impl<'a> RunCtx<'a> {
     /// The node's id in the graph.
     pub fn node_id(&self) -> &str {
         self.id
+    }
+
+    /// Limits where the node may write (`check_write_path`); the engine sets the run's roots.
+    pub fn with_write_roots(mut self, roots: WriteRoots) -> Self {
+        self.writes = roots;
+        self
+    }
+
+    /// Call before writing a file named by parameter `param` (an output file): refuses, as a
+    /// `NodeError::Param` naming it, a path outside the folders this run may write to.
+    pub fn check_write_path(&self, param: &str, path: &Path) -> Result<(), NodeError> {
+        self.writes.check(path).map_err(|m| NodeError::param(param, m))
     }
 
     /// Returns `Err(Cancelled)` once the run is cancelled; call it in long loops.
@@ -240,5 +341,31 @@ mod tests {
         cancel.cancel();
         assert_eq!(cx.par_map(10, |i| i), Err(NodeError::Cancelled));
         assert_eq!(cx.tick(1, 2), Err(NodeError::Cancelled));
+    }
+
+    #[test]
+    fn writes_stay_below_the_roots_and_neither_dot_dot_nor_a_link_leads_out() {
+        let dir = tempfile::tempdir().unwrap();
+        let (graph, out, elsewhere) = (dir.path().join("g"), dir.path().join("out"), dir.path().join("elsewhere"));
+        for d in [&graph, &elsewhere] {
+            std::fs::create_dir_all(d).unwrap();
+        }
+        let roots = WriteRoots::new(&WritePolicy::Within(vec![out.clone()]), &graph);
+        let cancel = CancelToken::new();
+        let cx = RunCtx::new("save", &cancel, None).with_write_roots(roots.clone());
+        for ok in [graph.join("a.png"), graph.join("new/sub/a.png"), out.join("x.exr"), graph.join("new/../b.png")] {
+            assert_eq!(cx.check_write_path("path", &ok), Ok(()), "{}", ok.display());
+        }
+        for bad in [graph.join("../../../../tmp/x.png"), elsewhere.join("x.png"), graph.join("new/../../elsewhere/x.png")] {
+            let e = cx.check_write_path("path", &bad).unwrap_err();
+            assert!(matches!(&e, NodeError::Param { name, msg } if name == "path" && msg.contains("--allow-writes-anywhere")), "{e}");
+        }
+        #[cfg(unix)]
+        {
+            std::os::unix::fs::symlink(&elsewhere, graph.join("link")).unwrap();
+            assert!(roots.check(&graph.join("link/x.png")).is_err(), "a link inside the graph's folder leads out");
+        }
+        assert_eq!(WriteRoots::new(&WritePolicy::Anywhere, &graph).check(&elsewhere.join("x.png")), Ok(()));
+        assert_eq!(RunCtx::new("n", &cancel, None).check_write_path("path", Path::new("/x.png")), Ok(()), "standalone: no roots");
     }
 }

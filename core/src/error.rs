@@ -94,6 +94,13 @@ pub enum NodeError {
         port: String,
         msg: String,
     },
+    /// A request over a limit (an image or point count past what may be allocated, a
+    /// memory budget), refused before allocating. Bad input like an out-of-range parameter:
+    /// the command line exits 2 for it. `param` names the parameter to lower, where one is to blame.
+    OverLimit {
+        param: Option<String>,
+        msg: String,
+    },
     /// The node is declared but its algorithm is not finished.
     NotImplemented(&'static str),
     Failed(String),
@@ -109,6 +116,19 @@ impl NodeError {
     pub fn failed(msg: impl Into<String>) -> Self {
         NodeError::Failed(msg.into())
     }
+    /// A request over a limit, refused before allocating (see `OverLimit`).
+    pub fn over_limit(msg: impl Into<String>) -> Self {
+        NodeError::OverLimit { param: None, msg: msg.into() }
+    }
+    /// As `over_limit`, blaming parameter `name`.
+    pub fn over_limit_param(name: &str, msg: impl Into<String>) -> Self {
+        NodeError::OverLimit { param: Some(name.into()), msg: msg.into() }
+    }
+    /// Whether this is the refusal of a request over a limit: bad input the person fixes by
+    /// asking for less, not a failure of the run (the command line exits 2 for it).
+    pub fn is_over_limit(&self) -> bool {
+        matches!(self, NodeError::OverLimit { .. })
+    }
 }
 
 impl fmt::Display for NodeError {
@@ -117,6 +137,8 @@ impl fmt::Display for NodeError {
             NodeError::Cancelled => f.write_str("cancelled"),
             NodeError::Param { name, msg } => write!(f, "parameter `{name}`: {msg}"),
             NodeError::Input { port, msg } => write!(f, "input `{port}`: {msg}"),
+            NodeError::OverLimit { param: Some(name), msg } => write!(f, "parameter `{name}`: {msg}"),
+            NodeError::OverLimit { param: None, msg } => f.write_str(msg),
             NodeError::NotImplemented(what) => write!(f, "not implemented yet: {what}"),
             NodeError::Failed(msg) => f.write_str(msg),
         }

@@ -24,6 +24,10 @@ pub struct Engine {
     disk: Option<DiskCache>,
     disk_policy: DiskPolicy,
     max_parallel: usize,
+    /// The rayon pool nodes run their inner loops in; `None`: rayon's global pool.
+    pool: Option<Arc<rayon::ThreadPool>>,
+    /// What one run may hold at once (the memory model, `memory.rs`).
+    run_budget: u64,
 }
 
 /// Which results an engine with a disk cache writes there.
@@ -45,6 +49,8 @@ pub struct RunOptions<'a> {
     pub outputs: Option<Vec<String>>,
     pub cancel: CancelToken,
     pub observer: Option<&'a dyn Observer>,
+    /// Where nodes may write files (default: below the graph file's folder only).
+    pub writes: crate::ctx::WritePolicy,
 }
 
 pub struct RunResult {
@@ -102,6 +108,8 @@ impl Engine {
             disk: None,
             disk_policy: DiskPolicy::default(),
             max_parallel: cores,
+            pool: None,
+            run_budget: crate::memory::default_budget(),
         }
     }
     pub fn with_memory_budget(mut self, bytes: usize) -> Self {
@@ -114,6 +122,29 @@ impl Engine {
     }
     pub fn with_disk_policy(mut self, policy: DiskPolicy) -> Self {
         self.disk_policy = policy;
+        self
+    }
+    /// What one run may hold at once (default: 80 % of physical memory). A run whose estimate
+    /// exceeds it is refused before anything runs, with the estimate per node.
+    pub fn with_run_budget(mut self, bytes: u64) -> Self {
+        self.run_budget = bytes;
+        self
+    }
+    pub fn run_budget(&self) -> u64 {
+        self.run_budget
+    }
+    /// The plan's memory estimate against the budget: the refusal as a graph error.
+    pub fn check_memory(&self, graph: &Graph, plan: &Plan) -> Result<(), GraphErrors> {
+        match self.estimate(graph, plan).refusal(graph, self.run_budget) {
+            Some(m) => Err(GraphErrors::one(GraphError::new(m)).with_file(&graph.file)),
+            None => Ok(()),
+        }
+    }
+    /// Runs every node's inner loops on a pool of `threads` rayon threads (`--threads`; tests
+    /// of "the same bytes on any thread count"). Without it nodes share rayon's global pool.
+    pub fn with_threads(mut self, threads: usize) -> Self {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build().expect("a rayon pool");
+        self.pool = Some(Arc::new(pool));
         self
     }
     /// How many nodes may run at once (nodes also parallelise inside with rayon).
@@ -200,17 +231,21 @@ impl Engine {
         let start = Instant::now();
         graph.validate(&self.registry)?;
         let plan = make_plan(graph, &self.registry, opts.outputs.as_deref())?;
+        self.check_memory(graph, &plan)?;
         if let Some(o) = opts.observer {
             o.event(&Event::Planned { nodes: plan.order.len() });
         }
         let mut state = RunState::new(graph, &plan);
         let (tx, rx) = mpsc::channel::<Done>();
         let mut first_error: Option<RunError> = None;
+        let write_roots = crate::ctx::WriteRoots::new(&opts.writes, &graph.base_dir);
 
         std::thread::scope(|scope| {
             let mut ready: VecDeque<usize> = plan.order.iter().copied().filter(|&i| plan.sources[i].is_empty()).collect();
             let mut to_run: VecDeque<(usize, Prepared)> = VecDeque::new();
             let mut running = 0usize;
+            // Bytes reserved by running nodes (their estimate with actual input sizes).
+            let (mut reserved, mut reservation) = (0u64, vec![0u64; graph.nodes.len()]);
             loop {
                 let stop = first_error.is_some() || opts.cancel.is_cancelled();
                 while let (false, Some(i)) = (stop, ready.pop_front()) {
@@ -238,16 +273,41 @@ impl Engine {
                 }
                 while running < self.max_parallel && first_error.is_none() && !opts.cancel.is_cancelled() {
                     let Some((i, prepared)) = to_run.pop_front() else { break };
-                    running += 1;
                     let inputs: Vec<Value> =
                         plan.sources[i].iter().map(|&(s, o)| state.values[s].as_ref().unwrap().outputs[o].clone()).collect();
+                    // The node's estimate with its actual input sizes, against what is held.
+                    let sizes: Vec<Option<crate::memory::PortSize>> = inputs.iter().map(|v| Some(v.size())).collect();
+                    let need = self.kind_of(graph, i).memory(&prepared.params, &sizes).map(|e| e.working + e.output_bytes()).unwrap_or(0);
+                    let held = state.held_bytes() + reserved;
+                    if held + need > self.run_budget {
+                        if running > 0 {
+                            // Wait for a running node to finish and free what it holds.
+                            to_run.push_front((i, prepared));
+                            break;
+                        }
+                        let n = &graph.nodes[i];
+                        let m = format!(
+                            "node \"{}\" ({}) would need about {} with {} already held, over the memory budget of {}; lower its resolution or sample counts, or raise the budget with --memory-budget",
+                            n.id, n.kind, crate::memory::fmt_bytes(need), crate::memory::fmt_bytes(held), crate::memory::fmt_bytes(self.run_budget)
+                        );
+                        first_error =
+                            Some(RunError::Graph(GraphErrors::one(GraphError::new(m).at(n.pos).node(&n.id)).with_file(&graph.file)));
+                        break;
+                    }
+                    (reserved, reservation[i]) = (reserved + need, need);
+                    running += 1;
                     state.keys[i] = prepared.key;
                     let kind = self.kind_of(graph, i).clone();
                     let id = graph.nodes[i].id.as_str();
-                    let (tx, cancel, observer) = (tx.clone(), &opts.cancel, opts.observer);
+                    let (tx, cancel, observer, pool) = (tx.clone(), &opts.cancel, opts.observer, self.pool.as_deref());
+                    let writes = &write_roots;
                     scope.spawn(move || {
                         let t0 = Instant::now();
-                        let result = run_node(kind.as_ref(), id, &prepared.params, &inputs, cancel, observer);
+                        let go = || run_node(kind.as_ref(), id, &prepared.params, &inputs, cancel, observer, writes);
+                        let result = match pool {
+                            Some(p) => p.install(go),
+                            None => go(),
+                        };
                         let _ = tx.send((i, result, t0.elapsed().as_secs_f64() * 1e3));
                     });
                 }
@@ -259,6 +319,7 @@ impl Engine {
                 }
                 let (i, result, ms) = rx.recv().expect("node threads hold a sender");
                 running -= 1;
+                reserved -= std::mem::take(&mut reservation[i]);
                 let kind = self.kind_of(graph, i);
                 let id = &graph.nodes[i].id;
                 match result {
@@ -303,7 +364,9 @@ impl Engine {
     /// Plans the graph for `relume plan`.
     pub fn plan(&self, graph: &Graph, outputs: Option<&[String]>) -> Result<Plan, GraphErrors> {
         graph.validate(&self.registry)?;
-        make_plan(graph, &self.registry, outputs)
+        let plan = make_plan(graph, &self.registry, outputs)?;
+        self.check_memory(graph, &plan)?;
+        Ok(plan)
     }
 }
 
@@ -315,11 +378,12 @@ fn run_node(
     inputs: &[Value],
     cancel: &CancelToken,
     observer: Option<&dyn Observer>,
+    writes: &crate::ctx::WriteRoots,
 ) -> Result<CacheEntry, NodeError> {
     if let Some(o) = observer {
         o.event(&Event::Started { id, kind: kind.kind() });
     }
-    let cx = RunCtx::new(id, cancel, observer);
+    let cx = RunCtx::new(id, cancel, observer).with_write_roots(writes.clone());
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| kind.run(params, inputs, &cx)));
     match outcome {
         Ok(Ok(outputs)) => {
@@ -338,7 +402,12 @@ fn run_node(
 /// Book-keeping of one run.
 struct RunState<'g> {
     graph: &'g Graph,
+    /// Results the run still holds: dropped once their last reader has run, unless they are
+    /// outputs of the run (the memory cache may keep them longer, under its own budget).
     values: Vec<Option<Arc<CacheEntry>>>,
+    sources: Vec<Vec<usize>>,
+    readers_left: Vec<usize>,
+    is_output: Vec<bool>,
     keys: Vec<Hash>,
     waiting: Vec<usize>,
     dependents: Vec<Vec<usize>>,
@@ -355,7 +424,22 @@ impl<'g> RunState<'g> {
             }
         }
         let waiting = (0..n).map(|i| plan.sources[i].len()).collect();
-        RunState { graph, values: vec![None; n], keys: vec![Hash::default(); n], waiting, dependents, report: RunReport::default() }
+        RunState {
+            graph,
+            values: vec![None; n],
+            sources: (0..n).map(|i| plan.sources[i].iter().map(|s| s.0).collect()).collect(),
+            readers_left: crate::budget::consumers(plan),
+            is_output: crate::budget::output_nodes(plan),
+            keys: vec![Hash::default(); n],
+            waiting,
+            dependents,
+            report: RunReport::default(),
+        }
+    }
+
+    /// Bytes of the results the run holds now.
+    fn held_bytes(&self) -> u64 {
+        self.values.iter().flatten().map(|e| e.bytes() as u64).sum()
     }
 
     /// Records a finished node; returns the nodes that became ready.
@@ -384,6 +468,13 @@ impl<'g> RunState<'g> {
         }
         self.keys[i] = key;
         self.values[i] = Some(entry);
+        for k in 0..self.sources[i].len() {
+            let s = self.sources[i][k];
+            self.readers_left[s] -= 1;
+            if self.readers_left[s] == 0 && !self.is_output[s] {
+                self.values[s] = None;
+            }
+        }
         let mut now_ready = Vec::new();
         for &d in &self.dependents[i] {
             self.waiting[d] -= 1;

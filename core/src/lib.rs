@@ -5,6 +5,7 @@
 //! executor with an incremental cache ([`Engine`]) and the run report ([`RunReport`]).
 //! No rendering code lives here.
 
+mod budget;
 pub mod cache;
 mod ctx;
 mod error;
@@ -12,6 +13,7 @@ mod exec;
 mod explain;
 pub mod graph;
 mod hash;
+pub mod memory;
 mod node;
 mod params;
 mod plan;
@@ -21,12 +23,14 @@ mod report;
 pub mod ron;
 mod standalone;
 
-pub use ctx::{CancelToken, Event, NodeStatus, Observer, RunCtx};
+pub use budget::RunEstimate;
+pub use ctx::{resolve_write_path, CancelToken, Event, NodeStatus, Observer, RunCtx, WritePolicy, WriteRoots};
 pub use error::{GraphError, GraphErrors, NodeError};
 pub use exec::{DiskPolicy, Engine, RunError, RunOptions, RunResult};
 pub use explain::{PlanAction, PlanLine};
 pub use graph::{Graph, FORMAT_VERSION};
 pub use hash::{Hash, Hasher};
+pub use memory::{MemoryEstimate, PortSize};
 pub use node::{ports_of, run_typed, Caching, Documented, DynNode, Node};
 pub use params::{ParamEnum, ParamKind, ParamSpec, ParamValue, ParamValues, Params, Schema};
 pub use plan::{make_plan, Plan};
@@ -35,6 +39,6 @@ pub use relume_macros::{node, ParamEnum, Params};
 
 // Lets the derive macros name `::relume_core` inside this crate's own tests.
 extern crate self as relume_core;
-pub use registry::Registry;
+pub use registry::{closest, Registry};
 pub use report::{NodeReport, RunReport};
 pub use standalone::{run_kind, run_standalone, run_standalone_with};

@@ -6,6 +6,7 @@
 
 use crate::ctx::RunCtx;
 use crate::error::NodeError;
+use crate::memory::{MemoryEstimate, PortSize};
 use crate::params::{ParamValues, Params, Schema};
 use crate::port::{InputPorts, OutputPorts, Ports, Value};
 
@@ -38,6 +39,13 @@ pub trait Node: Params + Documented + Send + Sync + 'static {
     type Inputs<'a>: InputPorts<'a>;
     type Outputs: OutputPorts;
     fn run(&self, inputs: Self::Inputs<'_>, cx: &RunCtx) -> Result<Self::Outputs, NodeError>;
+    /// What a run will hold, from the parameters and the input sizes (`None` where not known
+    /// before running upstream): see `memory.rs`. Nodes that allocate much state it; the
+    /// default knows nothing.
+    fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
+        let _ = inputs;
+        MemoryEstimate::unknown(Self::Outputs::decls().len())
+    }
 }
 
 /// The port declarations of a node type.
@@ -64,6 +72,11 @@ pub trait DynNode: Send + Sync {
     fn caching(&self) -> Caching;
     /// Runs the node; outputs in declaration order.
     fn run(&self, params: &ParamValues, inputs: &[Value], cx: &RunCtx) -> Result<Vec<Value>, NodeError>;
+    /// The node's memory estimate for these parameters and input sizes.
+    fn memory(&self, params: &ParamValues, inputs: &[Option<PortSize>]) -> Result<MemoryEstimate, NodeError> {
+        let _ = (params, inputs);
+        Ok(MemoryEstimate::unknown(self.ports().outputs.len()))
+    }
 }
 
 pub(crate) struct NodeEntry<N: Node> {
@@ -104,5 +117,8 @@ impl<N: Node> DynNode for NodeEntry<N> {
     }
     fn run(&self, params: &ParamValues, inputs: &[Value], cx: &RunCtx) -> Result<Vec<Value>, NodeError> {
         run_typed::<N>(params, inputs, cx)
+    }
+    fn memory(&self, params: &ParamValues, inputs: &[Option<PortSize>]) -> Result<MemoryEstimate, NodeError> {
+        Ok(N::from_values(params)?.memory(inputs))
     }
 }

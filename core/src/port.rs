@@ -22,6 +22,11 @@ pub trait PortValue: Any + Send + Sync + Sized {
     fn encode(&self) -> Vec<u8>;
     /// The inverse of `encode`; `None` for bytes it did not write (never a panic).
     fn decode(bytes: &[u8]) -> Option<Self>;
+    /// The size the memory model sees (`memory.rs`): bytes, and pixel dimensions where the
+    /// value has them (an image; a scene's camera).
+    fn size(&self) -> crate::memory::PortSize {
+        crate::memory::PortSize::bytes(self.byte_size() as u64)
+    }
     /// Hash of the content: by default of the type name and the encoding.
     fn fingerprint(&self) -> Hash {
         Hasher::new().str(Self::NAME).bytes(&self.encode()).finish()
@@ -76,6 +81,7 @@ pub struct Value {
     type_id: TypeId,
     fingerprint: Hash,
     bytes: usize,
+    size: crate::memory::PortSize,
     encode: EncodeFn,
 }
 
@@ -87,8 +93,8 @@ impl Value {
     /// A value whose fingerprint is already known (read back from the disk cache, where the
     /// entry's checksum vouches for it).
     fn with_fingerprint<T: PortValue>(v: T, fingerprint: Hash) -> Value {
-        let bytes = v.byte_size();
-        Value { data: Arc::new(v), type_name: T::NAME, type_id: TypeId::of::<T>(), fingerprint, bytes, encode: encode_erased::<T> }
+        let (bytes, size) = (v.byte_size(), v.size());
+        Value { data: Arc::new(v), type_name: T::NAME, type_id: TypeId::of::<T>(), fingerprint, bytes, size, encode: encode_erased::<T> }
     }
     pub fn get<T: PortValue>(&self) -> Option<&T> {
         self.data.downcast_ref::<T>()
@@ -104,6 +110,9 @@ impl Value {
     }
     pub fn byte_size(&self) -> usize {
         self.bytes
+    }
+    pub fn size(&self) -> crate::memory::PortSize {
+        self.size
     }
     pub fn encode(&self) -> Vec<u8> {
         (self.encode)(self.data.as_ref())

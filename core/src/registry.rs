@@ -58,12 +58,73 @@ impl Registry {
         self.port_types.values()
     }
 
-    /// Kinds whose name is closest to `kind` (for "did you mean").
+    /// The kind whose name is closest to `kind` (for "did you mean"): see [`closest`].
     pub fn suggest(&self, kind: &str) -> Option<&'static str> {
-        let lower = kind.to_lowercase();
-        self.nodes.keys().copied().find(|k| {
-            let kl = k.to_lowercase();
-            kl == lower || kl.contains(&lower) || lower.contains(&kl)
-        })
+        closest(kind, self.nodes.keys().copied())
+    }
+}
+
+/// The candidate closest to `word` when one is close enough to be a slip (for "did you
+/// mean"): case is ignored; a candidate qualifies when its edit distance (Levenshtein, in
+/// characters) is at most 2 or at most a third of the longer name, or when one name contains
+/// the other and the shorter has at least 4 characters (`Tonemapper` → `Tonemap`). The
+/// smallest distance wins; ties go to the first candidate.
+pub fn closest<'a>(word: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+    let w: Vec<char> = word.to_lowercase().chars().collect();
+    let mut best: Option<(usize, &'a str)> = None;
+    for c in candidates {
+        let k: Vec<char> = c.to_lowercase().chars().collect();
+        let d = levenshtein(&w, &k);
+        let longer = w.len().max(k.len());
+        let shorter = w.len().min(k.len());
+        let (ws, ks): (String, String) = (w.iter().collect(), k.iter().collect());
+        let contains = shorter >= 4 && (ws.contains(&ks) || ks.contains(&ws));
+        let close = d <= 2 || 3 * d <= longer || contains;
+        if close && d < longer && best.is_none_or(|(bd, _)| d < bd) {
+            best = Some((d, c));
+        }
+    }
+    best.map(|(_, c)| c)
+}
+
+/// Edit distance (insertions, deletions, substitutions) between two character strings.
+fn levenshtein(a: &[char], b: &[char]) -> usize {
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.iter().enumerate() {
+        let mut diag = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let up = row[j + 1];
+            row[j + 1] = (diag + usize::from(ca != cb)).min(up + 1).min(row[j] + 1);
+            diag = up;
+        }
+    }
+    row[b.len()]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn suggestions_allow_slips_of_case_spelling_and_suffix_but_not_unrelated_names() {
+        let kinds = ["GaussianBlur", "PathTrace", "Tonemap", "TestPattern", "LoadImage", "SaveImage"];
+        for (typo, want) in [
+            ("tonemap", "Tonemap"),
+            ("PathTracer", "PathTrace"),
+            ("Tonemapper", "Tonemap"),
+            ("GausianBlur", "GaussianBlur"),
+            ("gaussian_blur", "GaussianBlur"),
+            ("LoadImg", "LoadImage"),
+            ("SaveImag", "SaveImage"),
+        ] {
+            assert_eq!(closest(typo, kinds), Some(want), "{typo}");
+        }
+        for unrelated in ["Banana", "X", "Blur2000Ultra", ""] {
+            assert_eq!(closest(unrelated, kinds), None, "{unrelated}");
+        }
+        assert_eq!(closest("sigam", ["sigma", "truncate"]), Some("sigma"));
+        assert_eq!(closest("radius", ["sigma", "truncate"]), None);
+        assert_eq!(levenshtein(&['a', 'b'], &[]), 2);
     }
 }

@@ -41,6 +41,9 @@ pub struct RunReport {
     /// Peak resident memory of the process so far (Linux), in bytes.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub peak_rss_bytes: Option<u64>,
+    /// Sentences about the run as a whole (a disk cache that cannot be written, …).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
 }
 
 impl RunReport {

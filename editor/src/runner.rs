@@ -122,7 +122,7 @@ impl Runner {
         std::thread::spawn(move || {
             let started = Instant::now();
             let watch = Watch { shared: shared.clone(), generation, repaint: repaint.clone() };
-            let opts = RunOptions { outputs: Some(outputs), cancel, observer: Some(&watch) };
+            let opts = RunOptions { outputs: Some(outputs), cancel, observer: Some(&watch), ..Default::default() };
             let outcome = engine.run(&graph, &opts).map(|r| (r.report, r.outputs)).map_err(|e| e.to_string());
             let mut s = shared.lock().unwrap();
             if s.generation == generation {

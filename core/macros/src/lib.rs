@@ -281,7 +281,9 @@ struct NodeArgs {
 /// `#[node(category = "image", version = 2, caching = Never, kind = "Name")]` on an inherent
 /// `impl X { fn run(&self, inputs: In, cx: &RunCtx) -> Result<Out, NodeError> { … } … }`:
 /// implements `Node` for `X` (kind defaults to the type's name, version to 1, caching to
-/// `Auto`); `Inputs` and `Outputs` come from `run`'s signature; other items stay in `impl X`.
+/// `Auto`); `Inputs` and `Outputs` come from `run`'s signature; an optional
+/// `fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate` goes into the trait
+/// too; other items stay in `impl X`.
 #[proc_macro_attribute]
 pub fn node(attr: TokenStream, item: TokenStream) -> TokenStream {
     let mut args = NodeArgs::default();
@@ -320,10 +322,12 @@ fn node_impl(args: NodeArgs, imp: ItemImpl) -> syn::Result<Tokens> {
     let version = args.version.map(|v| quote!(#v)).unwrap_or(quote!(1));
     let caching = args.caching.unwrap_or_else(|| format_ident!("Auto"));
     let mut run = None;
+    let mut memory = None;
     let mut rest = Vec::new();
     for item in imp.items {
         match item {
             ImplItem::Fn(f) if f.sig.ident == "run" => run = Some(f),
+            ImplItem::Fn(f) if f.sig.ident == "memory" => memory = Some(f),
             other => rest.push(other),
         }
     }
@@ -344,6 +348,7 @@ fn node_impl(args: NodeArgs, imp: ItemImpl) -> syn::Result<Tokens> {
             type Inputs<'a> = #inputs;
             type Outputs = #outputs;
             #run
+            #memory
         }
         #rest
     })

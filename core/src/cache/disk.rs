@@ -1,6 +1,8 @@
 //! On-disk cache: one file per key, written atomically (temp + rename), checksummed with
 //! blake3. A missing, truncated or corrupt file is a miss; two processes may share a folder
-//! (each writes its own temporary file; rename replaces whole files).
+//! (each writes its own temporary file; rename replaces whole files). A process stopped in the
+//! middle of a write leaves its temporary file behind: opening a cache removes those that are
+//! stale (`sweep_stale_temp_files`).
 
 use super::CacheEntry;
 use crate::graph::write_atomic;
@@ -8,16 +10,71 @@ use crate::hash::Hash;
 use crate::port::PortDecl;
 use crate::registry::Registry;
 use std::path::{Path, PathBuf};
+use std::time::{Duration, SystemTime};
 
 const MAGIC: &[u8; 8] = b"RELUMEC3";
+
+/// A temporary file older than this is stale whoever wrote it: writing one entry takes
+/// seconds, not minutes.
+pub const STALE_TEMP_AGE: Duration = Duration::from_secs(15 * 60);
+/// A temporary file of a writer that is no longer running (its process id, which the file's
+/// name carries, is gone) is stale once this old (younger ones are left alone: the writer may
+/// run on another machine or in another process namespace sharing the folder).
+pub const DEAD_WRITER_TEMP_AGE: Duration = Duration::from_secs(60);
 
 pub struct DiskCache {
     dir: PathBuf,
 }
 
 impl DiskCache {
+    /// Opens the cache in `dir` (created on the first write), removing stale temporary files
+    /// that interrupted writes left behind.
     pub fn new(dir: impl Into<PathBuf>) -> Self {
-        DiskCache { dir: dir.into() }
+        let cache = DiskCache { dir: dir.into() };
+        cache.sweep_stale_temp_files(SystemTime::now());
+        cache
+    }
+
+    /// Whether entries can be written here: creates the folder and writes and removes a probe
+    /// file. `Err` says why not, as a sentence (the folder is a file, is read-only, …).
+    pub fn check_writable(&self) -> Result<(), String> {
+        let dir = &self.dir;
+        if dir.exists() && !dir.is_dir() {
+            return Err(format!("{} is a file, not a folder", dir.display()));
+        }
+        std::fs::create_dir_all(dir).map_err(|e| format!("cannot create the folder {}: {e}", dir.display()))?;
+        let probe = dir.join(format!(".write-probe.{}.tmp", std::process::id()));
+        std::fs::write(&probe, b"relume").map_err(|e| format!("cannot write in {}: {e}", dir.display()))?;
+        let _ = std::fs::remove_file(&probe);
+        Ok(())
+    }
+
+    /// Removes the temporary files (`.NAME.PID.N.tmp`, see `write_atomic`) in the cache's
+    /// folders that are stale at time `now`: older than `STALE_TEMP_AGE`, or older than
+    /// `DEAD_WRITER_TEMP_AGE` and written by a process that is no longer running. Returns how
+    /// many it removed. A fresh file of a live writer is never touched.
+    pub fn sweep_stale_temp_files(&self, now: SystemTime) -> usize {
+        let mut removed = 0;
+        let Ok(top) = std::fs::read_dir(&self.dir) else { return 0 };
+        let mut folders = vec![self.dir.clone()];
+        folders.extend(top.flatten().filter(|e| e.file_type().is_ok_and(|t| t.is_dir())).map(|e| e.path()));
+        for folder in folders {
+            let Ok(entries) = std::fs::read_dir(&folder) else { continue };
+            for e in entries.flatten() {
+                let name = e.file_name().to_string_lossy().into_owned();
+                if !(name.starts_with('.') && name.ends_with(".tmp") && e.file_type().is_ok_and(|t| t.is_file())) {
+                    continue;
+                }
+                let Some(age) = e.metadata().ok().and_then(|m| m.modified().ok()).and_then(|t| now.duration_since(t).ok()) else {
+                    continue;
+                };
+                let stale = age > STALE_TEMP_AGE || (age > DEAD_WRITER_TEMP_AGE && writer_pid(&name).is_some_and(|p| !process_alive(p)));
+                if stale && std::fs::remove_file(e.path()).is_ok() {
+                    removed += 1;
+                }
+            }
+        }
+        removed
     }
 
     pub fn dir(&self) -> &Path {
@@ -72,6 +129,25 @@ impl DiskCache {
         let bytes = std::fs::read(self.path_of(key)).ok()?;
         decode(&bytes, key, decls, reg)
     }
+}
+
+/// The process id in a temporary file's name: `.NAME.PID.N.tmp` (`write_atomic`) or
+/// `.write-probe.PID.tmp` (`check_writable`).
+fn writer_pid(name: &str) -> Option<u32> {
+    let parts: Vec<&str> = name.strip_suffix(".tmp")?.rsplit('.').collect();
+    // rsplit: [N, PID, …] for write_atomic, [PID, "write-probe", …] for the probe.
+    if parts.get(1) == Some(&"write-probe") {
+        parts.first()?.parse().ok()
+    } else {
+        parts.get(1)?.parse().ok()
+    }
+}
+
+/// Whether process `pid` runs on this machine. Where that cannot be known (no `/proc`), it
+/// is taken to run, so that only age makes its files stale.
+fn process_alive(pid: u32) -> bool {
+    let proc = Path::new("/proc");
+    !proc.join("self").exists() || proc.join(pid.to_string()).exists()
 }
 
 fn decode(bytes: &[u8], key: &Hash, decls: &[PortDecl], reg: &Registry) -> Option<CacheEntry> {
@@ -145,5 +221,64 @@ impl<'a> Reader<'a> {
     fn str(&mut self) -> Option<String> {
         let n = self.u32()? as usize;
         String::from_utf8(self.take(n)?.to_vec()).ok()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A temporary file named as `write_atomic` names them, for writer `pid`, `age` old.
+    fn temp_file(dir: &Path, pid: u32, age: Duration) -> PathBuf {
+        let path = dir.join(format!(".abc.rlc.{pid}.{}.tmp", age.as_secs()));
+        std::fs::write(&path, b"half an entry").unwrap();
+        let f = std::fs::File::options().write(true).open(&path).unwrap();
+        f.set_modified(SystemTime::now() - age).unwrap();
+        path
+    }
+
+    #[test]
+    fn opening_a_cache_removes_stale_temp_files_and_keeps_those_of_live_writers() {
+        let dir = tempfile::tempdir().unwrap();
+        let sub = dir.path().join("ab");
+        std::fs::create_dir_all(&sub).unwrap();
+        let me = std::process::id();
+        // A process id that is not running: past the largest one Linux hands out.
+        let dead = 4_194_304 + 17;
+        let old = temp_file(&sub, me, STALE_TEMP_AGE + Duration::from_secs(60));
+        let dead_writer = temp_file(&sub, dead, DEAD_WRITER_TEMP_AGE + Duration::from_secs(30));
+        let live_writer = temp_file(&sub, me, DEAD_WRITER_TEMP_AGE + Duration::from_secs(30));
+        let fresh_of_dead = temp_file(&sub, dead, Duration::from_secs(1));
+        let probe = dir.path().join(format!(".write-probe.{dead}.tmp"));
+        std::fs::write(&probe, b"x").unwrap();
+        std::fs::File::options().write(true).open(&probe).unwrap().set_modified(SystemTime::now() - STALE_TEMP_AGE * 2).unwrap();
+        let entry = sub.join("abc.rlc");
+        std::fs::write(&entry, b"not a temp file").unwrap();
+        std::fs::File::options().write(true).open(&entry).unwrap().set_modified(SystemTime::now() - STALE_TEMP_AGE * 2).unwrap();
+
+        let _cache = DiskCache::new(dir.path());
+        assert!(!old.exists(), "older than {STALE_TEMP_AGE:?}: removed");
+        assert!(!probe.exists(), "an old probe: removed");
+        assert!(entry.exists(), "entries are never swept");
+        assert!(live_writer.exists(), "a file of a running writer is kept");
+        assert!(fresh_of_dead.exists(), "a fresh file is kept whoever wrote it");
+        if Path::new("/proc/self").exists() {
+            assert!(!dead_writer.exists(), "a writer that no longer runs: removed");
+        }
+        assert_eq!(writer_pid(".abc.rlc.4242.99.tmp"), Some(4242));
+        assert_eq!(writer_pid(".write-probe.77.tmp"), Some(77));
+    }
+
+    #[test]
+    fn a_file_where_the_folder_should_be_is_not_writable() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("f");
+        std::fs::write(&file, b"").unwrap();
+        let e = DiskCache::new(&file).check_writable().unwrap_err();
+        assert!(e.contains("is a file, not a folder"), "{e}");
+        let e = DiskCache::new(file.join("sub")).check_writable().unwrap_err();
+        assert!(e.contains("cannot create the folder"), "{e}");
+        assert_eq!(DiskCache::new(dir.path().join("new")).check_writable(), Ok(()));
+        assert!(std::fs::read_dir(dir.path().join("new")).unwrap().next().is_none(), "the probe is removed");
     }
 }

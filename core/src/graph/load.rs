@@ -227,3 +227,17 @@ fn read_editor(v: &Ron, g: &mut Graph, errs: &mut Vec<GraphError>) {
     }
     g.editor = ed;
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Graph files are parsed by a recursive parser: 200,000 nested brackets overflowed its
+    /// stack and aborted the process instead of giving an error with a position.
+    #[test]
+    fn a_deeply_nested_graph_is_an_error_with_its_position() {
+        let text = format!("Graph(version: 1, nodes: {{\n\"a\": (kind: \"TestPattern\", params: (size: {}))}})", "[".repeat(200_000));
+        let e = Graph::parse(&text, Some(Path::new("deep.ron"))).unwrap_err().to_string();
+        assert!(e.contains("deep.ron:2:") && e.contains("nest more than 128 levels"), "{e}");
+    }
+}

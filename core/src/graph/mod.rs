@@ -130,7 +130,8 @@ impl Graph {
         let kind = registry.node(&node.kind).ok_or_else(|| GraphError::new(format!("unknown node kind \"{}\"", node.kind)).node(id))?;
         let spec = kind.schema().get(name).ok_or_else(|| {
             let names: Vec<_> = kind.schema().0.iter().map(|p| p.name).collect();
-            GraphError::new(format!("{} has no parameter `{name}` (it has: {})", node.kind, names.join(", "))).node(id)
+            let near = crate::registry::closest(name, names.iter().copied()).map(|n| format!("did you mean `{n}`? ")).unwrap_or_default();
+            GraphError::new(format!("{} has no parameter `{name}` ({near}it has: {})", node.kind, names.join(", "))).node(id)
         })?;
         let parsed = match crate::ron::parse_value(value).ok().and_then(|r| ParamValue::from_ron(&r).ok()) {
             Some(v) => v,

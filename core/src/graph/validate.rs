@@ -39,7 +39,11 @@ impl Graph {
             .inputs
             .iter()
             .filter(|p| !self.edges.iter().any(|e| e.to.node == id && e.to.port == p.name))
-            .map(|p| GraphError::new(format!("input `{}` ({}) is not connected", p.name, p.ty.name)).at(n.pos).node(id))
+            .map(|p| {
+                let mut e = GraphError::new(format!("input `{}` ({}) is not connected", p.name, p.ty.name)).at(n.pos).node(id);
+                e.file = self.file.clone();
+                e
+            })
             .collect()
     }
 
@@ -59,9 +63,11 @@ impl Graph {
                     None => {
                         let names: Vec<_> = schema.0.iter().map(|p| p.name).collect();
                         let has = if names.is_empty() { "no parameters".to_string() } else { format!("parameters: {}", names.join(", ")) };
-                        errs.push(
-                            GraphError::new(format!("unknown parameter for {} (it has {has})", n.kind)).at(pos).node(&n.id).param(name),
-                        );
+                        let has = match crate::registry::closest(name, names.iter().copied()) {
+                            Some(near) => format!("did you mean `{near}`? it has {has}"),
+                            None => format!("it has {has}"),
+                        };
+                        errs.push(GraphError::new(format!("unknown parameter for {} ({has})", n.kind)).at(pos).node(&n.id).param(name));
                     }
                     Some(spec) => {
                         if let Err(m) = spec.check(v) {

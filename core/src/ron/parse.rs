@@ -18,15 +18,20 @@ pub fn parse_value(text: &str) -> Result<Ron, SyntaxError> {
     parse(text)
 }
 
+/// How deeply lists, maps and parentheses may nest. Graph and scene files nest a handful of
+/// levels; the limit keeps the recursive parser from overflowing its stack on hostile input.
+pub const MAX_DEPTH: u32 = 128;
+
 struct Parser<'a> {
     chars: std::iter::Peekable<std::str::Chars<'a>>,
     line: u32,
     col: u32,
+    depth: u32,
 }
 
 impl<'a> Parser<'a> {
     fn new(text: &'a str) -> Self {
-        Parser { chars: text.chars().peekable(), line: 1, col: 1 }
+        Parser { chars: text.chars().peekable(), line: 1, col: 1, depth: 0 }
     }
 
     fn pos(&self) -> Pos {
@@ -110,15 +115,26 @@ impl<'a> Parser<'a> {
         }
     }
 
+    /// Runs `f` one nesting level deeper, refusing to go past `MAX_DEPTH`.
+    fn nested<T>(&mut self, f: impl FnOnce(&mut Self) -> Result<T, SyntaxError>) -> Result<T, SyntaxError> {
+        if self.depth >= MAX_DEPTH {
+            return Err(self.err(format!("values nest more than {MAX_DEPTH} levels deep")));
+        }
+        self.depth += 1;
+        let r = f(self);
+        self.depth -= 1;
+        r
+    }
+
     fn value(&mut self) -> Result<Ron, SyntaxError> {
         self.skip_ws()?;
         let pos = self.pos();
         let kind = match self.peek() {
             None => return Err(self.err("expected a value, found the end of the file".into())),
             Some('"') => RonKind::Str(self.string()?),
-            Some('[') => RonKind::List(self.list()?),
-            Some('{') => RonKind::Map(self.map()?),
-            Some('(') => self.parens(None)?,
+            Some('[') => RonKind::List(self.nested(Self::list)?),
+            Some('{') => RonKind::Map(self.nested(Self::map)?),
+            Some('(') => self.nested(|p| p.parens(None))?,
             Some(c) if c == '-' || c == '+' || c.is_ascii_digit() || c == '.' => self.number()?,
             Some(c) if c.is_alphabetic() || c == '_' => {
                 let id = self.ident();
@@ -126,7 +142,7 @@ impl<'a> Parser<'a> {
                 match id.as_str() {
                     "true" => RonKind::Bool(true),
                     "false" => RonKind::Bool(false),
-                    _ if self.peek() == Some('(') => self.parens(Some(id))?,
+                    _ if self.peek() == Some('(') => self.nested(|p| p.parens(Some(id)))?,
                     _ => RonKind::Ident(id),
                 }
             }
@@ -324,6 +340,20 @@ mod tests {
         assert!(e.msg.contains("not a number"), "{e}");
         assert!(parse("").is_err());
         assert!(parse("(a: 1) x").is_err());
+    }
+
+    /// A deeply nested value (200,000 open brackets) overflowed the recursive parser's stack:
+    /// the process aborted instead of reporting an error.
+    #[test]
+    fn deep_nesting_is_an_error_not_a_stack_overflow() {
+        for open in ["[", "(", "{", "A(", "(a: "] {
+            let text = open.repeat(200_000);
+            let e = parse(&text).unwrap_err();
+            assert!(e.msg.contains("nest more than 128 levels"), "{open}: {e}");
+            assert_eq!(e.pos.line, 1);
+        }
+        let ok = format!("{}A{}", "[".repeat(MAX_DEPTH as usize), "]".repeat(MAX_DEPTH as usize));
+        assert!(parse(&ok).is_ok(), "{MAX_DEPTH} levels are allowed");
     }
 
     #[test]

@@ -3,11 +3,13 @@
 //! as CSV and as a log-log plot, optionally next to a baseline's convergence curve (an integer
 //! parameter such as a path tracer's samples per pixel at 1, 2, 4, …).
 
+use super::interrupt::Watch;
 use super::plot::{plot_log_log, Axes, Curve};
-use super::{progress::Bars, CliError, GraphArgs};
+use super::run::{refuse_writes, run_error};
+use super::{prepare_file, prepare_out_dir, progress::Bars, CliError, GraphArgs};
 use clap::Args;
 use plotters::style::RGBColor;
-use relume_core::{Graph, Observer, ParamKind, Registry, RunError, RunOptions, RunReport};
+use relume_core::{make_plan, Graph, Observer, ParamKind, Registry, RunOptions, RunReport};
 use std::collections::BTreeSet;
 use std::path::PathBuf;
 
@@ -150,9 +152,32 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
         }
     }
 
+    // Everything checkable is checked before the first variant runs: the metric, the
+    // folders and files the sweep writes, and where the graph's own output files go.
+    check_metric(reg, &base, &a.metric, a.error_node.as_deref(), a.g.requested().as_deref())?;
+    if let Some(id) = &a.baseline_error_node {
+        if base.node(id).is_none() {
+            let ids: Vec<&str> = base.nodes.iter().map(|n| n.id.as_str()).collect();
+            return Err(CliError::graph(format!("--baseline-error-node {id}: no node \"{id}\" in the graph (it has: {})", ids.join(", "))));
+        }
+        check_metric(reg, &base, &a.metric, Some(id), a.g.requested().as_deref())?;
+    }
+    let csv_path = a.csv.clone().unwrap_or_else(|| a.out.join("sweep.csv"));
+    let plot_path = a.plot.clone().unwrap_or_else(|| csv_path.with_extension("png"));
+    prepare_out_dir("--out", &a.out)?;
+    prepare_file(if a.csv.is_some() { "--csv" } else { "the CSV file" }, &csv_path)?;
+    prepare_file(if a.plot.is_some() { "--plot" } else { "the plot file" }, &plot_path)?;
+    let writes = a.g.write_policy(&a.out);
+    for v in &variants {
+        refuse_writes(reg, &v.graph, a.g.requested().as_deref(), &writes)
+            .map_err(|e| CliError::graph(format!("{} variant {}: {}", v.series.as_str(), v.label, e.msg)))?;
+    }
+
     // One node at a time (each still uses every core inside): a node's time is then its own,
     // not shared with whatever else ran beside it, which the time axis depends on.
-    let engine = a.g.engine(reg).with_parallelism(1);
+    let (engine, _) = a.g.engine_for_writing(reg);
+    let engine = engine.with_parallelism(1);
+    let watch = Watch::new();
     let mut rows: Vec<Row> = Vec::with_capacity(variants.len());
     let mut error_node: Option<String> = None;
     let count = variants.len();
@@ -161,13 +186,20 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
             eprintln!("sweep {}/{count}: {} {}", i + 1, v.series.as_str(), v.label);
         }
         let bars = (!a.quiet).then(Bars::new);
-        let opts = RunOptions { outputs: a.g.requested(), observer: bars.as_ref().map(|b| b as &dyn Observer), ..Default::default() };
+        let opts = RunOptions {
+            outputs: a.g.requested(),
+            observer: bars.as_ref().map(|b| b as &dyn Observer),
+            cancel: watch.token.clone(),
+            writes: writes.clone(),
+        };
         let result = engine.run(&v.graph, &opts).map_err(|e| {
-            let msg = format!("{} variant {}: {e}", v.series.as_str(), v.label);
-            match e {
-                RunError::Graph(_) => CliError::graph(msg),
-                _ => CliError::run(msg),
-            }
+            let mut e = run_error(&v.graph, e);
+            e.msg = if e.code == super::interrupt::EXIT_CODE {
+                format!("interrupted: the sweep was cancelled in variant {} of {count}; no CSV or plot was written", i + 1)
+            } else {
+                format!("{} variant {}: {}", v.series.as_str(), v.label, e.msg)
+            };
+            e
         })?;
         drop(bars);
         if error_node.is_none() {
@@ -180,9 +212,9 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
         rows.push(Row { series: v.series, label: v.label, short: v.short, params, time_ms, pipeline_ms: 0.0, report: result.report });
     }
     let error_node = error_node.expect("a sweep runs at least one variant");
-
-    let csv_path = a.csv.clone().unwrap_or_else(|| a.out.join("sweep.csv"));
-    let plot_path = a.plot.clone().unwrap_or_else(|| csv_path.with_extension("png"));
+    if watch.interrupted() {
+        return Err(CliError::interrupted("interrupted: the sweep was cancelled after its last variant; no CSV or plot was written"));
+    }
     let baseline_node = a.baseline_error_node.clone().unwrap_or_else(|| error_node.clone());
     if base.node(&baseline_node).is_none() {
         return Err(CliError::graph(format!("--baseline-error-node {baseline_node}: no such node in the graph")));
@@ -365,6 +397,65 @@ fn param_text(reg: &Registry, graph: &Graph, target: &str) -> String {
     reg.node(&node.kind).and_then(|k| k.schema().get(name)).and_then(|s| s.default.as_ref()).map(|v| v.to_text()).unwrap_or_default()
 }
 
+/// The metrics each node kind reports (what its `cx.metric` calls record), known before it
+/// runs; kinds not listed report none. A unit test keeps the list in step with the nodes.
+fn reported_metrics(kind: &str) -> &'static [&'static str] {
+    match kind {
+        "ImageError" => &["mse", "rel_mse", "psnr_db", "l2_percent", "flip", "ssim", "nonfinite_pixels"],
+        "ZTest" => &["pass_fraction", "max_abs_z", "mean_z", "pixels", "nonfinite_pixels"],
+        "PbgiGather" => &["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver"],
+        "FactorizedGather" => {
+            &["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver", "clusters"]
+        }
+        "LoadScene" => &["triangles", "objects"],
+        "BuildBvh" => &["triangles", "bvh_nodes"],
+        "PathTrace" => &["spp", "rays", "nonfinite_samples"],
+        "DirectLight" => &["rays", "rays_per_pixel"],
+        "ClusterReceivers" => &["clusters", "tiles", "mean_cluster_size", "max_iterations_used"],
+        "GBuffer" => &["receivers"],
+        "PointTree" => &["nodes", "depth"],
+        "ShadeDirect" => &["points", "points_skipped"],
+        "SampleSurface" => &["points"],
+        _ => &[],
+    }
+}
+
+/// Refuses, before anything runs, a `--metric` that the error node (or, without
+/// --error-node, every node the requested outputs need) does not report, listing those that
+/// exist (`reported_metrics`).
+fn check_metric(reg: &Registry, graph: &Graph, metric: &str, wanted: Option<&str>, outputs: Option<&[String]>) -> Result<(), CliError> {
+    let ids: Vec<&str> = match wanted {
+        Some(id) => vec![id],
+        None => match make_plan(graph, reg, outputs) {
+            // In graph order, as `find_error_node` searches.
+            Ok(plan) => graph.nodes.iter().enumerate().filter(|(i, _)| plan.order.contains(i)).map(|(_, n)| n.id.as_str()).collect(),
+            Err(_) => return Ok(()), // the run reports the graph's problem
+        },
+    };
+    let nodes: Vec<_> = ids.iter().filter_map(|id| graph.node(id)).collect();
+    if nodes.iter().any(|n| reported_metrics(&n.kind).contains(&metric)) {
+        return Ok(());
+    }
+    let all: Vec<String> = nodes.iter().flat_map(|n| reported_metrics(&n.kind).iter().map(move |m| format!("{}.{m}", n.id))).collect();
+    let names: Vec<&str> = nodes.iter().flat_map(|n| reported_metrics(&n.kind).iter().copied()).collect();
+    let near = relume_core::closest(metric, names).map(|m| format!("did you mean `{m}`? ")).unwrap_or_default();
+    Err(CliError::graph(match (wanted, nodes.first()) {
+        (Some(id), Some(n)) if reported_metrics(&n.kind).is_empty() => {
+            format!(
+                "--metric {metric}: node \"{id}\" ({}) reports no metric; name a node that reports it (an ImageError or a ZTest)",
+                n.kind
+            )
+        }
+        (Some(id), Some(n)) => format!(
+            "--metric {metric}: node \"{id}\" ({}) does not report it; {near}it reports: {}",
+            n.kind,
+            reported_metrics(&n.kind).join(", ")
+        ),
+        _ if all.is_empty() => format!("--metric {metric}: no node the outputs need reports any metric"),
+        _ => format!("--metric {metric}: no node the outputs need reports it; {near}metrics reported: {}", all.join(", ")),
+    }))
+}
+
 /// The node whose `metric` is plotted: `wanted`, checked, or the first in graph order
 /// reporting it. A metric nobody reports is an error that lists the ones that exist.
 fn find_error_node(graph: &Graph, report: &RunReport, metric: &str, wanted: Option<&str>) -> Result<String, CliError> {
@@ -501,6 +592,47 @@ mod tests {
         for bad in ["blur.sigma", "blur.sigma=", "blur.sigma=1,,2", "sigma=1"] {
             assert_eq!(parse_vary(bad).err().map(|e| e.code), Some(2), "{bad}");
         }
+    }
+
+    /// `reported_metrics` agrees with the nodes: the names the metric functions produce, and
+    /// every literal `cx.metric("…"` in the file of each node kind.
+    #[test]
+    fn the_metric_list_matches_what_the_nodes_report() {
+        use crate::types::Image;
+        let names = |m: crate::types::Metrics| m.0.into_iter().map(|(k, _)| k).collect::<Vec<_>>();
+        let img = Image::from_fn(16, 16, |x, y| [x as f32 * 0.1, y as f32 * 0.1, 0.5]);
+        assert_eq!(names(crate::image::image_error::error_metrics(&img, &img, 1.0, 0.01)), reported_metrics("ImageError"));
+        let z = crate::image::z_test::z_test(&img, &img, &img, &img, 3.0).unwrap();
+        assert_eq!(names(z.metrics()), reported_metrics("ZTest"));
+        let gather = names(crate::pbgi::traversal::count_metrics(Default::default(), 1));
+        assert_eq!(gather, reported_metrics("PbgiGather"));
+        assert_eq!([gather, vec!["clusters".to_string()]].concat(), reported_metrics("FactorizedGather"));
+
+        let reg = crate::registry();
+        let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+        let mut checked = 0;
+        for folder in std::fs::read_dir(&src).unwrap().flatten().filter(|e| e.path().is_dir()) {
+            for file in std::fs::read_dir(folder.path()).unwrap().flatten() {
+                let text = std::fs::read_to_string(file.path()).unwrap_or_default();
+                // The kind a node file implements: `impl Kind {` after its `#[node…]`.
+                let Some(kind) = text.split("#[node").nth(1).and_then(|t| t.split("impl ").nth(1)).and_then(|t| t.split([' ', '{']).next())
+                else {
+                    continue;
+                };
+                if reg.node(kind).is_none() {
+                    continue;
+                }
+                let code = text.split("#[cfg(test)]").next().unwrap();
+                let literal: Vec<&str> = code.split("cx.metric(\"").skip(1).filter_map(|t| t.split('"').next()).collect();
+                let reports = code.contains("cx.metric(");
+                assert_eq!(reports, !reported_metrics(kind).is_empty(), "{kind} ({}): reports metrics?", file.path().display());
+                for m in literal {
+                    assert!(reported_metrics(kind).contains(&m), "{kind} reports `{m}`: add it to reported_metrics");
+                }
+                checked += 1;
+            }
+        }
+        assert!(checked >= 20, "node files found: {checked}");
     }
 
     #[test]

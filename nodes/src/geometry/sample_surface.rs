@@ -53,7 +53,7 @@ pub fn sample_surface_with(scene: &Scene, p: &SampleSurface, cx: &RunCtx) -> Res
     let candidates = if p.method == Method::PoissonDisk { p.count.saturating_mul(8) } else { p.count };
     let bytes = candidates.saturating_mul(SurfacePoints::BYTES_PER_POINT);
     if bytes > MAX_IMAGE_BYTES {
-        return Err(NodeError::param(
+        return Err(NodeError::over_limit_param(
             "count",
             format!("{candidates} points need {:.1} GiB, over the {} GiB limit", bytes as f64 / (1u64 << 30) as f64, MAX_IMAGE_BYTES >> 30),
         ));
@@ -135,6 +135,12 @@ pub fn sample_surface_with(scene: &Scene, p: &SampleSurface, cx: &RunCtx) -> Res
 
 #[node(category = "geometry")]
 impl SampleSurface {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        let _ = inputs;
+        let bytes = (self.count * crate::types::SurfacePoints::BYTES_PER_POINT) as u64;
+        relume_core::MemoryEstimate { outputs: vec![Some(relume_core::PortSize::bytes(bytes))], working: 0 }
+    }
+
     fn run(&self, i: SampleSurfaceIn, cx: &RunCtx) -> Result<SampleSurfaceOut, NodeError> {
         let pts = sample_surface_with(i.scene, self, cx)?;
         cx.metric("points", pts.len() as f64);

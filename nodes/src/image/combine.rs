@@ -21,6 +21,10 @@ outputs!(pub CombineOut { image: Image });
 
 #[node(category = "image")]
 impl Combine {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        relume_core::MemoryEstimate { outputs: vec![inputs[0]], working: 0 }
+    }
+
     fn run(&self, i: CombineIn, _cx: &RunCtx) -> Result<CombineOut, NodeError> {
         let (a, b) = (i.a, i.b);
         a.check_same_size(b, "a", "b")?;

@@ -81,6 +81,11 @@ pub fn gaussian_blur_with(img: &Image, sigma: f64, truncate: f64, cx: &RunCtx) -
 
 #[node(category = "image")]
 impl GaussianBlur {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        // The horizontal pass's image besides the output.
+        relume_core::MemoryEstimate { outputs: vec![inputs[0]], working: inputs[0].map_or(0, |s| s.bytes) }
+    }
+
     fn run(&self, i: GaussianBlurIn, cx: &RunCtx) -> Result<GaussianBlurOut, NodeError> {
         Ok(GaussianBlurOut { image: gaussian_blur_with(i.image, self.sigma, self.truncate, cx)? })
     }

@@ -1,7 +1,7 @@
 //! ImageError node.
 
 use crate::math::srgb::srgb_encode;
-use crate::math::ssim::ssim;
+use crate::math::ssim::ssim_with;
 use crate::types::{Image, Metrics};
 use relume_core::{inputs, node, outputs, CancelToken, NodeError, Params, RunCtx};
 
@@ -75,7 +75,7 @@ pub fn error_metrics_with(x: &Image, r: &Image, peak: f64, epsilon: f64, cx: &Ru
     };
     let flip = flip_mean_with(x, r, peak, cx)?;
     cx.check()?;
-    let ssim = ssim(x, r, peak);
+    let ssim = ssim_with(x, r, peak, cx)?;
     Ok(Metrics(vec![
         ("mse".into(), mse),
         ("rel_mse".into(), rel / count),
@@ -152,6 +152,17 @@ pub fn flip_mean_with(x: &Image, r: &Image, peak: f64, cx: &RunCtx) -> Result<f6
 
 #[node(category = "quality", version = 2)]
 impl ImageError {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        // SSIM holds two luma planes (f64) and three planes of six f64 moments per pixel
+        // (moments, row-filtered, column-filtered): 160 bytes a pixel, more than ꟻLIP's
+        // 8-bit copies and map after it.
+        let pixels = inputs[0].and_then(|s| s.pixels());
+        relume_core::MemoryEstimate {
+            outputs: vec![Some(relume_core::PortSize::bytes(256)), inputs[0]],
+            working: pixels.map_or(0, |p| p * 160),
+        }
+    }
+
     fn run(&self, i: ImageErrorIn, cx: &RunCtx) -> Result<ImageErrorOut, NodeError> {
         let (x, r) = (i.image, i.reference);
         r.check_same_size(x, "reference", "image")?;

@@ -17,6 +17,13 @@ outputs!(pub LoadImageOut { image: Image });
 
 #[node(category = "image")]
 impl LoadImage {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        // The header gives the size without decoding the pixels.
+        let _ = inputs;
+        let size = ::image::image_dimensions(&self.path).ok().map(|(w, h)| relume_core::PortSize::image(w as usize, h as usize));
+        relume_core::MemoryEstimate { outputs: vec![size], working: 0 }
+    }
+
     fn run(&self, _: (), _cx: &RunCtx) -> Result<LoadImageOut, NodeError> {
         let image = read_image(&self.path).map_err(|m| NodeError::param("path", m))?;
         Ok(LoadImageOut { image })

@@ -53,6 +53,10 @@ pub fn median_filter_with(img: &Image, radius: usize, cx: &RunCtx) -> Result<Ima
 
 #[node(category = "image")]
 impl MedianFilter {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        relume_core::MemoryEstimate { outputs: vec![inputs[0]], working: 0 }
+    }
+
     fn run(&self, i: MedianFilterIn, cx: &RunCtx) -> Result<MedianFilterOut, NodeError> {
         Ok(MedianFilterOut { image: median_filter_with(i.image, self.radius, cx)? })
     }

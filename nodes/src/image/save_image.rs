@@ -9,7 +9,8 @@ use std::path::PathBuf;
 /// the image on. It has a side effect, so it is never cached and runs whenever needed.
 #[derive(Params)]
 pub struct SaveImage {
-    /// file to write (.exr or .png), relative to the graph file
+    /// file to write (.exr or .png), relative to the graph file; it must lie below the graph's
+    /// folder or the run's output folder unless the run allows writes anywhere
     #[param(output)]
     pub path: PathBuf,
 }
@@ -19,7 +20,8 @@ outputs!(pub SaveImageOut { image: Image });
 
 #[node(category = "image", caching = Never)]
 impl SaveImage {
-    fn run(&self, i: SaveImageIn, _cx: &RunCtx) -> Result<SaveImageOut, NodeError> {
+    fn run(&self, i: SaveImageIn, cx: &RunCtx) -> Result<SaveImageOut, NodeError> {
+        cx.check_write_path("path", &self.path)?;
         if let Some(dir) = self.path.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|e| NodeError::param("path", format!("cannot create {}: {e}", dir.display())))?;
         }

@@ -45,6 +45,11 @@ outputs!(pub TestPatternOut { image: Image });
 
 #[node(category = "image", version = 2)]
 impl TestPattern {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        let _ = inputs;
+        relume_core::MemoryEstimate { outputs: vec![Some(relume_core::PortSize::image(self.width, self.height))], working: 0 }
+    }
+
     fn run(&self, _: (), _cx: &RunCtx) -> Result<TestPatternOut, NodeError> {
         let mut img = Image::try_new(self.width, self.height)?;
         let (w, h, cell) = (self.width, self.height, self.cell);

@@ -61,6 +61,10 @@ pub fn tonemap_channel(x: f32, scale: f32, op: Operator) -> f32 {
 
 #[node(category = "image")]
 impl Tonemap {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        relume_core::MemoryEstimate { outputs: vec![inputs[0]], working: 0 }
+    }
+
     fn run(&self, i: TonemapIn, _cx: &RunCtx) -> Result<TonemapOut, NodeError> {
         let scale = 2f32.powf(self.exposure);
         let pixels = i.image.pixels.par_iter().map(|c| c.map(|x| tonemap_channel(x, scale, self.operator))).collect();

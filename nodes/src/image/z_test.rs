@@ -131,6 +131,11 @@ pub fn z_test_with(
 
 #[node(category = "quality")]
 impl ZTest {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        let outputs = (0..2).map(|k| if k == 1 { inputs[0] } else { Some(relume_core::PortSize::bytes(256)) }).collect();
+        relume_core::MemoryEstimate { outputs, working: 0 }
+    }
+
     fn run(&self, i: ZTestIn, cx: &RunCtx) -> Result<ZTestOut, NodeError> {
         let t = z_test_with(i.image, i.image_variance, i.reference, i.reference_variance, self.z, cx)?;
         let m = t.metrics();

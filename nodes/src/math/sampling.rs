@@ -199,36 +199,193 @@ pub fn cmj(s: u32, n: u32, pattern: u32, jitter: Vec2) -> Vec2 {
     Vec2::new(x.min(1.0 - f32::EPSILON), y.min(1.0 - f32::EPSILON))
 }
 
-/// A piecewise-constant 2-D distribution over [0, 1)²: a marginal over rows (v) and a
-/// conditional per row (u). Used for environment-map importance sampling.
-#[derive(Clone, Debug)]
-pub struct Distribution2D {
-    pub rows: Vec<Distribution1D>,
-    pub marginal: Distribution1D,
+/// A density on [0, 1]² proportional to the bilinear interpolant of a `width` × `height` grid
+/// of non-negative values, node (x, y) at (x / (width − 1), y / (height − 1)) (the corner nodes
+/// on the corners of the square), sampled by hierarchical sample warping: Mitsuba 3's
+/// `Hierarchical2D` (include/mitsuba/core/distr_2d.h), what its `envmap` emitter samples with.
+///
+/// A descent from a 2 × 2 top level through a MIP pyramid of patch integrals picks one
+/// bilinear patch with probability equal to its share of the integral, rescaling the sample at
+/// each level; inside the patch the marginal in y and the conditional in x (both linear) are
+/// inverted in closed form. The map is a bijection of [0, 1]² with low distortion, and
+/// [`Bilinear2D::invert`] is its inverse. Negative or non-finite values count as 0.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Bilinear2D {
+    /// Number of nodes along x and y (≥ 2 each).
+    width: usize,
+    height: usize,
+    /// The node values scaled so that their interpolant integrates to 1 over [0, 1]² (the
+    /// density), row-major; all zero when the grid is.
+    density: Vec<f32>,
+    /// `levels[0]`: the integral of each patch, `levels[k]`: sums of 2 × 2 blocks of
+    /// `levels[k − 1]`, each zero-padded to even sizes, up to a 2 × 2 top level.
+    levels: Vec<Level>,
+    /// Integral over [0, 1]² of the interpolant of the values as given (their mean over the
+    /// square); 0 for an all-zero grid, which samples nothing.
+    pub integral: f32,
 }
 
-impl Distribution2D {
-    /// `func` is row-major, `width` × `height`.
-    pub fn new(func: &[f32], width: usize, height: usize) -> Self {
-        let rows: Vec<Distribution1D> = (0..height).map(|y| Distribution1D::new(&func[y * width..(y + 1) * width])).collect();
-        let marginal = Distribution1D::new(&rows.iter().map(|r| r.integral).collect::<Vec<_>>());
-        Distribution2D { rows, marginal }
+#[derive(Clone, Debug, PartialEq)]
+struct Level {
+    width: usize,
+    data: Vec<f32>,
+}
+
+impl Level {
+    fn quad(&self, x: usize, y: usize) -> [f32; 4] {
+        let at = |x: usize, y: usize| self.data[y * self.width + x];
+        [at(x, y), at(x + 1, y), at(x, y + 1), at(x + 1, y + 1)]
+    }
+}
+
+/// Inverse CDF on [0, 1] of the density ∝ a linear function from `a` at 0 to `b` at 1 (a, b ≥
+/// 0): the root of (b − a) x²/2 + a x = u (a + b)/2, written without cancellation (exact u
+/// for a = b, √u for a = 0).
+fn linear_to_interval(a: f32, b: f32, u: f32) -> f32 {
+    let sum = a + b;
+    if sum <= 0.0 {
+        return u;
+    }
+    (u * sum / (a + (a * a + (b * b - a * a) * u).max(0.0).sqrt())).clamp(0.0, 1.0)
+}
+
+/// The CDF that [`linear_to_interval`] inverts.
+fn interval_to_linear(a: f32, b: f32, x: f32) -> f32 {
+    let sum = a + b;
+    if sum <= 0.0 {
+        return x;
+    }
+    (x * ((2.0 - x) * a + x * b) / sum).clamp(0.0, 1.0)
+}
+
+fn lerp(a: f32, b: f32, t: f32) -> f32 {
+    a + (b - a) * t
+}
+
+impl Bilinear2D {
+    /// `values` is row-major, `width` × `height` nodes, both at least 2.
+    pub fn new(values: &[f32], width: usize, height: usize) -> Self {
+        assert!(width >= 2 && height >= 2 && values.len() == width * height, "Bilinear2D needs at least 2 × 2 nodes");
+        let values: Vec<f32> = values.iter().map(|&v| if v.is_finite() && v > 0.0 { v } else { 0.0 }).collect();
+        let (px, py) = (width - 1, height - 1);
+        // Patch integrals (mean of the four corners), summed in f64 for the normalisation.
+        let mut patches = vec![0.0f64; px * py];
+        let mut sum = 0.0f64;
+        for y in 0..py {
+            for x in 0..px {
+                let i = y * width + x;
+                let avg = 0.25 * (values[i] as f64 + values[i + 1] as f64 + values[i + width] as f64 + values[i + width + 1] as f64);
+                patches[y * px + x] = avg;
+                sum += avg;
+            }
+        }
+        let integral = (sum / (px * py) as f64) as f32;
+        let scale = if sum > 0.0 { (px * py) as f64 / sum } else { 0.0 };
+        let density = values.iter().map(|&v| (v as f64 * scale) as f32).collect();
+        // The pyramid: ⌈log₂ max(px, py)⌉ levels above the patches.
+        let depth = usize::BITS - (px.max(py) - 1).leading_zeros();
+        let mut levels: Vec<Level> = Vec::with_capacity(depth as usize);
+        let (mut w, mut h) = (px, py);
+        for _ in 0..depth {
+            let (pw, ph) = (w + (w & 1), h + (h & 1));
+            let mut data = vec![0.0f32; pw * ph];
+            for y in 0..h {
+                for x in 0..w {
+                    data[y * pw + x] = match levels.last() {
+                        None => (patches[y * px + x] * scale) as f32,
+                        Some(below) => below.quad(2 * x, 2 * y).iter().sum(),
+                    };
+                }
+            }
+            levels.push(Level { width: pw, data });
+            (w, h) = (pw / 2, ph / 2);
+        }
+        Bilinear2D { width, height, density, levels, integral }
     }
 
-    /// Returns ((u, v), density over [0, 1)²).
-    pub fn sample(&self, u: Vec2) -> (Vec2, f32) {
-        let (v, pdf_v, row) = self.marginal.sample_continuous(u.y);
-        let (x, pdf_u, _) = self.rows[row].sample_continuous(u.x);
-        (Vec2::new(x, v), pdf_u * pdf_v)
+    fn corners(&self, x: usize, y: usize) -> [f32; 4] {
+        let i = y * self.width + x;
+        let d = &self.density;
+        [d[i], d[i + 1], d[i + self.width], d[i + self.width + 1]]
     }
 
-    /// Density at (u, v).
-    pub fn pdf(&self, uv: Vec2) -> f32 {
-        let h = self.marginal.len();
-        let row = ((uv.y * h as f32) as usize).min(h - 1);
-        let w = self.rows[row].len();
-        let col = ((uv.x * w as f32) as usize).min(w - 1);
-        self.rows[row].pdf_cell(col) * self.marginal.pdf_cell(row)
+    /// The patch holding `p` (clamped into the square) and `p`'s position within it.
+    fn locate(&self, p: Vec2) -> (usize, usize, Vec2) {
+        let (px, py) = (self.width - 1, self.height - 1);
+        let q = p.clamp(Vec2::ZERO, Vec2::ONE) * Vec2::new(px as f32, py as f32);
+        let (x, y) = ((q.x as usize).min(px - 1), (q.y as usize).min(py - 1));
+        (x, y, (q - Vec2::new(x as f32, y as f32)).clamp(Vec2::ZERO, Vec2::ONE))
+    }
+
+    /// Warps a uniform sample of [0, 1]² to the density; returns (point, density there).
+    /// `None` for an all-zero grid or a point of zero density.
+    pub fn sample(&self, u: Vec2) -> Option<(Vec2, f32)> {
+        if self.integral <= 0.0 {
+            return None;
+        }
+        let mut s = u.clamp(Vec2::ZERO, Vec2::ONE);
+        let (mut ox, mut oy) = (0usize, 0usize);
+        for level in self.levels.iter().rev() {
+            (ox, oy) = (2 * ox, 2 * oy);
+            let [v00, v10, v01, v11] = level.quad(ox, oy);
+            // The row (never one of zero weight), then the column within it.
+            let (r0, r1) = (v00 + v10, v01 + v11);
+            let sy = s.y * (r0 + r1);
+            let (c0, c1) = if r0 <= 0.0 || (r1 > 0.0 && sy > r0) {
+                oy += 1;
+                s.y = (sy - r0) / r1;
+                (v01, v11)
+            } else {
+                s.y = sy / r0;
+                (v00, v10)
+            };
+            let sx = s.x * (c0 + c1);
+            if c0 <= 0.0 || (c1 > 0.0 && sx > c0) {
+                ox += 1;
+                s.x = (sx - c0) / c1;
+            } else {
+                s.x = sx / c0;
+            }
+            s = s.clamp(Vec2::ZERO, Vec2::ONE);
+        }
+        let (px, py) = (self.width - 1, self.height - 1);
+        let (ox, oy) = (ox.min(px - 1), oy.min(py - 1));
+        let [v00, v10, v01, v11] = self.corners(ox, oy);
+        let y = linear_to_interval(v00 + v10, v01 + v11, s.y);
+        let (c0, c1) = (lerp(v00, v01, y), lerp(v10, v11, y));
+        let x = linear_to_interval(c0, c1, s.x);
+        let pdf = lerp(c0, c1, x);
+        let p = Vec2::new((ox as f32 + x) / px as f32, (oy as f32 + y) / py as f32).min(Vec2::ONE);
+        (pdf > 0.0 && pdf.is_finite()).then_some((p, pdf))
+    }
+
+    /// Density at `p` (clamped into the square): the bilinear interpolant of the normalised
+    /// values.
+    pub fn pdf(&self, p: Vec2) -> f32 {
+        let (x, y, t) = self.locate(p);
+        let [v00, v10, v01, v11] = self.corners(x, y);
+        lerp(lerp(v00, v10, t.x), lerp(v01, v11, t.x), t.y)
+    }
+
+    /// The uniform sample that [`Bilinear2D::sample`] maps to `p` (for points of positive
+    /// density: the map is a bijection there).
+    pub fn invert(&self, p: Vec2) -> Vec2 {
+        let (mut ox, mut oy, t) = self.locate(p);
+        let [v00, v10, v01, v11] = self.corners(ox, oy);
+        let (c0, c1) = (lerp(v00, v01, t.y), lerp(v10, v11, t.y));
+        let mut s = Vec2::new(interval_to_linear(c0, c1, t.x), interval_to_linear(v00 + v10, v01 + v11, t.y));
+        for level in &self.levels {
+            let [v00, v10, v01, v11] = level.quad(ox & !1, oy & !1);
+            let (r0, r1) = (v00 + v10, v01 + v11);
+            let (odd_x, odd_y) = (ox & 1 == 1, oy & 1 == 1);
+            let (c0, c1) = if odd_y { (v01, v11) } else { (v00, v10) };
+            let (dy, dx) = (r0 + r1, c0 + c1);
+            s.y = if dy > 0.0 { (if odd_y { r0 + s.y * r1 } else { s.y * r0 }) / dy } else { s.y };
+            s.x = if dx > 0.0 { (if odd_x { c0 + s.x * c1 } else { s.x * c0 }) / dx } else { s.x };
+            s = s.clamp(Vec2::ZERO, Vec2::ONE);
+            (ox, oy) = (ox / 2, oy / 2);
+        }
+        s
     }
 }
 
@@ -322,19 +479,93 @@ mod tests {
     }
 
     #[test]
-    fn two_d_density_integrates_to_one() {
-        let f: Vec<f32> = (0..32).map(|i| (i % 7) as f32 + if i == 9 { 100.0 } else { 0.0 }).collect();
-        let d = Distribution2D::new(&f, 8, 4);
-        let mut integral = 0.0;
-        for y in 0..4 {
-            for x in 0..8 {
-                integral += d.pdf(Vec2::new((x as f32 + 0.5) / 8.0, (y as f32 + 0.5) / 4.0)) / 32.0;
+    fn bilinear_density_of_a_ramp_is_sampled_by_its_inverse_cdf() {
+        // Values 0 on the left, 1 on the right: density 2x, x = √u, y uniform.
+        let d = Bilinear2D::new(&[0.0, 1.0, 0.0, 1.0], 2, 2);
+        assert_eq!(d.integral, 0.5);
+        let (p, pdf) = d.sample(Vec2::new(0.25, 0.7)).unwrap();
+        assert!((p - Vec2::new(0.5, 0.7)).length() < 1e-6 && (pdf - 1.0).abs() < 1e-6, "{p} {pdf}");
+        assert!((d.pdf(Vec2::new(0.75, 0.1)) - 1.5).abs() < 1e-6);
+        assert!((d.invert(p) - Vec2::new(0.25, 0.7)).length() < 1e-6);
+        // An all-zero grid samples nothing.
+        let zero = Bilinear2D::new(&[0.0; 6], 3, 2);
+        assert!(zero.sample(Vec2::splat(0.5)).is_none() && zero.integral == 0.0);
+    }
+
+    /// A random grid: `w` × `h` nodes, about a third of them zero, one spike.
+    fn random_grid(w: usize, h: usize, seed: u64) -> Vec<f32> {
+        (0..w * h)
+            .map(|i| {
+                let r = uniform(seed, i as u64, 0);
+                if i == (seed as usize) % (w * h) {
+                    1e4
+                } else if r < 0.3 {
+                    0.0
+                } else {
+                    r * 10.0
+                }
+            })
+            .collect()
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(if cfg!(debug_assertions) { 16 } else { 128 }))]
+
+        #[test]
+        fn bilinear_density_integrates_to_one_and_its_warp_inverts(w in 2usize..40, h in 2usize..24, seed in 0u64..1_000_000) {
+            let d = Bilinear2D::new(&random_grid(w, h, seed), w, h);
+            // The centre value of a bilinear patch times its area is its exact integral.
+            let (px, py) = ((w - 1) as f32, (h - 1) as f32);
+            let mut integral = 0.0f64;
+            for y in 0..h - 1 {
+                for x in 0..w - 1 {
+                    integral += d.pdf(Vec2::new((x as f32 + 0.5) / px, (y as f32 + 0.5) / py)) as f64 / (px * py) as f64;
+                }
+            }
+            proptest::prop_assert!((integral - 1.0).abs() < 1e-4, "{}", integral);
+            for i in 0..200 {
+                let u = Vec2::new(uniform(seed, i, 1), uniform(seed, i, 2));
+                let Some((p, pdf)) = d.sample(u) else { continue };
+                proptest::prop_assert!((0.0..=1.0).contains(&p.x) && (0.0..=1.0).contains(&p.y));
+                proptest::prop_assert!((d.pdf(p) - pdf).abs() <= 1e-3 * pdf, "pdf {} vs sampled {}", d.pdf(p), pdf);
+                // The warp is a bijection where the density is not vanishing.
+                if pdf > 1e-2 {
+                    let back = d.invert(p);
+                    proptest::prop_assert!((back - u).abs().max_element() < 2e-3, "{} → {} → {}", u, p, back);
+                }
             }
         }
-        assert!((integral - 1.0).abs() < 1e-4, "{integral}");
-        for i in 0..1000 {
-            let (uv, pdf) = d.sample(u2(i));
-            assert!((pdf - d.pdf(uv)).abs() < 1e-3 * pdf.max(1.0), "{pdf} vs {}", d.pdf(uv));
+    }
+
+    #[test]
+    fn bilinear_samples_fall_in_proportion_to_the_density() {
+        // 5 × 4 nodes with zeros, histogrammed on a 7 × 6 grid not aligned with the patches.
+        let values = [0.0, 1.0, 4.0, 0.0, 2.0, 3.0, 0.0, 0.5, 8.0, 1.0, 0.0, 0.0, 2.0, 6.0, 1.0, 5.0, 1.0, 0.0, 0.0, 3.0];
+        let d = Bilinear2D::new(&values, 5, 4);
+        let (bx, by, n) = (7usize, 6usize, 400_000u64);
+        let mut counts = vec![0u64; bx * by];
+        for i in 0..n {
+            let (p, _) = d.sample(u2(i + 77)).unwrap();
+            counts[((p.y * by as f32) as usize).min(by - 1) * bx + ((p.x * bx as f32) as usize).min(bx - 1)] += 1;
+        }
+        let k = 64;
+        for j in 0..by {
+            for i in 0..bx {
+                let mut expect = 0.0f64;
+                for b in 0..k {
+                    for a in 0..k {
+                        let q = Vec2::new(
+                            (i as f32 + (a as f32 + 0.5) / k as f32) / bx as f32,
+                            (j as f32 + (b as f32 + 0.5) / k as f32) / by as f32,
+                        );
+                        expect += d.pdf(q) as f64;
+                    }
+                }
+                expect /= (k * k * bx * by) as f64;
+                let got = counts[j * bx + i] as f64 / n as f64;
+                let sigma = (expect * (1.0 - expect) / n as f64).sqrt();
+                assert!((got - expect).abs() < 5.0 * sigma + 2e-4, "bin ({i}, {j}): {got} vs {expect}");
+            }
         }
     }
 }

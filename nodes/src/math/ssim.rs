@@ -11,7 +11,7 @@
 
 use crate::math::srgb::srgb_encode;
 use crate::types::Image;
-use rayon::prelude::*;
+use relume_core::{CancelToken, NodeError, RunCtx};
 
 pub const K1: f64 = 0.01;
 pub const K2: f64 = 0.03;
@@ -39,13 +39,26 @@ pub fn display_luma(img: &Image, peak: f64) -> Vec<f64> {
 /// Mean SSIM of two images as shown on a display whose white is the linear value `peak`
 /// (see `display_luma`); 1 for identical images. Returns 1 when no pixel is finite in both.
 pub fn ssim(x: &Image, r: &Image, peak: f64) -> f64 {
+    let cancel = CancelToken::new();
+    ssim_with(x, r, peak, &RunCtx::new("ssim", &cancel, None)).expect("never cancelled")
+}
+
+/// `ssim` inside a node's run: its passes go row by row through `cx`, so a cancelled run
+/// stops within a row.
+pub fn ssim_with(x: &Image, r: &Image, peak: f64, cx: &RunCtx) -> Result<f64, NodeError> {
     assert_eq!((x.width, x.height), (r.width, r.height), "ssim needs images of the same size");
-    ssim_plane(&display_luma(x, peak), &display_luma(r, peak), x.width, x.height, 1.0)
+    ssim_plane_with(&display_luma(x, peak), &display_luma(r, peak), x.width, x.height, 1.0, cx)
 }
 
 /// Mean SSIM of two row-major planes of `w` × `h` values with dynamic range `l`; entries that
 /// are not finite in either plane are left out (see the module comment).
 pub fn ssim_plane(a: &[f64], b: &[f64], w: usize, h: usize, l: f64) -> f64 {
+    let cancel = CancelToken::new();
+    ssim_plane_with(a, b, w, h, l, &RunCtx::new("ssim", &cancel, None)).expect("never cancelled")
+}
+
+/// `ssim_plane` with `cx`'s cancellation (and progress).
+pub fn ssim_plane_with(a: &[f64], b: &[f64], w: usize, h: usize, l: f64, cx: &RunCtx) -> Result<f64, NodeError> {
     assert!(a.len() == w * h && b.len() == w * h, "planes must hold w × h values");
     let (c1, c2) = ((K1 * l).powi(2), (K2 * l).powi(2));
     let k: Vec<f64> = {
@@ -57,7 +70,7 @@ pub fn ssim_plane(a: &[f64], b: &[f64], w: usize, h: usize, l: f64) -> f64 {
     // Per pixel: mask, a, b, a², b², ab (all zero where masked).
     let moments: Vec<[f64; 6]> =
         a.iter().zip(b).map(|(&x, &y)| if x.is_finite() && y.is_finite() { [1.0, x, y, x * x, y * y, x * y] } else { [0.0; 6] }).collect();
-    let filtered = filter_cols(&filter_rows(&moments, w, &k), w, h, &k);
+    let filtered = filter_cols(&filter_rows(&moments, w, &k, cx)?, w, h, &k, cx)?;
     let interior = |i: usize| {
         let (x, y) = (i % w, i / w);
         x >= RADIUS && y >= RADIUS && x + RADIUS < w && y + RADIUS < h
@@ -71,29 +84,25 @@ pub fn ssim_plane(a: &[f64], b: &[f64], w: usize, h: usize, l: f64) -> f64 {
         let (vx, vy, cxy) = (m[3] * inv - mx * mx, m[4] * inv - my * my, m[5] * inv - mx * my);
         (2.0 * mx * my + c1) * (2.0 * cxy + c2) / ((mx * mx + my * my + c1) * (vx.max(0.0) + vy.max(0.0) + c2))
     };
-    let rows: Vec<(f64, usize)> = filtered
-        .par_chunks(w)
-        .enumerate()
-        .map(|(y, row)| {
+    let rows: Vec<(f64, usize)> = cx.par_map(h, |y| {
+        let row = &filtered[y * w..(y + 1) * w];
+        {
             row.iter()
                 .enumerate()
                 .map(|(x, m)| (y * w + x, m))
                 .filter(|&(i, _)| moments[i][0] > 0.0 && (!any_interior || interior(i)))
                 .fold((0.0, 0), |(s, n), (_, m)| (s + ssim_at(m), n + 1))
-        })
-        .collect();
+        }
+    })?;
     let (sum, n) = rows.iter().fold((0.0, 0usize), |(s, n), &(rs, rn)| (s + rs, n + rn));
-    if n == 0 {
-        1.0
-    } else {
-        sum / n as f64
-    }
+    Ok(if n == 0 { 1.0 } else { sum / n as f64 })
 }
 
 /// Horizontal pass with zero outside the image.
-fn filter_rows(src: &[[f64; 6]], w: usize, k: &[f64]) -> Vec<[f64; 6]> {
+fn filter_rows(src: &[[f64; 6]], w: usize, k: &[f64], cx: &RunCtx) -> Result<Vec<[f64; 6]>, NodeError> {
     let mut out = vec![[0.0; 6]; src.len()];
-    out.par_chunks_mut(w).zip(src.par_chunks(w)).for_each(|(o, row)| {
+    cx.par_chunks_mut(&mut out, w, |y, o| {
+        let row = &src[y * w..(y + 1) * w];
         for (x, px) in o.iter_mut().enumerate() {
             for (j, &kw) in k.iter().enumerate() {
                 let Some(sx) = (x + j).checked_sub(RADIUS).filter(|&s| s < w) else { continue };
@@ -102,14 +111,14 @@ fn filter_rows(src: &[[f64; 6]], w: usize, k: &[f64]) -> Vec<[f64; 6]> {
                 }
             }
         }
-    });
-    out
+    })?;
+    Ok(out)
 }
 
 /// Vertical pass with zero outside the image.
-fn filter_cols(src: &[[f64; 6]], w: usize, h: usize, k: &[f64]) -> Vec<[f64; 6]> {
+fn filter_cols(src: &[[f64; 6]], w: usize, h: usize, k: &[f64], cx: &RunCtx) -> Result<Vec<[f64; 6]>, NodeError> {
     let mut out = vec![[0.0; 6]; src.len()];
-    out.par_chunks_mut(w).enumerate().for_each(|(y, o)| {
+    cx.par_chunks_mut(&mut out, w, |y, o| {
         for (j, &kw) in k.iter().enumerate() {
             let Some(sy) = (y + j).checked_sub(RADIUS).filter(|&s| s < h) else { continue };
             for (px, s) in o.iter_mut().zip(&src[sy * w..(sy + 1) * w]) {
@@ -118,8 +127,8 @@ fn filter_cols(src: &[[f64; 6]], w: usize, h: usize, k: &[f64]) -> Vec<[f64; 6]>
                 }
             }
         }
-    });
-    out
+    })?;
+    Ok(out)
 }
 
 #[cfg(test)]

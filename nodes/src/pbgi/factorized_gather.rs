@@ -90,6 +90,11 @@ pub fn factorized_gather(
 
 #[node(category = "pbgi")]
 impl FactorizedGather {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        let image = inputs[1].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));
+        relume_core::MemoryEstimate { outputs: vec![image, Some(relume_core::PortSize::bytes(256))], working: 0 }
+    }
+
     fn run(&self, i: FactorizedGatherIn, cx: &RunCtx) -> Result<FactorizedGatherOut, NodeError> {
         let (tree, r, c) = (i.tree, i.receivers, i.clusters);
         if c.of_receiver.len() != r.len() {

@@ -44,6 +44,15 @@ pub fn gbuffer(scene: &Scene, accel: &Accel, cx: &RunCtx) -> Result<Receivers, N
 
 #[node(category = "pbgi")]
 impl GBuffer {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        // At most one receiver per pixel.
+        let size = inputs[0].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize {
+            bytes: (w * h * crate::types::Receivers::BYTES_PER_RECEIVER) as u64,
+            dims: Some([w, h]),
+        });
+        relume_core::MemoryEstimate { outputs: vec![size], working: 0 }
+    }
+
     fn run(&self, i: GBufferIn, cx: &RunCtx) -> Result<GBufferOut, NodeError> {
         let r = gbuffer(i.scene, i.accel, cx)?;
         cx.metric("receivers", r.len() as f64);

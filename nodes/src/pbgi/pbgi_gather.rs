@@ -59,6 +59,11 @@ pub fn gather(tree: &PointTree, r: &Receivers, p: &PbgiGather, extent: f32, cx: 
 
 #[node(category = "pbgi")]
 impl PbgiGather {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        let image = inputs[1].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));
+        relume_core::MemoryEstimate { outputs: vec![image, Some(relume_core::PortSize::bytes(256))], working: 0 }
+    }
+
     fn run(&self, i: PbgiGatherIn, cx: &RunCtx) -> Result<PbgiGatherOut, NodeError> {
         let (img, counts) = gather(i.tree, i.receivers, self, tree_extent(i.tree), cx)?;
         let m = count_metrics(counts, i.receivers.len());

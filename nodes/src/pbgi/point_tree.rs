@@ -23,6 +23,13 @@ outputs!(pub BuildPointTreeOut { tree: PointTree });
 
 #[node(category = "pbgi", kind = "PointTree")]
 impl BuildPointTree {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        // 2N − 1 nodes and the points' radiance.
+        let n = inputs[0].map(|s| s.bytes / crate::types::SurfacePoints::BYTES_PER_POINT as u64);
+        let node = std::mem::size_of::<crate::types::TreeNode>() as u64;
+        relume_core::MemoryEstimate { outputs: vec![n.map(|n| relume_core::PortSize::bytes(2 * n * node + 12 * n))], working: 0 }
+    }
+
     fn run(&self, i: BuildPointTreeIn, cx: &RunCtx) -> Result<BuildPointTreeOut, NodeError> {
         let (points, radiance) = (i.points, &i.radiance.0);
         check_inputs(points, radiance)?;

@@ -96,6 +96,12 @@ pub fn shade_direct(
 
 #[node(category = "pbgi")]
 impl ShadeDirect {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        // One RGB radiance per point.
+        let points = inputs[2].map(|s| s.bytes / crate::types::SurfacePoints::BYTES_PER_POINT as u64);
+        relume_core::MemoryEstimate { outputs: vec![points.map(|n| relume_core::PortSize::bytes(n * 12))], working: 0 }
+    }
+
     fn run(&self, i: ShadeDirectIn, cx: &RunCtx) -> Result<ShadeDirectOut, NodeError> {
         let pts = i.points;
         let (b, skipped) = shade_direct(i.scene, i.accel, pts, self, cx)?;

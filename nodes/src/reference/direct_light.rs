@@ -116,6 +116,13 @@ pub fn render(scene: &Scene, accel: &Accel, p: &DirectLight, cx: Option<&RunCtx>
 
 #[node(category = "reference")]
 impl DirectLight {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        relume_core::MemoryEstimate {
+            outputs: vec![inputs[0].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h))],
+            working: 0,
+        }
+    }
+
     fn run(&self, i: DirectLightIn, cx: &RunCtx) -> Result<DirectLightOut, NodeError> {
         let (img, rays) = render(i.scene, i.accel, self, Some(cx))?;
         let bad = img.as_floats().iter().filter(|v| !v.is_finite()).count();

@@ -57,6 +57,12 @@ pub fn render(scene: &Scene, accel: &Accel, p: &PathTrace, cx: Option<&RunCtx>) 
 
 #[node(category = "reference")]
 impl PathTrace {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        // The film: a sum and a sum of squares (f64 RGB) per pixel.
+        let image = inputs[0].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));
+        relume_core::MemoryEstimate { outputs: vec![image, image], working: inputs[0].and_then(|s| s.pixels()).map_or(0, |p| p * 48) }
+    }
+
     fn run(&self, i: PathTraceIn, cx: &RunCtx) -> Result<PathTraceOut, NodeError> {
         let (scene, accel) = (i.scene, i.accel);
         if !scene.has_lights() {

@@ -76,7 +76,7 @@ impl LightSampler {
         let mut env_item = None;
         let env_lum = match &scene.environment {
             Some(Environment::Constant(c)) => lum(*c),
-            Some(Environment::Map(m)) => m.distribution.marginal.integral,
+            Some(Environment::Map(m)) => m.distribution.integral,
             None => 0.0,
         };
         if env_lum > 0.0 {

@@ -19,7 +19,7 @@
 //! (scale first), as SCENES.md writes `translate(…) · scale(…)`.
 
 use super::envmap::Sky;
-use super::obj::load_obj;
+use super::obj::load_obj_file;
 use super::shapes::{crease_normals, sphere};
 use crate::image::io::decode_image;
 use crate::types::{Camera, EnvMap, Environment, Light, Material, Medium, Object, Scene};
@@ -174,16 +174,12 @@ impl Builder {
                 };
                 let (p, bytes) = self.read_file(pv)?;
                 let text = String::from_utf8(bytes).map_err(|_| at(pv, format!("{}: not UTF-8 text", p.display())))?;
-                let models = load_obj(&p, &text).map_err(LoadError::Plain)?;
-                // MTL files are read by tobj; record them as dependencies too.
-                for line in text.lines().filter(|l| l.starts_with("mtllib")) {
-                    for lib in line.split_whitespace().skip(1) {
-                        let mp = p.parent().unwrap_or(Path::new(".")).join(lib);
-                        if let Ok(b) = std::fs::read(&mp) {
-                            self.files.push((mp, Hash::of_bytes(&b)));
-                        }
-                    }
+                let obj = load_obj_file(&p, &text).map_err(LoadError::Plain)?;
+                // The material libraries are dependencies too.
+                for (mp, b) in &obj.libraries {
+                    self.files.push((mp.clone(), Hash::of_bytes(b)));
                 }
+                let models = obj.models;
                 if name.is_some() && models.len() != 1 {
                     return Err(at(v, format!("`name` renames a single object, but {} has {}", p.display(), models.len())));
                 }

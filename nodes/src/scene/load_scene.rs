@@ -25,6 +25,14 @@ outputs!(pub LoadSceneOut { scene: Scene });
 
 #[node(category = "scene")]
 impl LoadScene {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        // The scene's bytes are known only once its meshes are read; the resolution is the
+        // override when one is given.
+        let _ = inputs;
+        let dims = (self.width > 0 && self.height > 0).then_some([self.width, self.height]);
+        relume_core::MemoryEstimate { outputs: vec![dims.map(|d| relume_core::PortSize { bytes: 0, dims: Some(d) })], working: 0 }
+    }
+
     fn run(&self, _: (), cx: &RunCtx) -> Result<LoadSceneOut, NodeError> {
         let loaded = load_scene_file(&self.path).map_err(|m| NodeError::param("path", m))?;
         for (path, hash) in &loaded.files {

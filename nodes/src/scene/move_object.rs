@@ -40,6 +40,10 @@ pub fn move_object(scene: &Scene, name: &str, t: Vec3) -> Result<Scene, NodeErro
 
 #[node(category = "scene")]
 impl MoveObject {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        relume_core::MemoryEstimate { outputs: vec![inputs[0]], working: 0 }
+    }
+
     fn run(&self, i: MoveObjectIn, _cx: &RunCtx) -> Result<MoveObjectOut, NodeError> {
         Ok(MoveObjectOut { scene: move_object(i.scene, &self.object, self.translation)? })
     }

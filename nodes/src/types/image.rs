@@ -23,7 +23,7 @@ impl Image {
                 Ok(Image { width, height, pixels: vec![[0.0; 3]; width * height] })
             }
             Some(0) => Err(NodeError::failed(format!("an image of {width} × {height} pixels is empty"))),
-            _ => Err(NodeError::failed(format!(
+            _ => Err(NodeError::over_limit(format!(
                 "an image of {width} × {height} pixels needs {:.1} GiB, over the {} GiB limit",
                 width as f64 * height as f64 * 12.0 / (1u64 << 30) as f64,
                 MAX_IMAGE_BYTES >> 30
@@ -76,6 +76,9 @@ impl PortValue for Image {
     const NAME: &'static str = "Image";
     const COLOR: [u8; 3] = [232, 176, 64];
     const DOC: &'static str = "linear RGB f32 image";
+    fn size(&self) -> relume_core::PortSize {
+        relume_core::PortSize::image(self.width, self.height)
+    }
 
     /// The default fingerprint (the hash of the name and the encoding), streamed from the
     /// pixels without building the encoded copy.

@@ -29,6 +29,9 @@ pub struct Receivers {
 }
 
 impl Receivers {
+    /// Memory per receiver: pixel index, position, normal, outgoing direction, object, material.
+    pub const BYTES_PER_RECEIVER: usize = 4 + 36 + 4 + std::mem::size_of::<Material>();
+
     pub fn len(&self) -> usize {
         self.pixel.len()
     }
@@ -55,7 +58,11 @@ impl PortValue for Receivers {
         (lengths && r.pixel.iter().all(|&p| (p as usize) < pixels)).then_some(r)
     }
     fn byte_size(&self) -> usize {
-        self.len() * (4 + 36 + 4 + std::mem::size_of::<Material>())
+        self.len() * Self::BYTES_PER_RECEIVER
+    }
+    /// Bytes, and the image the receivers are pixels of.
+    fn size(&self) -> relume_core::PortSize {
+        relume_core::PortSize { bytes: self.byte_size() as u64, dims: Some([self.width, self.height]) }
     }
 }
 

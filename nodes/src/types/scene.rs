@@ -3,7 +3,7 @@
 
 use super::material::Material;
 use super::pod_vec;
-use crate::math::sampling::Distribution2D;
+use crate::math::sampling::Bilinear2D;
 use glam::{Vec2, Vec3};
 use relume_core::{codec, PortValue};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
@@ -31,14 +31,17 @@ pub enum Light {
     Directional { direction: Vec3, irradiance: Vec3 },
 }
 
-/// A lat-long radiance map with its importance-sampling distribution.
-/// Pixel (u, v) looks along (sin θ sin φ, cos θ, −sin θ cos φ), θ = π v, φ = 2π u.
+/// A lat-long radiance map with its importance-sampling distribution, read as Mitsuba 3's
+/// `envmap` reads it (scene/envmap.rs): (u, v) looks along (sin θ sin φ, cos θ, −sin θ cos φ),
+/// θ = π v, φ = 2π u; texel (x, y) sits at u = (x + ½)/width, v = y/(height − 1), and lookups
+/// interpolate bilinearly.
 #[derive(Clone, Debug)]
 pub struct EnvMap {
     pub width: usize,
     pub height: usize,
     pub texels: Vec<Vec3>,
-    pub distribution: Distribution2D,
+    /// Luminance × sin θ on the texels, interpolated bilinearly (rebuilt from the texels on decoding).
+    pub distribution: Bilinear2D,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -155,6 +158,10 @@ impl PortValue for Scene {
     const NAME: &'static str = "Scene";
     const COLOR: [u8; 3] = [96, 160, 230];
     const DOC: &'static str = "triangles, objects, materials, lights, environment, camera";
+    /// Bytes, and the camera's resolution: the size of the images rendered from it.
+    fn size(&self) -> relume_core::PortSize {
+        relume_core::PortSize { bytes: self.byte_size() as u64, dims: Some([self.camera.width, self.camera.height]) }
+    }
 
     fn encode(&self) -> Vec<u8> {
         codec::to_bytes(self)
@@ -165,7 +172,7 @@ impl PortValue for Scene {
 
     fn byte_size(&self) -> usize {
         let env = match &self.environment {
-            Some(Environment::Map(m)) => m.texels.len() * 20,
+            Some(Environment::Map(m)) => m.texels.len() * 22,
             _ => 0,
         };
         self.positions.len() * 24 + self.uvs.len() * 8 + self.triangles.len() * 16 + env
@@ -198,10 +205,10 @@ mod tests {
             assert!(Scene::decode(&[b.as_slice(), &[0]].concat()).is_none(), "trailing bytes");
         }
         let Some(Environment::Map(m)) = Scene::decode(&with_env_map().encode()).unwrap().environment else { panic!("a map") };
-        assert_eq!(m.distribution.marginal.cdf, with_env_map_distribution().marginal.cdf, "the distribution is rebuilt");
+        assert_eq!(m.distribution, with_env_map_distribution(), "the distribution is rebuilt");
     }
 
-    fn with_env_map_distribution() -> Distribution2D {
+    fn with_env_map_distribution() -> Bilinear2D {
         match with_env_map().environment {
             Some(Environment::Map(m)) => m.distribution,
             _ => unreachable!(),

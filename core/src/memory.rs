@@ -1,0 +1,103 @@
+//! The memory model: what a node will hold while it runs, estimated before it runs, and the
+//! budget a whole run must fit.
+//!
+//! A node states its estimate from its parameters and the sizes of its inputs
+//! (`Node::memory`): the bytes of each output and the working memory it allocates besides
+//! them. The executor adds up, in plan order, what is held at once — every result still
+//! needed by a later node or asked for as an output, plus the running node's inputs,
+//! outputs and working memory — and refuses, before running anything, a run whose estimate
+//! exceeds the budget (statically, from parameters; again before each node with the actual
+//! input sizes). `relume check` and `relume plan` report the same refusal.
+
+/// The size of a value on a port, as far as it is known before it exists.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PortSize {
+    pub bytes: u64,
+    /// Pixel dimensions (an image's, or the camera resolution a scene asks for).
+    pub dims: Option<[usize; 2]>,
+}
+
+impl PortSize {
+    pub fn bytes(bytes: u64) -> Self {
+        PortSize { bytes, dims: None }
+    }
+    /// An RGB f32 image of `w` × `h`.
+    pub fn image(w: usize, h: usize) -> Self {
+        PortSize { bytes: (w as u64) * (h as u64) * 12 + 16, dims: Some([w, h]) }
+    }
+    pub fn pixels(&self) -> Option<u64> {
+        self.dims.map(|[w, h]| w as u64 * h as u64)
+    }
+}
+
+/// A node's estimate: its outputs (declaration order; `None` where unknown) and the working
+/// memory it allocates besides its inputs and outputs.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct MemoryEstimate {
+    pub outputs: Vec<Option<PortSize>>,
+    pub working: u64,
+}
+
+impl MemoryEstimate {
+    /// Nothing known: the default for nodes that state no estimate.
+    pub fn unknown(outputs: usize) -> Self {
+        MemoryEstimate { outputs: vec![None; outputs], working: 0 }
+    }
+    pub fn output_bytes(&self) -> u64 {
+        self.outputs.iter().flatten().map(|s| s.bytes).sum()
+    }
+}
+
+/// Bytes in GiB/MiB for messages.
+pub fn fmt_bytes(b: u64) -> String {
+    let g = b as f64 / (1u64 << 30) as f64;
+    if g >= 1.0 {
+        format!("{g:.2} GiB")
+    } else {
+        format!("{:.1} MiB", b as f64 / (1u64 << 20) as f64)
+    }
+}
+
+/// The default budget of a run: 80 % of the machine's physical memory (8 GiB where it cannot
+/// be read).
+pub fn default_budget() -> u64 {
+    let total_kib = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|t| t.lines().find(|l| l.starts_with("MemTotal:")).and_then(|l| l.split_whitespace().nth(1)?.parse::<u64>().ok()));
+    match total_kib {
+        Some(k) => k * 1024 / 10 * 8,
+        None => 8 << 30,
+    }
+}
+
+/// Parses `4G`, `512M`, `2GiB`, `1.5g` or a number of bytes (`--memory-budget`).
+pub fn parse_bytes(s: &str) -> Option<u64> {
+    let t = s.trim().to_ascii_lowercase();
+    let t = t.trim_end_matches("ib").trim_end_matches('b');
+    let (num, mul) = match t.chars().last()? {
+        'k' => (&t[..t.len() - 1], 1u64 << 10),
+        'm' => (&t[..t.len() - 1], 1 << 20),
+        'g' => (&t[..t.len() - 1], 1 << 30),
+        't' => (&t[..t.len() - 1], 1 << 40),
+        _ => (t, 1),
+    };
+    let x: f64 = num.trim().parse().ok()?;
+    (x.is_finite() && x >= 0.0).then_some((x * mul as f64) as u64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_parse_and_print() {
+        assert_eq!(parse_bytes("4G"), Some(4 << 30));
+        assert_eq!(parse_bytes("512MiB"), Some(512 << 20));
+        assert_eq!(parse_bytes("1.5g"), Some(3 << 29));
+        assert_eq!(parse_bytes("1000"), Some(1000));
+        assert_eq!(parse_bytes("lots"), None);
+        assert_eq!(fmt_bytes(3 << 30), "3.00 GiB");
+        assert_eq!(PortSize::image(2, 3).bytes, 2 * 3 * 12 + 16);
+        assert!(default_budget() > 0);
+    }
+}
