@@ -204,6 +204,21 @@ fn a_missing_input_file_names_node_parameter_and_path_before_anything_runs() {
 }
 
 #[test]
+fn a_device_or_a_folder_named_as_an_input_file_or_a_scene_is_an_error_not_a_hang() {
+    // Before: `path: "/dev/zero"` read forever (the cache key hashes an input file's content).
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("folder.exr")).unwrap();
+    for (param, target) in [("LoadImage", "/dev/zero"), ("LoadImage", "folder.exr"), ("LoadScene", "/dev/zero")] {
+        let path = dir.path().join("g.ron");
+        let out = if param == "LoadImage" { "img.image" } else { "img.scene" };
+        std::fs::write(&path, format!("Graph(version: 1, nodes: {{\n  \"img\": (kind: \"{param}\", params: (path: \"{target}\")),\n}}, outputs: {{ \"x\": \"{out}\" }})")).unwrap();
+        let g = Graph::load(&path, &relume_nodes::registry()).unwrap();
+        let e = relume_tests::engine().run(&g, &Default::default()).err().unwrap().to_string();
+        assert!(e.contains("g.ron:2:3: node \"img\": parameter `path`: cannot read") && e.contains("it is"), "{e}");
+    }
+}
+
+#[test]
 fn structural_mistakes_are_all_reported_in_one_go() {
     let e = load_error("Graph(\n  version: 1,\n  nodes: {\n    \"a b\": (kind: \"Tonemap\"),\n    \"c\": (kind: 5),\n    \"d\": (kind: \"Tonemap\", colour: 1),\n  },\n  edgez: [],\n)");
     let lines: Vec<&str> = e.lines().collect();

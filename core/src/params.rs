@@ -366,7 +366,7 @@ impl ParamValues {
             v.hash_into(h);
             if spec.kind == ParamKind::InputFile {
                 let path = self.path(name);
-                let bytes = std::fs::read(&path).map_err(|e| format!("parameter `{name}`: cannot read {}: {e}", path.display()))?;
+                let bytes = crate::read_input(&path).map_err(|e| format!("parameter `{name}`: cannot read {}: {e}", path.display()))?;
                 h.hash(&Hash::of_bytes(&bytes));
             }
         }

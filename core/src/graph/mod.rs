@@ -113,9 +113,11 @@ impl Graph {
 
     /// Reads, parses and validates a graph file against the registry.
     pub fn load(path: &Path, registry: &Registry) -> Result<Graph, crate::GraphErrors> {
-        let text = std::fs::read_to_string(path).map_err(|e| {
-            crate::GraphErrors::one(GraphError::new(format!("cannot read graph: {e}"))).with_file(&Some(path.to_path_buf()))
-        })?;
+        let text = crate::read_input(path)
+            .and_then(|b| String::from_utf8(b).map_err(|_| std::io::Error::new(std::io::ErrorKind::InvalidData, "it is not UTF-8 text")))
+            .map_err(|e| {
+                crate::GraphErrors::one(GraphError::new(format!("cannot read graph: {e}"))).with_file(&Some(path.to_path_buf()))
+            })?;
         let g = Graph::parse(&text, Some(path))?;
         g.validate(registry)?;
         Ok(g)

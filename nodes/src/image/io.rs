@@ -16,7 +16,7 @@ pub fn read_image(path: &Path) -> Result<Image, String> {
     if !matches!(ext(path).as_str(), "exr" | "hdr" | "png") {
         return decode_image(path, &[]);
     }
-    let bytes = std::fs::read(path).map_err(|err| format!("cannot read {}: {err}", path.display()))?;
+    let bytes = relume_core::read_input(path).map_err(|err| format!("cannot read {}: {err}", path.display()))?;
     decode_image(path, &bytes)
 }
 

@@ -38,7 +38,7 @@ pub struct LoadedScene {
 
 /// Loads a scene file; errors read `file:line:col: message`.
 pub fn load_scene_file(path: &Path) -> Result<LoadedScene, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read scene {}: {e}", path.display()))?;
+    let bytes = relume_core::read_input(path).map_err(|e| format!("cannot read scene {}: {e}", path.display()))?;
     let text = String::from_utf8(bytes).map_err(|_| format!("{}: not UTF-8 text", path.display()))?;
     let at = |e: SyntaxError| format!("{}:{}:{}: {}", path.display(), e.pos.line, e.pos.col, e.msg);
     let doc = parse(&text).map_err(|e| at(SyntaxError { msg: format!("malformed RON: {}", e.msg), ..e }))?;
@@ -146,7 +146,7 @@ impl Builder {
     fn read_file(&mut self, v: &Ron) -> Result<(PathBuf, Vec<u8>), LoadError> {
         let rel = str_of(v, "path")?;
         let p = self.dir.join(rel);
-        let bytes = std::fs::read(&p).map_err(|e| at(v, format!("cannot read {}: {e}", p.display())))?;
+        let bytes = relume_core::read_input(&p).map_err(|e| at(v, format!("cannot read {}: {e}", p.display())))?;
         self.files.push((p.clone(), Hash::of_bytes(&bytes)));
         Ok((p, bytes))
     }

@@ -310,7 +310,7 @@ fn check_obj<'t>(path: &Path, text: &'t str, read: &dyn Fn(&Path) -> std::io::Re
 /// Checks an OBJ text line by line (reading its MTL files from disk); the error names the
 /// file and line.
 pub fn check_obj_text(path: &Path, text: &str) -> Result<(), String> {
-    check_obj(path, text, &|p| std::fs::read(p)).map(|_| ())
+    check_obj(path, text, &|p| relume_core::read_input(p)).map(|_| ())
 }
 
 /// Loads every group of an OBJ file. `text` is the file's content (already read, so that the
@@ -321,7 +321,7 @@ pub fn load_obj(path: &Path, text: &str) -> Result<Vec<ObjModel>, String> {
 
 /// As `load_obj`, also returning the material libraries it read.
 pub fn load_obj_file(path: &Path, text: &str) -> Result<ObjFile, String> {
-    let checked = check_obj(path, text, &|p| std::fs::read(p))?;
+    let checked = check_obj(path, text, &|p| relume_core::read_input(p))?;
     let opts = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
     let mut reader = std::io::BufReader::new(checked.text.as_bytes());
     // tobj asks for the libraries in the order of the `mtllib` lines; hand it the materials
