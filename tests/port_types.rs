@@ -39,8 +39,17 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
     let first = Engine::new(relume_nodes::registry()).with_disk_cache(dir.path()).with_disk_policy(DiskPolicy::Always);
     let r1 = first.run(&g, &RunOptions::default()).unwrap();
 
-    // Every registered port type is produced by this graph, and each value decodes to itself.
-    let produced: BTreeSet<&str> = r1.outputs.iter().map(|(_, v)| v.type_name()).collect();
+    // Every registered port type is produced by this graph (as an output, or as the partial
+    // results of its sharded nodes, kept on disk chunk by chunk), and each value decodes to
+    // itself.
+    let mut produced: BTreeSet<&str> = r1.outputs.iter().map(|(_, v)| v.type_name()).collect();
+    for n in &r1.report.nodes {
+        let kind = reg.node(&n.kind).unwrap();
+        if let (Some(sh), Some(stats)) = (kind.sharded(), &n.shards) {
+            assert_eq!((stats.ran, stats.cached), (stats.chunks, 0), "{}: every chunk ran", n.id);
+            produced.insert(sh.partial_decl().ty.name);
+        }
+    }
     let registered: BTreeSet<&str> = reg.port_types().map(|t| t.name).collect();
     assert_eq!(produced, registered, "the graph covers every registered port type");
     for (name, v) in &r1.outputs {

@@ -177,6 +177,9 @@ pub struct RunCtx<'a> {
     /// The share of the node's whole work that progress reports now cover, in permille
     /// (`from << 32 | to`), set by `phase`.
     span: AtomicU64,
+    /// The share of the node's work that `phase` subdivides (all of it, or one chunk of a
+    /// sharded node: see `shard.rs`), in the same form.
+    outer: AtomicU64,
 }
 
 impl<'a> RunCtx<'a> {
@@ -191,6 +194,7 @@ impl<'a> RunCtx<'a> {
             writes: WriteRoots::anywhere(),
             last_permille: AtomicU64::new(u64::MAX),
             span: AtomicU64::new(1000),
+            outer: AtomicU64::new(1000),
         }
     }
 
@@ -237,9 +241,20 @@ impl<'a> RunCtx<'a> {
     /// work: a node with phases (two blur passes, passes of doubling sample counts) shows one
     /// bar that never goes back.
     pub fn phase(&self, from: f64, to: f64) {
-        let p = |x: f64| (x.clamp(0.0, 1.0) * 1000.0).round() as u64;
+        let outer = self.outer.load(Ordering::Relaxed);
+        let (o0, o1) = ((outer >> 32) as f64, (outer & 0xffff_ffff) as f64);
+        let p = |x: f64| (o0 + x.clamp(0.0, 1.0) * (o1 - o0)).round() as u64;
         let (a, b) = (p(from), p(to).max(p(from)));
         self.span.store(a << 32 | b, Ordering::Relaxed);
+    }
+
+    /// Makes `from..to` of the node's work the whole that `phase` and progress subdivide
+    /// (the sharded runner gives each chunk its share; nodes call `phase` inside it as usual).
+    pub(crate) fn set_outer(&self, from: f64, to: f64) {
+        let p = |x: f64| (x.clamp(0.0, 1.0) * 1000.0).round() as u64;
+        let v = p(from) << 32 | p(to).max(p(from));
+        self.outer.store(v, Ordering::Relaxed);
+        self.span.store(v, Ordering::Relaxed);
     }
 
     /// `check` and `progress` in one call, for sequential loops: `cx.tick(i, n)?`.

@@ -13,6 +13,7 @@ use crate::plan::{make_plan, Plan};
 use crate::port::Value;
 use crate::registry::Registry;
 use crate::report::{peak_rss_bytes, NodeReport, RunReport};
+use crate::shard::{ShardMode, ShardStats};
 use std::collections::VecDeque;
 use std::sync::{mpsc, Arc, Mutex};
 use std::time::Instant;
@@ -51,6 +52,11 @@ pub struct RunOptions<'a> {
     pub observer: Option<&'a dyn Observer>,
     /// Where nodes may write files (default: below the graph file's folder only).
     pub writes: crate::ctx::WritePolicy,
+    /// Node ids to run besides those the outputs need (`relume shard` names its node here and
+    /// asks for no outputs).
+    pub nodes: Vec<String>,
+    /// Which chunks of sharded nodes this run computes (`shard.rs`).
+    pub shards: crate::shard::ShardMode<'a>,
 }
 
 pub struct RunResult {
@@ -96,7 +102,7 @@ pub(crate) struct Prepared {
     pub key: Hash,
 }
 
-type Done = (usize, Result<CacheEntry, NodeError>, f64);
+type Done = (usize, Result<(CacheEntry, Option<ShardStats>), NodeError>, f64);
 
 impl Engine {
     /// An engine with a 2 GiB memory cache, no disk cache, and as many concurrent nodes as cores.
@@ -157,6 +163,9 @@ impl Engine {
     }
     pub fn disk(&self) -> Option<&DiskCache> {
         self.disk.as_ref()
+    }
+    pub fn disk_policy(&self) -> DiskPolicy {
+        self.disk_policy
     }
     /// Drops every in-memory result.
     pub fn clear_memory(&self) {
@@ -230,7 +239,8 @@ impl Engine {
     pub fn run(&self, graph: &Graph, opts: &RunOptions) -> Result<RunResult, RunError> {
         let start = Instant::now();
         graph.validate(&self.registry)?;
-        let plan = make_plan(graph, &self.registry, opts.outputs.as_deref())?;
+        let plan = crate::plan::make_plan_for(graph, &self.registry, opts.outputs.as_deref(), &opts.nodes)?;
+        check_shard_run(graph, &plan, &opts.shards)?;
         self.check_memory(graph, &plan)?;
         if let Some(o) = opts.observer {
             o.event(&Event::Planned { nodes: plan.order.len() });
@@ -260,13 +270,18 @@ impl Engine {
                         }
                     };
                     let kind = self.kind_of(graph, i);
-                    match self.lookup(kind.as_ref(), &prepared.key) {
+                    // Across processes every process takes part in every sharded node (its
+                    // chunks come from the disk cache when they are there): a process that
+                    // found the whole result would leave its peers waiting for its chunks.
+                    let take_part = matches!(opts.shards, ShardMode::Peers(_)) && kind.sharded().is_some();
+                    let found = if take_part { None } else { self.lookup(kind.as_ref(), &prepared.key) };
+                    match found {
                         Some((entry, status)) => {
                             let ms = t0.elapsed().as_secs_f64() * 1e3;
                             if let Some(o) = opts.observer {
                                 o.event(&Event::Finished { id: &graph.nodes[i].id, kind: kind.kind(), status, wall_ms: ms });
                             }
-                            ready.extend(state.complete(i, entry, status, prepared.key, ms));
+                            ready.extend(state.complete(i, entry, status, prepared.key, ms, None));
                         }
                         None => to_run.push_back((i, prepared)),
                     }
@@ -300,10 +315,11 @@ impl Engine {
                     let kind = self.kind_of(graph, i).clone();
                     let id = graph.nodes[i].id.as_str();
                     let (tx, cancel, observer, pool) = (tx.clone(), &opts.cancel, opts.observer, self.pool.as_deref());
-                    let writes = &write_roots;
+                    let (writes, shards) = (&write_roots, opts.shards);
                     scope.spawn(move || {
                         let t0 = Instant::now();
-                        let go = || run_node(kind.as_ref(), id, &prepared.params, &inputs, cancel, observer, writes);
+                        let node = NodeRun { kind: kind.as_ref(), id, params: &prepared.params, key: prepared.key, inputs: &inputs };
+                        let go = || self.run_node(node, cancel, observer, writes, shards);
                         let result = match pool {
                             Some(p) => p.install(go),
                             None => go(),
@@ -323,15 +339,19 @@ impl Engine {
                 let kind = self.kind_of(graph, i);
                 let id = &graph.nodes[i].id;
                 match result {
-                    Ok(mut entry) => {
+                    Ok((mut entry, shards)) => {
                         entry.compute_ms = ms;
                         let entry = Arc::new(entry);
-                        self.store(kind.as_ref(), state.keys[i], entry.clone());
+                        // One shard of a node is not the node's result: nothing to keep.
+                        let whole = entry.outputs.len() == kind.ports().outputs.len();
+                        if whole {
+                            self.store(kind.as_ref(), state.keys[i], entry.clone());
+                        }
                         if let Some(o) = opts.observer {
                             o.event(&Event::Finished { id, kind: kind.kind(), status: NodeStatus::Ran, wall_ms: ms });
                         }
                         let key = state.keys[i];
-                        ready.extend(state.complete(i, entry, NodeStatus::Ran, key, ms));
+                        ready.extend(state.complete(i, entry, NodeStatus::Ran, key, ms, shards));
                     }
                     Err(NodeError::Cancelled) => {}
                     Err(error) => {
@@ -370,31 +390,70 @@ impl Engine {
     }
 }
 
-/// Runs one node, turning a panic into an error.
-fn run_node(
-    kind: &dyn DynNode,
-    id: &str,
-    params: &ParamValues,
-    inputs: &[Value],
-    cancel: &CancelToken,
-    observer: Option<&dyn Observer>,
-    writes: &crate::ctx::WriteRoots,
-) -> Result<CacheEntry, NodeError> {
-    if let Some(o) = observer {
-        o.event(&Event::Started { id, kind: kind.kind() });
+/// A run of one shard of node `node` gathers nothing: refuses a plan that reads its outputs
+/// (asks for them, or runs a node downstream of it), and a shard index out of range.
+fn check_shard_run(graph: &Graph, plan: &Plan, mode: &ShardMode) -> Result<(), GraphErrors> {
+    let ShardMode::One { node, index, count } = *mode else { return Ok(()) };
+    let refuse = |m: String| Err(GraphErrors::one(GraphError::new(m).node(node)).with_file(&graph.file));
+    if index >= count {
+        return refuse(format!("shard {index} of {count} does not exist (shards are numbered 0 to {})", count.saturating_sub(1)));
     }
-    let cx = RunCtx::new(id, cancel, observer).with_write_roots(writes.clone());
-    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| kind.run(params, inputs, &cx)));
-    match outcome {
-        Ok(Ok(outputs)) => {
-            let (metrics, notes, deps) = cx.take();
-            Ok(CacheEntry { outputs, metrics, notes, deps, compute_ms: 0.0 })
+    let Some(i) = graph.nodes.iter().position(|n| n.id == node) else {
+        return refuse(format!("no node \"{node}\" in the graph"));
+    };
+    let read = plan.outputs.iter().any(|o| o.1 == i) || plan.order.iter().any(|&j| plan.sources[j].iter().any(|s| s.0 == i));
+    if read {
+        return refuse(format!(
+            "a run of one shard of \"{node}\" produces no outputs (its chunks go to the disk cache): ask for no output that needs it"
+        ));
+    }
+    Ok(())
+}
+
+/// One node to run: its kind, id, parameters, key and inputs.
+#[derive(Clone, Copy)]
+struct NodeRun<'a> {
+    kind: &'a dyn DynNode,
+    id: &'a str,
+    params: &'a ParamValues,
+    key: Hash,
+    inputs: &'a [Value],
+}
+
+impl Engine {
+    /// Runs one node (a sharded one by `shards`), turning a panic into an error.
+    fn run_node(
+        &self,
+        n: NodeRun,
+        cancel: &CancelToken,
+        observer: Option<&dyn Observer>,
+        writes: &crate::ctx::WriteRoots,
+        shards: ShardMode,
+    ) -> Result<(CacheEntry, Option<ShardStats>), NodeError> {
+        if let Some(o) = observer {
+            o.event(&Event::Started { id: n.id, kind: n.kind.kind() });
         }
-        Ok(Err(e)) => Err(e),
-        Err(panic) => {
-            let msg =
-                panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned()).unwrap_or_default();
-            Err(NodeError::failed(format!("panicked: {msg}")))
+        let cx = RunCtx::new(n.id, cancel, observer).with_write_roots(writes.clone());
+        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match n.kind.sharded() {
+            Some(sh) => {
+                self.run_sharded(sh, n.id, n.params, n.key, n.inputs, &cx, shards).map(|r| (r.outputs.unwrap_or_default(), Some(r.stats)))
+            }
+            None => n.kind.run(n.params, n.inputs, &cx).map(|o| (o, None)),
+        }));
+        match outcome {
+            Ok(Ok((outputs, shards))) => {
+                let (metrics, notes, deps) = cx.take();
+                Ok((CacheEntry { outputs, metrics, notes, deps, compute_ms: 0.0 }, shards))
+            }
+            Ok(Err(e)) => Err(e),
+            Err(panic) => {
+                let msg = panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_default();
+                Err(NodeError::failed(format!("panicked: {msg}")))
+            }
         }
     }
 }
@@ -443,7 +502,15 @@ impl<'g> RunState<'g> {
     }
 
     /// Records a finished node; returns the nodes that became ready.
-    fn complete(&mut self, i: usize, entry: Arc<CacheEntry>, status: NodeStatus, key: Hash, ms: f64) -> Vec<usize> {
+    fn complete(
+        &mut self,
+        i: usize,
+        entry: Arc<CacheEntry>,
+        status: NodeStatus,
+        key: Hash,
+        ms: f64,
+        shards: Option<ShardStats>,
+    ) -> Vec<usize> {
         let decl = &self.graph.nodes[i];
         self.report.nodes.push(NodeReport {
             id: decl.id.clone(),
@@ -460,6 +527,7 @@ impl<'g> RunState<'g> {
             key: key.hex(),
             metrics: entry.metrics.iter().cloned().collect(),
             notes: entry.notes.clone(),
+            shards,
         });
         if status == NodeStatus::Ran {
             self.report.ran += 1;

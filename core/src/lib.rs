@@ -21,6 +21,7 @@ mod port;
 mod registry;
 mod report;
 pub mod ron;
+pub mod shard;
 mod standalone;
 
 pub use budget::RunEstimate;
@@ -41,6 +42,7 @@ pub use relume_macros::{node, ParamEnum, Params};
 extern crate self as relume_core;
 pub use registry::{closest, Registry};
 pub use report::{NodeReport, RunReport};
+pub use shard::{ShardMode, ShardSpec, Sharded};
 pub use standalone::{run_kind, run_standalone, run_standalone_with};
 
 /// Reads a file a person named (a graph, a scene, a mesh, an image, a file parameter): only a

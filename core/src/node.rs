@@ -9,6 +9,8 @@ use crate::error::NodeError;
 use crate::memory::{MemoryEstimate, PortSize};
 use crate::params::{ParamValues, Params, Schema};
 use crate::port::{InputPorts, OutputPorts, Ports, Value};
+use crate::shard::DynSharded;
+use std::sync::Arc;
 
 /// Where a node's results may be kept between runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -46,6 +48,10 @@ pub trait Node: Params + Documented + Send + Sync + 'static {
         let _ = inputs;
         MemoryEstimate::unknown(Self::Outputs::decls().len())
     }
+    /// The node's shard contract when it has one (`#[node(…, sharded)]`, see `shard.rs`).
+    fn sharded() -> Option<Arc<dyn DynSharded>> {
+        None
+    }
 }
 
 /// The port declarations of a node type.
@@ -77,19 +83,24 @@ pub trait DynNode: Send + Sync {
         let _ = (params, inputs);
         Ok(MemoryEstimate::unknown(self.ports().outputs.len()))
     }
+    /// The shard contract of a node whose work splits over items; `None` for most nodes.
+    fn sharded(&self) -> Option<&dyn DynSharded> {
+        None
+    }
 }
 
 pub(crate) struct NodeEntry<N: Node> {
     ports: Ports,
     schema: Schema,
     doc: String,
+    sharded: Option<Arc<dyn DynSharded>>,
     _node: std::marker::PhantomData<fn() -> N>,
 }
 
 impl<N: Node> NodeEntry<N> {
     pub(crate) fn new() -> Self {
         let doc = N::DOC.lines().map(|l| l.strip_prefix(' ').unwrap_or(l)).collect::<Vec<_>>().join("\n").trim().to_string();
-        NodeEntry { ports: ports_of::<N>(), schema: N::schema(), doc, _node: std::marker::PhantomData }
+        NodeEntry { ports: ports_of::<N>(), schema: N::schema(), doc, sharded: N::sharded(), _node: std::marker::PhantomData }
     }
 }
 
@@ -120,5 +131,8 @@ impl<N: Node> DynNode for NodeEntry<N> {
     }
     fn memory(&self, params: &ParamValues, inputs: &[Option<PortSize>]) -> Result<MemoryEstimate, NodeError> {
         Ok(N::from_values(params)?.memory(inputs))
+    }
+    fn sharded(&self) -> Option<&dyn DynSharded> {
+        self.sharded.as_deref()
     }
 }

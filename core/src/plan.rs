@@ -21,6 +21,11 @@ pub struct Plan {
 /// Plans the given outputs (all of the graph's outputs when `requested` is `None`).
 /// The graph must have passed `validate`.
 pub fn make_plan(graph: &Graph, reg: &Registry, requested: Option<&[String]>) -> Result<Plan, GraphErrors> {
+    make_plan_for(graph, reg, requested, &[])
+}
+
+/// As [`make_plan`], also running the nodes with ids `nodes` (and what they need).
+pub fn make_plan_for(graph: &Graph, reg: &Registry, requested: Option<&[String]>, nodes: &[String]) -> Result<Plan, GraphErrors> {
     let index: HashMap<&str, usize> = graph.nodes.iter().enumerate().map(|(i, n)| (n.id.as_str(), i)).collect();
     let kind = |i: usize| reg.node(&graph.nodes[i].kind).expect("validated graph");
     let mut errs = Vec::new();
@@ -67,7 +72,23 @@ pub fn make_plan(graph: &Graph, reg: &Registry, requested: Option<&[String]>) ->
 
     // Demand: every node upstream of a requested output (petgraph, reversed edges).
     let topology = graph.topology();
-    let needed = topology.upstream_of(&outputs.iter().map(|o| o.1).collect::<Vec<_>>());
+    let mut roots: Vec<usize> = outputs.iter().map(|o| o.1).collect();
+    for id in nodes {
+        match index.get(id.as_str()) {
+            Some(&i) => roots.push(i),
+            None => {
+                let hint = crate::registry::closest(id, graph.nodes.iter().map(|n| n.id.as_str()));
+                errs.push(GraphError::new(format!(
+                    "no node \"{id}\" in the graph{}",
+                    hint.map(|h| format!(" (did you mean \"{h}\"?)")).unwrap_or_default()
+                )));
+            }
+        }
+    }
+    if !errs.is_empty() {
+        return Err(GraphErrors(errs).with_file(&graph.file));
+    }
+    let needed = topology.upstream_of(&roots);
     for i in (0..graph.nodes.len()).filter(|&i| needed[i]) {
         if sources[i].iter().any(|s| s.0 == usize::MAX) {
             errs.extend(graph.unconnected_inputs(reg, &graph.nodes[i].id));

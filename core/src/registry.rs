@@ -28,6 +28,9 @@ impl Registry {
         for p in node.ports().inputs.iter().chain(&node.ports().outputs) {
             self.add_port_type(p.ty.clone());
         }
+        if let Some(s) = node.sharded() {
+            self.add_port_type(s.partial_decl().ty);
+        }
         let kind = node.kind();
         assert!(self.nodes.insert(kind, node).is_none(), "node kind {kind} registered twice");
         self

@@ -24,6 +24,9 @@ pub struct NodeReport {
     pub metrics: BTreeMap<String, f64>,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
+    /// For a sharded node that ran: where its chunks came from (cache, here, other processes).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shards: Option<crate::shard::ShardStats>,
 }
 
 #[derive(Clone, Debug, Default, Serialize)]
@@ -76,6 +79,9 @@ impl RunReport {
                 n.bytes,
                 metrics.join(" ")
             ));
+            if let Some(sh) = &n.shards {
+                s.push_str(&format!("{:<20} {}\n", "", sh.summary()));
+            }
         }
         s.push_str(&format!("total {:.2} ms: {} ran, {} cached\n", self.total_ms, self.ran, self.cached));
         s

@@ -12,8 +12,8 @@ use proc_macro::TokenStream;
 use proc_macro2::{Span, TokenStream as Tokens};
 use quote::{format_ident, quote};
 use syn::{
-    parse_macro_input, spanned::Spanned, Data, DeriveInput, Expr, Fields, GenericArgument, ImplItem, ItemImpl, Lit, PathArguments,
-    ReturnType, Type,
+    parse_macro_input, spanned::Spanned, Data, DeriveInput, Expr, Fields, GenericArgument, ImplItem, ImplItemFn, ItemImpl, Lit,
+    PathArguments, ReturnType, Type,
 };
 
 /// The doc comment of an item, one string per line (leading space kept, as rustdoc has it).
@@ -276,6 +276,7 @@ struct NodeArgs {
     version: Option<syn::LitInt>,
     kind: Option<String>,
     caching: Option<syn::Ident>,
+    sharded: bool,
 }
 
 /// `#[node(category = "image", version = 2, caching = Never, kind = "Name")]` on an inherent
@@ -284,6 +285,11 @@ struct NodeArgs {
 /// `Auto`); `Inputs` and `Outputs` come from `run`'s signature; an optional
 /// `fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate` goes into the trait
 /// too; other items stay in `impl X`.
+///
+/// With `sharded`, the `impl` has `fn shard`, `fn run_items` and `fn gather` instead of
+/// `fn run` (relume-core's `Sharded`): they go into `impl Sharded for X`, `Inputs` and
+/// `Outputs` come from `gather`'s signature, `Partial` from `run_items`' result, and `run`
+/// is `shard::run_all`.
 #[proc_macro_attribute]
 pub fn node(attr: TokenStream, item: TokenStream) -> TokenStream {
     let mut args = NodeArgs::default();
@@ -296,8 +302,10 @@ pub fn node(attr: TokenStream, item: TokenStream) -> TokenStream {
             args.kind = Some(meta.value()?.parse::<syn::LitStr>()?.value());
         } else if meta.path.is_ident("caching") {
             args.caching = Some(meta.value()?.parse()?);
+        } else if meta.path.is_ident("sharded") {
+            args.sharded = true;
         } else {
-            return Err(meta.error("unknown #[node] key (category, version, caching, kind)"));
+            return Err(meta.error("unknown #[node] key (category, version, caching, kind, sharded)"));
         }
         Ok(())
     });
@@ -323,13 +331,64 @@ fn node_impl(args: NodeArgs, imp: ItemImpl) -> syn::Result<Tokens> {
     let caching = args.caching.unwrap_or_else(|| format_ident!("Auto"));
     let mut run = None;
     let mut memory = None;
+    let mut shard_fns: [Option<ImplItemFn>; 3] = [None, None, None];
     let mut rest = Vec::new();
     for item in imp.items {
         match item {
             ImplItem::Fn(f) if f.sig.ident == "run" => run = Some(f),
             ImplItem::Fn(f) if f.sig.ident == "memory" => memory = Some(f),
+            ImplItem::Fn(f) if args.sharded && ["shard", "run_items", "gather"].contains(&f.sig.ident.to_string().as_str()) => {
+                let at = ["shard", "run_items", "gather"].iter().position(|n| f.sig.ident == n).unwrap();
+                shard_fns[at] = Some(f);
+            }
             other => rest.push(other),
         }
+    }
+    let c = quote!(::relume_core);
+    let rest = if rest.is_empty() { quote!() } else { quote!(impl #self_ty { #(#rest)* }) };
+    let head = quote! {
+        const KIND: &'static str = #kind;
+        const VERSION: u32 = #version;
+        const CATEGORY: &'static str = #category;
+        const CACHING: #c::Caching = #c::Caching::#caching;
+    };
+    if args.sharded {
+        if let Some(run) = run {
+            return Err(syn::Error::new(run.sig.span(), "a sharded node has `shard`, `run_items` and `gather` instead of `run`"));
+        }
+        let [Some(shard), Some(run_items), Some(gather)] = shard_fns else {
+            return Err(syn::Error::new(Span::call_site(), "#[node(sharded)] needs `fn shard`, `fn run_items` and `fn gather`"));
+        };
+        let inputs = match gather.sig.inputs.iter().nth(1) {
+            Some(syn::FnArg::Typed(t)) => match t.ty.as_ref() {
+                Type::Reference(r) => input_type(&r.elem)?,
+                other => return Err(syn::Error::new(other.span(), "gather takes (&self, &inputs, parts, cx)")),
+            },
+            _ => return Err(syn::Error::new(gather.sig.span(), "gather takes (&self, &inputs, parts, cx)")),
+        };
+        let outputs = output_type(&gather.sig.output)?;
+        let partial = output_type(&run_items.sig.output)?;
+        return Ok(quote! {
+            impl #c::Node for #self_ty {
+                #head
+                type Inputs<'a> = #inputs;
+                type Outputs = #outputs;
+                fn run(&self, inputs: Self::Inputs<'_>, cx: &#c::RunCtx) -> Result<Self::Outputs, #c::NodeError> {
+                    #c::shard::run_all(self, &inputs, cx)
+                }
+                fn sharded() -> Option<::std::sync::Arc<dyn #c::shard::DynSharded>> {
+                    Some(::std::sync::Arc::new(#c::shard::ShardEntry::<Self>::new()))
+                }
+                #memory
+            }
+            impl #c::Sharded for #self_ty {
+                type Partial = #partial;
+                #shard
+                #run_items
+                #gather
+            }
+            #rest
+        });
     }
     let run = run.ok_or_else(|| syn::Error::new(Span::call_site(), "#[node] impl has no `fn run`"))?;
     let inputs = match run.sig.inputs.iter().nth(1) {
@@ -337,14 +396,9 @@ fn node_impl(args: NodeArgs, imp: ItemImpl) -> syn::Result<Tokens> {
         _ => return Err(syn::Error::new(run.sig.span(), "run takes (&self, inputs, cx)")),
     };
     let outputs = output_type(&run.sig.output)?;
-    let c = quote!(::relume_core);
-    let rest = if rest.is_empty() { quote!() } else { quote!(impl #self_ty { #(#rest)* }) };
     Ok(quote! {
         impl #c::Node for #self_ty {
-            const KIND: &'static str = #kind;
-            const VERSION: u32 = #version;
-            const CATEGORY: &'static str = #category;
-            const CACHING: #c::Caching = #c::Caching::#caching;
+            #head
             type Inputs<'a> = #inputs;
             type Outputs = #outputs;
             #run

@@ -32,6 +32,12 @@ pub fn describe(n: &dyn DynNode) -> String {
         let unit = if p.unit.is_empty() { String::new() } else { format!(" {}", p.unit) };
         s.push_str(&format!("  param {}: {}{default}{range}{unit} — {}\n", p.name, p.kind.type_name(), p.help));
     }
+    if let Some(sh) = n.sharded() {
+        s.push_str(&format!(
+            "  sharded: chunks of its items become {} cache entries (relume shard, relume slurm, relume run --processes/--workers)\n",
+            sh.partial_decl().ty.name
+        ));
+    }
     s.push('\n');
     s
 }

@@ -1,11 +1,14 @@
-//! The `relume` command line: run, plan, check, nodes, sweep.
+//! The `relume` command line: run, plan, check, nodes, sweep, shard, slurm.
 
 mod catalog;
+mod cluster;
 mod interrupt;
 mod outputs;
 mod plot;
 mod progress;
 mod run;
+mod shard;
+mod slurm;
 mod sweep;
 
 use clap::{Args, Parser, Subcommand};
@@ -35,6 +38,13 @@ enum Cmd {
     /// Run a graph once per combination of --vary values (one engine, cache shared) and write
     /// error against time as CSV and a log-log plot, optionally with a --baseline curve.
     Sweep(sweep::SweepArgs),
+    /// Run one shard of a sharded node (PathTrace, DirectLight, …) into the disk cache: the
+    /// shard given by --index/--shards or by Slurm's SLURM_ARRAY_TASK_ID/COUNT. A later
+    /// `relume run` on the same cache gathers the shards.
+    Shard(shard::ShardArgs),
+    /// Write (and with --submit, submit) a Slurm array job running the shards of a node, and
+    /// a gather job that runs the graph once they have all succeeded.
+    Slurm(slurm::SlurmArgs),
 }
 
 #[derive(Args, Clone)]
@@ -102,6 +112,8 @@ pub(crate) struct RunArgs {
     /// Half floats in the multi-layer EXR (default: full 32-bit floats).
     #[arg(long, requires = "exr_layers")]
     exr_half: bool,
+    #[command(flatten)]
+    cluster: cluster::ClusterArgs,
 }
 
 /// An error for the user and the exit code that goes with it.
@@ -123,6 +135,13 @@ impl CliError {
     }
 }
 
+/// The command line this process was started with (`--processes` starts copies of it).
+static COMMAND_LINE: std::sync::OnceLock<Vec<std::ffi::OsString>> = std::sync::OnceLock::new();
+
+pub(crate) fn command_line() -> Vec<std::ffi::OsString> {
+    COMMAND_LINE.get().cloned().unwrap_or_else(|| std::env::args_os().collect())
+}
+
 /// Entry point of the binary; returns the process exit code.
 pub fn main() -> i32 {
     interrupt::install();
@@ -135,6 +154,8 @@ where
     I: IntoIterator<Item = T>,
     T: Into<std::ffi::OsString> + Clone,
 {
+    let args: Vec<std::ffi::OsString> = args.into_iter().map(Into::into).collect();
+    let _ = COMMAND_LINE.set(args.clone());
     let cli = match Cli::try_parse_from(args) {
         Ok(c) => c,
         Err(e) => {
@@ -149,6 +170,8 @@ where
         Cmd::Check(a) => run::check(&reg, &a),
         Cmd::Nodes { kind } => catalog::print(&reg, kind.as_deref()),
         Cmd::Sweep(a) => sweep::sweep(&reg, &a),
+        Cmd::Shard(a) => shard::shard(&reg, &a),
+        Cmd::Slurm(a) => slurm::slurm(&reg, &a),
     };
     match result {
         Ok(()) => 0,

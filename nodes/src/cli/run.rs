@@ -2,27 +2,60 @@
 
 use super::interrupt::Watch;
 use super::{outputs::write_outputs, prepare_file, prepare_out_dir, progress::Bars, write_refusals, CheckArgs, CliError, RunArgs};
-use relume_core::{make_plan, Graph, GraphErrors, Observer, PlanAction, Registry, RunError, RunOptions};
+use relume_core::shard::ShardPeers;
+use relume_core::{make_plan, Graph, GraphErrors, Observer, PlanAction, Registry, RunError, RunOptions, ShardMode};
 
 pub(crate) fn run(reg: &Registry, a: &RunArgs) -> Result<(), CliError> {
+    if a.cluster.processes.is_some() {
+        return super::cluster::launch(a);
+    }
+    if a.cluster.workers.is_some() {
+        return super::cluster::run_process(reg, a);
+    }
+    run_graph(reg, a, None)
+}
+
+/// Runs the graph; with `peers`, as one process of several sharing its sharded nodes (process
+/// 0 runs the whole graph and writes the outputs; the others run only the sharded nodes and
+/// what they need, and write nothing).
+pub(crate) fn run_graph(reg: &Registry, a: &RunArgs, peers: Option<&dyn ShardPeers>) -> Result<(), CliError> {
     let graph = a.g.load(reg)?;
+    let writer = peers.is_none_or(|p| p.process() == 0);
     // Everything the run will write is checked before it runs: the output folder, the
     // report's folder, and where the graph's own output files go.
-    prepare_out_dir("--out", &a.out)?;
-    if let Some(path) = &a.report {
-        prepare_file("--report", path)?;
+    if writer {
+        prepare_out_dir("--out", &a.out)?;
+        if let Some(path) = &a.report {
+            prepare_file("--report", path)?;
+        }
     }
     let writes = a.g.write_policy(&a.out);
     refuse_writes(reg, &graph, a.g.requested().as_deref(), &writes)?;
     let (engine, cache_note) = a.g.engine_for_writing(reg);
     let watch = Watch::new();
     let bars = (!a.quiet).then(Bars::new);
-    let opts =
-        RunOptions { outputs: a.g.requested(), observer: bars.as_ref().map(|b| b as &dyn Observer), cancel: watch.token.clone(), writes };
+    let (outputs, nodes) = match peers {
+        Some(_) if !writer => (Some(Vec::new()), super::cluster::sharded_nodes(reg, &graph, a.g.requested().as_deref())?),
+        _ => (a.g.requested(), Vec::new()),
+    };
+    let opts = RunOptions {
+        outputs,
+        nodes,
+        shards: peers.map_or(ShardMode::All, ShardMode::Peers),
+        observer: bars.as_ref().map(|b| b as &dyn Observer),
+        cancel: watch.token.clone(),
+        writes,
+    };
     let result = engine.run(&graph, &opts).map_err(|e| run_error(&graph, e));
     drop(bars);
     let mut result = result?;
     result.report.notes.extend(cache_note);
+    if !writer {
+        if !a.quiet {
+            print!("{}", result.report.table());
+        }
+        return Ok(());
+    }
     let mut files = write_outputs(&a.out, &result.outputs).map_err(CliError::run)?;
     if a.exr_layers {
         let path = crate::image::exr_layers::write_run_layers(reg, &graph, &result.outputs, &a.out, a.exr_half).map_err(CliError::run)?;

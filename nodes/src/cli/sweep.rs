@@ -191,6 +191,7 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
             observer: bars.as_ref().map(|b| b as &dyn Observer),
             cancel: watch.token.clone(),
             writes: writes.clone(),
+            ..Default::default()
         };
         let result = engine.run(&v.graph, &opts).map_err(|e| {
             let mut e = run_error(&v.graph, e);

@@ -72,7 +72,8 @@ pub fn write_layers(path: &Path, graph: &str, layers: &[LayerSource], half: bool
     let (w, h) = sizes[0];
     let image = exr::image::Image::from_layers(ImageAttributes::new(IntegerBounds::from_dimensions((w, h))), parts);
     let tmp = path.with_extension("exr.tmp");
-    image.write().to_file(&tmp).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    // One thread, blocks in order: the same layers give the same bytes.
+    image.write().non_parallel().to_file(&tmp).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     std::fs::rename(&tmp, path).map_err(|e| format!("cannot write {}: {e}", path.display()))
 }
 

@@ -48,13 +48,23 @@ pub fn decode_image(path: &Path, bytes: &[u8]) -> Result<Image, String> {
     Ok(Image { width: w, height: h, pixels })
 }
 
-/// Writes linear RGB as a 32-bit float EXR, atomically.
+/// Writes linear RGB as a 32-bit float EXR (ZIP-compressed, blocks in order: the same image
+/// gives the same bytes), atomically.
 pub fn write_exr(path: &Path, img: &Image) -> Result<(), String> {
-    let buf =
-        image::Rgb32FImage::from_raw(img.width as u32, img.height as u32, img.as_floats().to_vec()).ok_or("image buffer size mismatch")?;
+    use exr::prelude::{Encoding, Layer, LayerAttributes, SpecificChannels, Vec2, WritableImage};
+    let (w, h) = (img.width, img.height);
+    let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
+        let [r, g, b] = img.get(p.x(), p.y());
+        (r, g, b)
+    });
+    let layer = Layer::new((w, h), LayerAttributes::default(), Encoding::FAST_LOSSLESS, channels);
     let mut out = Cursor::new(Vec::new());
-    image::DynamicImage::ImageRgb32F(buf)
-        .write_to(&mut out, image::ImageFormat::OpenExr)
+    // One thread, blocks in order: the same image gives the same bytes (the parallel writer
+    // stores blocks in the order they finish compressing).
+    exr::image::Image::from_layer(layer)
+        .write()
+        .non_parallel()
+        .to_buffered(&mut out)
         .map_err(|e| format!("encoding {}: {e}", path.display()))?;
     write_atomic(path, out.get_ref()).map_err(|e| format!("cannot write {}: {e}", path.display()))
 }

@@ -9,9 +9,10 @@ use crate::render::film::{per_pixel, with_ctx};
 use crate::render::integrator::{Counts, Settings, Tracer};
 use crate::render::surface::Surface;
 use crate::types::accel::Accel;
-use crate::types::{Image, Material, Scene};
+use crate::types::{gather_rows, row_spec, Image, ImageRows, Material, Scene};
 use glam::{Vec2, Vec3};
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx, ShardSpec};
+use std::ops::Range;
 
 /// Direct light only, what `PathTrace` with `max_depth` 2 estimates (emitters seen plus
 /// light arriving straight from the lights), at less cost and noise: each pixel takes
@@ -21,7 +22,8 @@ use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 /// sampling only (no BSDF sampling): unbiased, but noisier than `PathTrace` on sharp
 /// highlights of large lights. Hits on delta surfaces (dielectrics) and misses are left to
 /// the path tracer with `max_depth` 2. Each pixel's random numbers depend only on (seed,
-/// pixel), so the image has the same bytes on any thread count.
+/// pixel), so the image has the same bytes on any thread count. Sharded over image rows,
+/// like `PathTrace`.
 #[derive(Params)]
 pub struct DirectLight {
     /// camera rays per pixel, jittered over the pixel (antialiasing)
@@ -74,15 +76,18 @@ fn shade(
     sum / count as f32
 }
 
-/// Renders the direct-light image; returns it with the number of rays traced. `cx` reports
-/// progress and cancels; `None` outside a graph.
-pub fn render(scene: &Scene, accel: &Accel, p: &DirectLight, cx: Option<&RunCtx>) -> Result<(Image, u64), NodeError> {
-    let (w, h) = (scene.camera.width, scene.camera.height);
+/// Renders the rows `rows` of the direct-light image as a band with the counter [rays].
+/// Each pixel depends only on (seed, pixel): any split of the rows gives the same bytes.
+/// `cx` reports progress and cancels; `None` outside a graph.
+pub fn render_rows(scene: &Scene, accel: &Accel, p: &DirectLight, rows: Range<usize>, cx: Option<&RunCtx>) -> Result<ImageRows, NodeError> {
+    let w = scene.camera.width;
     let t = Tracer::new(scene, accel, Settings { max_depth: 2, rr_depth: 5, seed: p.seed ^ 0xD1EC_7000 });
-    let rays = CameraRays::new(&scene.camera);
+    let cam_rays = CameraRays::new(&scene.camera);
     let (spp, ls) = (p.pixel_samples.max(1), p.light_samples.max(1));
-    with_ctx(cx, |cx| {
-        per_pixel(cx, w, h, |x, y, counts| {
+    let y0 = rows.start;
+    let (img, rays) = with_ctx(cx, |cx| {
+        per_pixel(cx, w, rows.len(), |x, y, counts| {
+            let y = y + y0;
             let pixel = (y * w + x) as u64;
             let pattern = mix64(p.seed ^ pixel.wrapping_mul(0x9E37_79B9_7F4A_7C15)) as u32;
             let mut sum = Vec3::ZERO;
@@ -90,7 +95,7 @@ pub fn render(scene: &Scene, accel: &Accel, p: &DirectLight, cx: Option<&RunCtx>
                 let id = pixel << 32 | s as u64;
                 let jitter = Vec2::new(uniform(p.seed, id, 0), uniform(p.seed, id, 1));
                 let uv = cmj(s, spp, pattern, jitter);
-                let (o, d) = rays.ray(x as f32 + uv.x, y as f32 + uv.y);
+                let (o, d) = cam_rays.ray(x as f32 + uv.x, y as f32 + uv.y);
                 counts.rays += 1;
                 sum += match accel.intersect(o, d, 0.0, f32::INFINITY) {
                     Some(hit) => {
@@ -111,20 +116,40 @@ pub fn render(scene: &Scene, accel: &Accel, p: &DirectLight, cx: Option<&RunCtx>
             }
             (sum / spp as f32).to_array()
         })
-    })
+    })?;
+    Ok(ImageRows::new(w, rows, vec![img], vec![rays]))
 }
 
-#[node(category = "reference")]
+/// The whole direct-light image with the number of rays traced; the same bytes as the node's
+/// sharded run.
+pub fn render(scene: &Scene, accel: &Accel, p: &DirectLight, cx: Option<&RunCtx>) -> Result<(Image, u64), NodeError> {
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let band = render_rows(scene, accel, p, 0..h, cx)?;
+    let (mut imgs, c) = gather_rows(w, h, 1, &[&band])?;
+    Ok((imgs.pop().expect("one layer"), c[0]))
+}
+
+#[node(category = "reference", sharded)]
 impl DirectLight {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
-        relume_core::MemoryEstimate {
-            outputs: vec![inputs[0].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h))],
-            working: 0,
-        }
+        // The bands of the chunks and the gathered image.
+        let image = inputs[0].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));
+        relume_core::MemoryEstimate { outputs: vec![image], working: inputs[0].and_then(|s| s.pixels()).map_or(0, |p| p * 12) }
     }
 
-    fn run(&self, i: DirectLightIn, cx: &RunCtx) -> Result<DirectLightOut, NodeError> {
-        let (img, rays) = render(i.scene, i.accel, self, Some(cx))?;
+    fn shard(&self, i: &DirectLightIn) -> Result<ShardSpec, NodeError> {
+        Ok(row_spec(i.scene.camera.width, i.scene.camera.height))
+    }
+
+    fn run_items(&self, i: &DirectLightIn, rows: Range<u64>, cx: &RunCtx) -> Result<ImageRows, NodeError> {
+        render_rows(i.scene, i.accel, self, rows.start as usize..rows.end as usize, Some(cx))
+    }
+
+    fn gather(&self, i: &DirectLightIn, parts: &[&ImageRows], cx: &RunCtx) -> Result<DirectLightOut, NodeError> {
+        let cam = &i.scene.camera;
+        let (mut imgs, c) = gather_rows(cam.width, cam.height, 1, parts)?;
+        let img = imgs.pop().expect("one layer");
+        let rays = c[0];
         let bad = img.as_floats().iter().filter(|v| !v.is_finite()).count();
         if bad > 0 {
             cx.note(format!("{bad} pixel channels are NaN or infinite"));

@@ -4,8 +4,9 @@ use crate::render::camera::CameraRays;
 use crate::render::film::{with_ctx, Film};
 use crate::render::integrator::{Settings, Tracer};
 use crate::types::accel::Accel;
-use crate::types::{Image, Scene};
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use crate::types::{gather_rows, row_spec, Image, ImageRows, Scene};
+use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx, ShardSpec};
+use std::ops::Range;
 
 /// Reference path tracer (the ground truth every pipeline reports its error against):
 /// unbiased; next-event estimation with MIS (power heuristic) against BSDF sampling;
@@ -14,7 +15,9 @@ use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 /// unbounded with Russian roulette from `rr_depth`); box pixel filter. Samples are taken
 /// in passes of doubling size (progress and cancellation between rows); each pixel's
 /// random numbers depend only on (seed, pixel, sample), so the image has the same bytes on
-/// any thread count. Outputs the mean and the per-pixel variance of the mean.
+/// any thread count. Outputs the mean and the per-pixel variance of the mean. Sharded over
+/// image rows (chunks of about 4096 pixels): `relume shard`, `relume slurm` and
+/// `--processes` split it across processes and machines with the same bytes.
 #[derive(Params)]
 pub struct PathTrace {
     /// samples per pixel
@@ -34,43 +37,71 @@ pub struct PathTrace {
 inputs!(pub PathTraceIn { scene: Scene, accel: Accel });
 outputs!(pub PathTraceOut { image: Image, variance: Image });
 
-/// Renders `p.spp` samples per pixel; returns (mean, variance of the mean, rays, samples
-/// dropped as NaN or infinite). `cx` reports progress and cancels; `None` outside a graph.
-pub fn render(scene: &Scene, accel: &Accel, p: &PathTrace, cx: Option<&RunCtx>) -> Result<(Image, Image, u64, u64), NodeError> {
+/// Renders `p.spp` samples per pixel of the rows `rows`; returns them as a band with the
+/// mean, the variance of the mean and the counters [rays, samples dropped as NaN or
+/// infinite]. Each pixel depends only on (seed, pixel, sample): any split of the rows gives
+/// the same bytes. `cx` reports progress and cancels; `None` outside a graph.
+pub fn render_rows(scene: &Scene, accel: &Accel, p: &PathTrace, rows: Range<usize>, cx: Option<&RunCtx>) -> Result<ImageRows, NodeError> {
     let cam = &scene.camera;
-    let mut film = Film::try_new(cam.width, cam.height)?;
-    let tracer = Tracer::new(scene, accel, Settings { max_depth: p.max_depth, rr_depth: p.rr_depth, seed: p.seed });
-    let rays = CameraRays::new(cam);
     let w = cam.width;
+    let mut film = Film::try_new(w, rows.len())?;
+    if !scene.has_lights() {
+        let (mean, var) = (Image::try_new(w, rows.len())?, Image::try_new(w, rows.len())?);
+        return Ok(ImageRows::new(w, rows, vec![mean, var], vec![0, 0]));
+    }
+    let tracer = Tracer::new(scene, accel, Settings { max_depth: p.max_depth, rr_depth: p.rr_depth, seed: p.seed });
+    let cam_rays = CameraRays::new(cam);
+    let y0 = rows.start;
     with_ctx(cx, |cx| {
         film.add_passes(cx, p.spp, |x, y, s, counts| {
+            let y = y + y0;
             let id = ((y * w + x) as u64) << 32 | s as u64;
             let jitter = (crate::math::rng::uniform(p.seed ^ 0x5EED, id, 0), crate::math::rng::uniform(p.seed ^ 0x5EED, id, 1));
-            let (o, d) = rays.ray(x as f32 + jitter.0, y as f32 + jitter.1);
+            let (o, d) = cam_rays.ray(x as f32 + jitter.0, y as f32 + jitter.1);
             tracer.radiance(o, d, id, counts)
         })
     })?;
-    let (ray_count, nonfinite) = (film.rays(), film.nonfinite());
+    let counters = vec![film.rays(), film.nonfinite()];
     let (mean, var) = film.finish();
-    Ok((mean, var, ray_count, nonfinite))
+    Ok(ImageRows::new(w, rows, vec![mean, var], counters))
 }
 
-#[node(category = "reference")]
+/// The whole image: (mean, variance of the mean, rays, samples dropped as NaN or infinite);
+/// the same bytes as the node's sharded run.
+pub fn render(scene: &Scene, accel: &Accel, p: &PathTrace, cx: Option<&RunCtx>) -> Result<(Image, Image, u64, u64), NodeError> {
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let band = render_rows(scene, accel, p, 0..h, cx)?;
+    let (mut imgs, c) = gather_rows(w, h, 2, &[&band])?;
+    let var = imgs.pop().expect("two layers");
+    Ok((imgs.pop().expect("two layers"), var, c[0], c[1]))
+}
+
+#[node(category = "reference", sharded)]
 impl PathTrace {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
-        // The film: a sum and a sum of squares (f64 RGB) per pixel.
+        // The film of a band (a sum and a sum of squares, f64 RGB, per pixel), the bands of
+        // the chunks (mean and variance) and the gathered images.
         let image = inputs[0].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));
-        relume_core::MemoryEstimate { outputs: vec![image, image], working: inputs[0].and_then(|s| s.pixels()).map_or(0, |p| p * 48) }
+        relume_core::MemoryEstimate { outputs: vec![image, image], working: inputs[0].and_then(|s| s.pixels()).map_or(0, |p| p * 72) }
     }
 
-    fn run(&self, i: PathTraceIn, cx: &RunCtx) -> Result<PathTraceOut, NodeError> {
-        let (scene, accel) = (i.scene, i.accel);
-        if !scene.has_lights() {
+    fn shard(&self, i: &PathTraceIn) -> Result<ShardSpec, NodeError> {
+        Ok(row_spec(i.scene.camera.width, i.scene.camera.height))
+    }
+
+    fn run_items(&self, i: &PathTraceIn, rows: Range<u64>, cx: &RunCtx) -> Result<ImageRows, NodeError> {
+        render_rows(i.scene, i.accel, self, rows.start as usize..rows.end as usize, Some(cx))
+    }
+
+    fn gather(&self, i: &PathTraceIn, parts: &[&ImageRows], cx: &RunCtx) -> Result<PathTraceOut, NodeError> {
+        let cam = &i.scene.camera;
+        let (mut imgs, c) = gather_rows(cam.width, cam.height, 2, parts)?;
+        let (var, mean) = (imgs.pop().expect("two layers"), imgs.pop().expect("two layers"));
+        if !i.scene.has_lights() {
             cx.note("the scene has no light: the image is black (nothing was traced)");
-            let (w, h) = (scene.camera.width, scene.camera.height);
-            return Ok(PathTraceOut { image: Image::try_new(w, h)?, variance: Image::try_new(w, h)? });
+            return Ok(PathTraceOut { image: mean, variance: var });
         }
-        let (mean, var, rays, nonfinite) = render(scene, accel, self, Some(cx))?;
+        let (rays, nonfinite) = (c[0], c[1]);
         cx.metric("spp", self.spp as f64);
         cx.metric("rays", rays as f64);
         cx.metric("nonfinite_samples", nonfinite as f64);

@@ -3,6 +3,7 @@
 pub mod accel;
 mod clusters;
 mod image;
+mod image_rows;
 mod material;
 mod metrics;
 mod point_tree;
@@ -13,6 +14,7 @@ mod scene;
 pub use self::image::{Image, MAX_IMAGE_BYTES};
 pub use accel::Accel;
 pub use clusters::{Cluster, Clusters};
+pub use image_rows::{gather_rows, row_spec, ImageRows, Layer};
 pub use material::{Material, Medium};
 pub use metrics::Metrics;
 pub use point_tree::{PointTree, TreeNode, MIN_AREA_FRACTION};
