@@ -7,9 +7,9 @@ use relume_tests::{add_output, files_under, load_graph};
 use std::collections::BTreeSet;
 
 /// `pbgi_vs_reference.ron` at test size with every output port of every node as an output:
-/// it produces every port type relume registers.
+/// with `brdf_basis.ron` it produces every port type relume registers.
 fn every_port_graph() -> Graph {
-    let mut g = load_graph(
+    let g = load_graph(
         "pbgi_vs_reference.ron",
         &[
             ("scene.width", "16"),
@@ -21,6 +21,11 @@ fn every_port_graph() -> Graph {
             ("pt.spp", "2"),
         ],
     );
+    every_port(g)
+}
+
+/// `g` with every output port of every node as an output.
+fn every_port(mut g: Graph) -> Graph {
     let reg = relume_nodes::registry();
     g.outputs.clear();
     for n in g.nodes.clone() {
@@ -38,12 +43,15 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
     let dir = tempfile::tempdir().unwrap();
     let first = Engine::new(relume_nodes::registry()).with_disk_cache(dir.path()).with_disk_policy(DiskPolicy::Always);
     let r1 = first.run(&g, &RunOptions::default()).unwrap();
+    // The relighting types come from the BRDF-basis graph (same engine, same cache).
+    let b = every_port(load_graph("brdf_basis.ron", &[("space.n_theta_i", "8"), ("space.n_theta_o", "8"), ("space.n_phi", "16")]));
+    let rb = first.run(&b, &RunOptions::default()).unwrap();
 
     // Every registered port type is produced by this graph (as an output, or as the partial
     // results of its sharded nodes, kept on disk chunk by chunk), and each value decodes to
     // itself.
-    let mut produced: BTreeSet<&str> = r1.outputs.iter().map(|(_, v)| v.type_name()).collect();
-    for n in &r1.report.nodes {
+    let mut produced: BTreeSet<&str> = r1.outputs.iter().chain(&rb.outputs).map(|(_, v)| v.type_name()).collect();
+    for n in r1.report.nodes.iter().chain(&rb.report.nodes) {
         let kind = reg.node(&n.kind).unwrap();
         if let (Some(sh), Some(stats)) = (kind.sharded(), &n.shards) {
             assert_eq!((stats.ran, stats.cached), (stats.chunks, 0), "{}: every chunk ran", n.id);
@@ -52,7 +60,7 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
     }
     let registered: BTreeSet<&str> = reg.port_types().map(|t| t.name).collect();
     assert_eq!(produced, registered, "the graph covers every registered port type");
-    for (name, v) in &r1.outputs {
+    for (name, v) in r1.outputs.iter().chain(&rb.outputs) {
         let bytes = v.encode();
         let info = reg.port_type(v.type_name()).unwrap();
         let back = (info.decode)(&bytes, v.fingerprint()).unwrap_or_else(|| panic!("{name} ({}) does not decode", v.type_name()));
@@ -65,11 +73,13 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
 
     // A second engine (another process) gets every node's result from disk, the same values.
     let second = Engine::new(relume_nodes::registry()).with_disk_cache(dir.path());
-    let r2 = second.run(&g, &RunOptions::default()).unwrap();
-    assert_eq!(r2.report.ran, 0, "{:?}", r2.report.ran_ids());
-    assert!(r2.report.nodes.iter().all(|n| n.cache == Some("disk")));
-    for ((n1, v1), (n2, v2)) in r1.outputs.iter().zip(&r2.outputs) {
-        assert_eq!((n1, v1.fingerprint(), v1.encode()), (n2, v2.fingerprint(), v2.encode()));
+    for (graph, r) in [(&g, &r1), (&b, &rb)] {
+        let r2 = second.run(graph, &RunOptions::default()).unwrap();
+        assert_eq!(r2.report.ran, 0, "{:?}", r2.report.ran_ids());
+        assert!(r2.report.nodes.iter().all(|n| n.cache == Some("disk")));
+        for ((n1, v1), (n2, v2)) in r.outputs.iter().zip(&r2.outputs) {
+            assert_eq!((n1, v1.fingerprint(), v1.encode()), (n2, v2.fingerprint(), v2.encode()));
+        }
     }
 
     // Truncate every entry: each is a miss, recomputed and written back whole.

@@ -7,6 +7,7 @@ pub mod image;
 pub mod math;
 pub mod pbgi;
 pub mod reference;
+pub mod relight;
 pub mod render;
 pub mod scene;
 #[cfg(test)]
@@ -22,6 +23,7 @@ pub fn register_all(reg: &mut Registry) {
     geometry::register(reg);
     reference::register(reg);
     pbgi::register(reg);
+    relight::register(reg);
 }
 
 /// A registry with every node of this crate.

@@ -1,8 +1,9 @@
-//! Writing a run's outputs to files: images as EXR + tone-mapped PNG, metrics as JSON.
+//! Writing a run's outputs to files: images as EXR + tone-mapped PNG, metrics and basis
+//! coefficients as JSON.
 
 use crate::image::io::{write_exr, write_png};
 use crate::image::tonemap::{tonemap_channel, Operator};
-use crate::types::{Image, Metrics};
+use crate::types::{BasisCoefficients, Image, Metrics};
 use relume_core::Value;
 use std::path::{Path, PathBuf};
 
@@ -20,6 +21,12 @@ pub(crate) fn write_outputs(dir: &Path, outputs: &[(String, Value)]) -> Result<V
         } else if let Some(m) = v.get::<Metrics>() {
             let json = dir.join(format!("{name}.json"));
             relume_core::graph::write_atomic(&json, m.to_json().as_bytes()).map_err(|e| format!("cannot write {}: {e}", json.display()))?;
+            files.push(json);
+        } else if let Some(c) = v.get::<BasisCoefficients>() {
+            // A JSON list, the diffuse coefficient first.
+            let json = dir.join(format!("{name}.json"));
+            let text = serde_json::to_string(&c.0).map_err(|e| format!("cannot encode {name}: {e}"))?;
+            relume_core::graph::write_atomic(&json, text.as_bytes()).map_err(|e| format!("cannot write {}: {e}", json.display()))?;
             files.push(json);
         } else {
             eprintln!("note: output \"{name}\" ({}) has no file format; not written", v.type_name());

@@ -417,6 +417,19 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "PointTree" => &["nodes", "depth"],
         "ShadeDirect" => &["points", "points_skipped"],
         "SampleSurface" => &["points"],
+        "BrdfPca" => &[
+            "bases",
+            "specular_samples",
+            "specular_rank",
+            "l2_error_mean_pct",
+            "l2_error_max_pct",
+            "l2_error_total_pct",
+            "solid_angle_l2_error_mean_pct",
+            "solid_angle_l2_error_max_pct",
+            "uniform_l2_error_mean_pct",
+            "uniform_l2_error_max_pct",
+            "energy_kept_pct",
+        ],
         _ => &[],
     }
 }

@@ -2,6 +2,7 @@
 
 pub mod frame;
 pub mod kmeans;
+pub mod pca;
 pub mod rng;
 pub mod sampling;
 pub mod sh;

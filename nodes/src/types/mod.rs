@@ -1,6 +1,7 @@
 //! Data types that flow along edges (port types).
 
 pub mod accel;
+mod brdf_space;
 mod clusters;
 mod image;
 mod image_rows;
@@ -13,6 +14,7 @@ mod scene;
 
 pub use self::image::{Image, MAX_IMAGE_BYTES};
 pub use accel::Accel;
+pub use brdf_space::{cos_half, BasisCoefficients, BrdfBasis, BrdfGrid, BrdfSample, BrdfSpace, Trilinear, MAX_BRDF_SPACE_BYTES};
 pub use clusters::{Cluster, Clusters};
 pub use image_rows::{gather_rows, row_spec, ImageRows, Layer};
 pub use material::{Material, Medium};

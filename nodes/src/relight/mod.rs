@@ -1,0 +1,56 @@
+//! Pixel relighting with dynamic BRDFs (PIPELINES.md pipeline 1; [S] chapter 4): the BRDF space
+//! and its basis (`BrdfSpaceSample`, `BrdfPca`), material projection (`MaterialProject`) and
+//! the signed evaluation of basis BRDFs that the precompute uses (`basis_brdf`), and the
+//! transfer terms a scene needs (`terms`).
+
+pub mod basis_brdf;
+pub mod brdf_pca;
+pub mod brdf_space_sample;
+pub mod material_project;
+pub mod terms;
+
+use relume_core::Registry;
+
+/// Registers the relighting nodes.
+pub fn register(reg: &mut Registry) {
+    reg.add::<brdf_space_sample::BrdfSpaceSample>();
+    reg.add::<brdf_pca::BrdfPca>();
+    reg.add::<material_project::MaterialProject>();
+}
+
+/// Small BRDF spaces and bases for the unit tests of this folder, made by the nodes themselves.
+#[cfg(test)]
+pub(crate) mod test_support {
+    use crate::testing::{f, first, i, run_on};
+    use crate::types::{BrdfBasis, BrdfGrid, BrdfSample, BrdfSpace, Metrics};
+    use relume_core::Value;
+
+    /// `BrdfSpaceSample` with the given grid, sample count and exponent range.
+    pub fn space(n_theta_i: i64, n_theta_o: i64, n_phi: i64, samples: i64, s_min: f32, s_max: f32) -> BrdfSpace {
+        let p = [
+            ("n_theta_i", i(n_theta_i)),
+            ("n_theta_o", i(n_theta_o)),
+            ("n_phi", i(n_phi)),
+            ("samples", i(samples)),
+            ("s_min", f(s_min as f64)),
+            ("s_max", f(s_max as f64)),
+        ];
+        first(&run_on::<super::brdf_space_sample::BrdfSpaceSample>(&p, vec![]).unwrap())
+    }
+
+    /// A space with the diffuse sample and specular samples of exactly the exponents `s`
+    /// (repeats allowed: rank-deficient sets).
+    pub fn space_of(n_theta_i: u32, n_theta_o: u32, n_phi: u32, s: &[f32]) -> BrdfSpace {
+        let grid = BrdfGrid { n_theta_i, n_theta_o, n_phi };
+        let samples: Vec<BrdfSample> =
+            std::iter::once(BrdfSample { kd: 1.0, ks: 0.0, s: 0.0 }).chain(s.iter().map(|&s| BrdfSample { kd: 0.0, ks: 1.0, s })).collect();
+        let values = samples.iter().flat_map(|p| (0..grid.cells()).map(move |c| p.eval(grid.centre(c)) as f32)).collect();
+        BrdfSpace { grid, samples, values }
+    }
+
+    /// `BrdfPca` of `space` with `bases` bases: the basis and its metrics.
+    pub fn basis(space: &BrdfSpace, bases: i64) -> (BrdfBasis, Metrics) {
+        let out = run_on::<super::brdf_pca::BrdfPca>(&[("bases", i(bases))], vec![Value::new(space.clone())]).unwrap();
+        (out[0].get::<BrdfBasis>().unwrap().clone(), out[1].get::<Metrics>().unwrap().clone())
+    }
+}
