@@ -7,7 +7,7 @@ use relume_tests::{add_output, files_under, load_graph};
 use std::collections::BTreeSet;
 
 /// `pbgi_vs_reference.ron` at test size with every output port of every node as an output:
-/// with `brdf_basis.ron` it produces every port type relume registers.
+/// with `relight_ring.ron` it produces every port type relume registers.
 fn every_port_graph() -> Graph {
     let g = load_graph(
         "pbgi_vs_reference.ron",
@@ -43,8 +43,21 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
     let dir = tempfile::tempdir().unwrap();
     let first = Engine::new(relume_nodes::registry()).with_disk_cache(dir.path()).with_disk_policy(DiskPolicy::Always);
     let r1 = first.run(&g, &RunOptions::default()).unwrap();
-    // The relighting types come from the BRDF-basis graph (same engine, same cache).
-    let b = every_port(load_graph("brdf_basis.ron", &[("space.n_theta_i", "8"), ("space.n_theta_o", "8"), ("space.n_phi", "16")]));
+    // The relighting types come from the ring's relighting graph (same engine, same cache).
+    let b = every_port(load_graph(
+        "relight_ring.ron",
+        &[
+            ("scene.width", "12"),
+            ("scene.height", "12"),
+            ("space.n_theta_i", "8"),
+            ("space.n_theta_o", "8"),
+            ("space.n_phi", "16"),
+            ("space.samples", "21"),
+            ("transfer.spp", "2"),
+            ("transfer.bounce_rays", "2"),
+            ("reference.spp", "2"),
+        ],
+    ));
     let rb = first.run(&b, &RunOptions::default()).unwrap();
 
     // Every registered port type is produced by this graph (as an output, or as the partial

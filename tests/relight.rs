@@ -1,9 +1,10 @@
 //! Pixel relighting (pipeline 1), through its graphs: the BRDF basis graph reports the PCA
-//! reconstruction error, projects a material, and a material edit re-runs the projection and
-//! nothing upstream.
+//! reconstruction error and projects the materials; the relighting graphs store the images the
+//! scene needs, and a material edit re-runs exactly the projection, the combine and what
+//! compares them, nothing upstream.
 
-use relume_core::{Engine, RunOptions};
-use relume_nodes::types::{BasisCoefficients, Metrics};
+use relume_core::{Engine, Graph, RunOptions};
+use relume_nodes::types::{Image, Metrics, ObjectMaterials};
 use relume_tests::load_graph;
 
 #[test]
@@ -18,21 +19,85 @@ fn the_brdf_basis_graph_reports_its_pca_error_and_a_material_edit_reruns_only_th
     assert_eq!(m.get("bases"), Some(6.0));
     let (mean, max) = (m.get("l2_error_mean_pct").unwrap(), m.get("l2_error_max_pct").unwrap());
     assert!(mean > 0.0 && mean < 2.0 && max < 12.0 && max >= mean, "{mean} {max}");
-    let c = r.output("coefficients").unwrap().get::<BasisCoefficients>().unwrap();
-    assert_eq!(c.0.len(), 6);
-    assert!((c.0[0] - 0.2).abs() < 1e-6, "the diffuse coefficient is Kd: {:?}", c.0);
+    let c = r.output("coefficients").unwrap().get::<ObjectMaterials>().unwrap().clone();
+    let names: Vec<&str> = c.0.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["white-walls", "bunny"], "the floor, ceiling and back are one dynamic object, first in the scene");
+    let bunny = &c.0[1];
+    assert_eq!(bunny.coefficients.len(), 6);
+    assert!((bunny.coefficients[0][0] - 0.2).abs() < 1e-6, "the diffuse coefficient is Kd: {:?}", bunny.coefficients);
+    assert!((c.0[0].coefficients[0][1] - 0.3).abs() < 1e-6, "the walls keep the scene's Kd");
 
     // A material edit: only the projection runs again.
     g.set_param_text(&reg, "project.s", "180").unwrap();
     let r2 = e.run(&g, &RunOptions::default()).unwrap();
     assert_eq!(r2.report.ran_ids(), vec!["project"]);
-    let c2 = r2.output("coefficients").unwrap().get::<BasisCoefficients>().unwrap();
-    assert_ne!(c2.0[1..], c.0[1..], "a sharper lobe has other specular coefficients");
+    let c2 = r2.output("coefficients").unwrap().get::<ObjectMaterials>().unwrap();
+    assert_ne!(c2.0[1].coefficients[1..], bunny.coefficients[1..], "a sharper lobe has other specular coefficients");
+    assert_eq!(c2.0[0], c.0[0], "the walls are not edited");
 
     // Kd = 1, Ks = 0 projects to (1, 0, …).
-    g.set_param_text(&reg, "project.kd", "1").unwrap();
-    g.set_param_text(&reg, "project.ks", "0").unwrap();
+    g.set_param_text(&reg, "project.kd", "(1, 1, 1)").unwrap();
+    g.set_param_text(&reg, "project.ks", "(0, 0, 0)").unwrap();
     let r3 = e.run(&g, &RunOptions::default()).unwrap();
-    let c3 = r3.output("coefficients").unwrap().get::<BasisCoefficients>().unwrap();
-    assert_eq!(c3.0, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    let c3 = r3.output("coefficients").unwrap().get::<ObjectMaterials>().unwrap();
+    let red: Vec<f64> = c3.0[1].coefficients.iter().map(|c| c[0]).collect();
+    assert_eq!(red, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+}
+
+/// A relighting graph at test size: 24² pixels, few paths, a small BRDF space, a 16-spp reference.
+fn small(name: &str) -> Graph {
+    let reg = relume_nodes::registry();
+    let mut g = load_graph(name, &[]);
+    for (k, v) in [
+        ("scene.width", "24"),
+        ("scene.height", "24"),
+        ("space.n_theta_i", "12"),
+        ("space.n_theta_o", "12"),
+        ("space.n_phi", "24"),
+        ("space.samples", "41"),
+        ("transfer.spp", "4"),
+        ("transfer.bounce_rays", "4"),
+        ("reference.spp", "16"),
+    ] {
+        g.set_param_text(&reg, k, v).unwrap();
+    }
+    g
+}
+
+#[test]
+fn a_material_edit_reruns_the_projection_the_combine_and_their_comparisons_only() {
+    let reg = relume_nodes::registry();
+    let e = Engine::new(relume_nodes::registry());
+    let mut g = small("relight_cornell_bunny.ron");
+    let r = e.run(&g, &RunOptions::default()).unwrap();
+    let t = r.report.node("transfer").unwrap();
+    assert_eq!((t.metrics["images_grey"], t.metrics["images_rgb"]), (55.0, 29.0), "[S] 4.1.5: 55 grey and 29 RGB images");
+    let before = r.output("image").unwrap().get::<Image>().unwrap().clone();
+
+    g.set_param_text(&reg, "project.object", "\"bunny\"").unwrap();
+    g.set_param_text(&reg, "project.kd", "(0.6, 0.1, 0.1)").unwrap();
+    g.set_param_text(&reg, "project.ks", "(0.2, 0.2, 0.2)").unwrap();
+    g.set_param_text(&reg, "project.s", "40").unwrap();
+    let r2 = e.run(&g, &RunOptions::default()).unwrap();
+    let mut ran = r2.report.ran_ids();
+    ran.sort();
+    assert_eq!(ran, ["basis_error", "error", "project", "relight", "same_seed"], "nothing upstream of the edit runs");
+    let after = r2.output("image").unwrap().get::<Image>().unwrap();
+    assert_ne!(&before, after);
+    // The edit holds up: the relit image still matches the same paths with the analytic BRDFs
+    // within the basis error.
+    let b = r2.output("basis_error").unwrap().get::<Metrics>().unwrap();
+    assert!(b.get("l2_percent").unwrap() < 2.0, "{b:?}");
+}
+
+#[test]
+fn the_ring_stores_no_fixed_object_terms_and_says_so() {
+    let e = Engine::new(relume_nodes::registry());
+    let r = e.run(&small("relight_ring.ron"), &RunOptions::default()).unwrap();
+    let t = r.report.node("transfer").unwrap();
+    // D = 2, S = 5, no fixed object: grey 55, RGB 1 + D + 2DS = 23.
+    assert_eq!((t.metrics["images_grey"], t.metrics["images_rgb"]), (55.0, 23.0));
+    assert!(t.notes.iter().any(|n| n.contains("no fixed-material object")), "{:?}", t.notes);
+    let basis = r.output("basis_error").unwrap().get::<Metrics>().unwrap();
+    assert!(basis.get("l2_percent").unwrap() < 5.0, "{basis:?}");
 }

@@ -59,6 +59,15 @@ pub fn id(s: &str) -> ParamValue {
     ParamValue::Ident(s.into())
 }
 
+pub fn t(s: &str) -> ParamValue {
+    ParamValue::Text(s.into())
+}
+
+/// An RGB parameter value.
+pub fn rgb(c: [f64; 3]) -> ParamValue {
+    ParamValue::Tuple(c.iter().map(|&x| ParamValue::Float(x)).collect())
+}
+
 /// Small scenes built in code for unit tests.
 pub mod test_scene {
     use crate::scene::builder::SceneBuilder;

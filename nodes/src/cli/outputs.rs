@@ -1,9 +1,9 @@
-//! Writing a run's outputs to files: images as EXR + tone-mapped PNG, metrics and basis
-//! coefficients as JSON.
+//! Writing a run's outputs to files: images as EXR + tone-mapped PNG, metrics and the
+//! dynamic objects' materials as JSON.
 
 use crate::image::io::{write_exr, write_png};
 use crate::image::tonemap::{tonemap_channel, Operator};
-use crate::types::{BasisCoefficients, Image, Metrics};
+use crate::types::{Image, Metrics, ObjectMaterials};
 use relume_core::Value;
 use std::path::{Path, PathBuf};
 
@@ -22,10 +22,11 @@ pub(crate) fn write_outputs(dir: &Path, outputs: &[(String, Value)]) -> Result<V
             let json = dir.join(format!("{name}.json"));
             relume_core::graph::write_atomic(&json, m.to_json().as_bytes()).map_err(|e| format!("cannot write {}: {e}", json.display()))?;
             files.push(json);
-        } else if let Some(c) = v.get::<BasisCoefficients>() {
-            // A JSON list, the diffuse coefficient first.
+        } else if let Some(c) = v.get::<ObjectMaterials>() {
+            // A JSON list of the dynamic objects' materials with their RGB coefficients, the
+            // diffuse basis first.
             let json = dir.join(format!("{name}.json"));
-            let text = serde_json::to_string(&c.0).map_err(|e| format!("cannot encode {name}: {e}"))?;
+            let text = serde_json::to_string_pretty(&c.0).map_err(|e| format!("cannot encode {name}: {e}"))?;
             relume_core::graph::write_atomic(&json, text.as_bytes()).map_err(|e| format!("cannot write {}: {e}", json.display()))?;
             files.push(json);
         } else {

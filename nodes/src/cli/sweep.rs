@@ -430,6 +430,19 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
             "uniform_l2_error_max_pct",
             "energy_kept_pct",
         ],
+        "SceneMaterials" => &["dynamic_objects"],
+        "TransferPrecompute" => &[
+            "images",
+            "images_grey",
+            "images_rgb",
+            "dynamic_objects",
+            "bytes",
+            "rays",
+            "hemisphere_rays_per_pixel",
+            "dropped_samples",
+            "mixed_pixels",
+        ],
+        "RelightReference" => &["rays"],
         _ => &[],
     }
 }

@@ -1,41 +1,69 @@
 //! MaterialProject node.
 
-use crate::types::{BasisCoefficients, BrdfBasis};
+use crate::types::{BrdfBasis, ObjectMaterials};
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
-/// Projects a Blinn-Phong material (Kd, Ks, s) on a BRDF basis ([S] 4-22): the coefficients
-/// are (Kd, Ks c(s)), diffuse first, with c(s) interpolated linearly in s between the basis'
-/// sampled exponents. An s outside the sampled range is a parameter error naming the range,
-/// never clamped: a clamped exponent would silently render another material (widen
+/// Projects the dynamic objects' Blinn-Phong materials on a BRDF basis ([S] 4-22), per colour
+/// channel: basis 0 (diffuse) gets Kd, specular basis k gets Ks · c_k(s), with c(s)
+/// interpolated linearly in s between the basis' sampled exponents. This is the edit node of
+/// pixel relighting: `object` names the dynamic object whose (Kd, Ks, s) the parameters set
+/// (empty: none, every object keeps the material its input gives); chain one node per edited
+/// object. An s outside the sampled range is a parameter error naming the range, never
+/// clamped: a clamped exponent would silently render another material (widen
 /// `BrdfSpaceSample`'s s_min / s_max instead). With Ks = 0 the exponent plays no part.
-/// One object for now; Kd + Ks > 1 ([S] 4-16 asks ≤ 1) is allowed with a note.
+/// Kd + Ks > 1 ([S] 4-16 asks ≤ 1) is allowed with a note.
 #[derive(Params)]
 pub struct MaterialProject {
-    /// diffuse reflectance Kd
-    #[param(default = 0.5, range = 0.0..=1.0)]
-    pub kd: f32,
-    /// specular reflectance Ks
-    #[param(default = 0.5, range = 0.0..=1.0)]
-    pub ks: f32,
-    /// Blinn-Phong exponent s, within the basis' sampled range
+    /// the dynamic object to edit (a name from `SceneMaterials`; empty: edit none)
+    #[param(default = "")]
+    pub object: String,
+    /// diffuse reflectance Kd of the edited object
+    #[param(rgb, default = (0.5, 0.5, 0.5), range = 0.0..=1.0)]
+    pub kd: [f32; 3],
+    /// specular reflectance Ks of the edited object
+    #[param(rgb, default = (0.5, 0.5, 0.5), range = 0.0..=1.0)]
+    pub ks: [f32; 3],
+    /// Blinn-Phong exponent s of the edited object, within the basis' sampled range
     #[param(default = 20.0, range = 0.0..=1e5)]
     pub s: f32,
 }
 
-inputs!(pub MaterialProjectIn { basis: BrdfBasis });
-outputs!(pub MaterialProjectOut { coefficients: BasisCoefficients });
+inputs!(pub MaterialProjectIn { basis: BrdfBasis, materials: ObjectMaterials });
+outputs!(pub MaterialProjectOut { materials: ObjectMaterials });
 
 #[node(category = "relight")]
 impl MaterialProject {
     fn run(&self, i: MaterialProjectIn, cx: &RunCtx) -> Result<MaterialProjectOut, NodeError> {
-        let c = i.basis.project(self.kd as f64, self.ks as f64, self.s as f64).map_err(|m| NodeError::param("s", m))?;
-        if self.kd + self.ks > 1.0 {
-            cx.note(format!(
-                "Kd + Ks = {} > 1: the material reflects more light than it receives ([S] 4-16 asks Kd + Ks ≤ 1)",
-                self.kd + self.ks
-            ));
+        let mut out = i.materials.clone();
+        if !self.object.is_empty() {
+            let names: Vec<&str> = i.materials.0.iter().map(|m| m.name.as_str()).collect();
+            let m = out.0.iter_mut().find(|m| m.name == self.object).ok_or_else(|| {
+                NodeError::param("object", format!("no dynamic object \"{}\" (dynamic objects: {})", self.object, names.join(", ")))
+            })?;
+            (m.kd, m.ks, m.s) = (self.kd, self.ks, self.s);
         }
-        Ok(MaterialProjectOut { coefficients: BasisCoefficients(c) })
+        for m in &mut out.0 {
+            let mut coefficients = vec![[0.0; 3]; i.basis.bases()];
+            for ch in 0..3 {
+                let c = i.basis.project(m.kd[ch] as f64, m.ks[ch] as f64, m.s as f64).map_err(|msg| {
+                    if m.name == self.object {
+                        NodeError::param("s", msg)
+                    } else {
+                        NodeError::input("materials", format!("dynamic object \"{}\": {msg}", m.name))
+                    }
+                })?;
+                c.iter().zip(&mut coefficients).for_each(|(v, o)| o[ch] = *v);
+            }
+            m.coefficients = coefficients;
+            let over = (0..3).map(|ch| m.kd[ch] + m.ks[ch]).fold(0.0f32, f32::max);
+            if over > 1.0 {
+                cx.note(format!(
+                    "\"{}\": Kd + Ks = {over} > 1: the material reflects more light than it receives ([S] 4-16 asks Kd + Ks ≤ 1)",
+                    m.name
+                ));
+            }
+        }
+        Ok(MaterialProjectOut { materials: out })
     }
 }
 
@@ -43,15 +71,52 @@ impl MaterialProject {
 mod tests {
     use super::*;
     use crate::relight::test_support::{basis, space};
-    use crate::testing::{f, first, run_full, run_on};
-    use crate::types::BrdfSample;
+    use crate::testing::{f, first, rgb, run_full, run_on, t};
+    use crate::types::{BrdfSample, ObjectMaterial};
     use relume_core::Value;
     use std::f64::consts::PI;
     use std::path::Path;
 
+    fn one(kd: [f32; 3], ks: [f32; 3], s: f32) -> ObjectMaterials {
+        ObjectMaterials(vec![ObjectMaterial { name: "obj".into(), kd, ks, s, coefficients: vec![] }])
+    }
+
+    /// Edits the one object to (kd, ks, s) grey and returns its red coefficients.
     fn project(b: &BrdfBasis, kd: f64, ks: f64, s: f64) -> Result<Vec<f64>, NodeError> {
-        run_on::<MaterialProject>(&[("kd", f(kd)), ("ks", f(ks)), ("s", f(s))], vec![Value::new(b.clone())])
-            .map(|o| first::<BasisCoefficients>(&o).0)
+        let p = [("object", t("obj")), ("kd", rgb([kd; 3])), ("ks", rgb([ks; 3])), ("s", f(s))];
+        run_on::<MaterialProject>(&p, vec![Value::new(b.clone()), Value::new(one([0.5; 3], [0.5; 3], 20.0))])
+            .map(|o| first::<ObjectMaterials>(&o).0[0].coefficients.iter().map(|c| c[0]).collect())
+    }
+
+    #[test]
+    fn channels_project_separately_and_unedited_objects_keep_their_material() {
+        let (b, _) = basis(&space(6, 6, 12, 20, 1.0, 200.0), 4);
+        let mut two = one([0.2, 0.2, 0.0], [0.2, 0.2, 0.0], 180.0);
+        two.0.push(ObjectMaterial { name: "plane".into(), kd: [0.2; 3], ks: [0.2; 3], s: 5.0, coefficients: vec![] });
+        let out = run_on::<MaterialProject>(&[], vec![Value::new(b.clone()), Value::new(two.clone())]).unwrap();
+        let m = first::<ObjectMaterials>(&out);
+        let yellow = &m.0[0];
+        assert_eq!((yellow.kd, yellow.s), ([0.2, 0.2, 0.0], 180.0));
+        let c = b.project(0.2f32 as f64, 0.2f32 as f64, 180.0).unwrap();
+        for (k, ck) in c.iter().enumerate() {
+            assert_eq!(yellow.coefficients[k], [*ck, *ck, 0.0], "basis {k}: the blue channel has no reflectance");
+        }
+        assert_eq!(m.0[1].coefficients[0], [0.2f32 as f64; 3]);
+        // Editing the plane leaves the ring's coefficients as they were.
+        let p = [("object", t("plane")), ("kd", rgb([0.5, 0.1, 0.1])), ("ks", rgb([0.0; 3])), ("s", f(5.0))];
+        let edited = first::<ObjectMaterials>(&run_on::<MaterialProject>(&p, vec![Value::new(b), Value::new(two)]).unwrap());
+        assert_eq!(edited.0[0], m.0[0]);
+        assert_eq!(edited.0[1].coefficients[0], [0.5, 0.1f32 as f64, 0.1f32 as f64]);
+        assert!(edited.0[1].coefficients[1..].iter().all(|c| *c == [0.0; 3]));
+    }
+
+    #[test]
+    fn an_unknown_object_is_a_parameter_error_listing_the_dynamic_objects() {
+        let (b, _) = basis(&space(4, 4, 8, 6, 1.0, 200.0), 3);
+        let e = run_on::<MaterialProject>(&[("object", t("teapot"))], vec![Value::new(b), Value::new(one([0.5; 3], [0.5; 3], 20.0))])
+            .unwrap_err();
+        assert!(matches!(&e, NodeError::Param { name, .. } if name == "object"), "{e}");
+        assert!(e.to_string().contains("obj"), "{e}");
     }
 
     #[test]
@@ -132,7 +197,8 @@ mod tests {
     #[test]
     fn kd_plus_ks_over_one_is_noted() {
         let (b, _) = basis(&space(4, 4, 8, 4, 1.0, 10.0), 3);
-        let e = run_full::<MaterialProject>(&[("kd", f(0.8)), ("ks", f(0.8)), ("s", f(5.0))], Path::new("."), vec![Value::new(b)]).unwrap();
+        let p = [("object", t("obj")), ("kd", rgb([0.8; 3])), ("ks", rgb([0.8; 3])), ("s", f(5.0))];
+        let e = run_full::<MaterialProject>(&p, Path::new("."), vec![Value::new(b), Value::new(one([0.5; 3], [0.5; 3], 20.0))]).unwrap();
         assert!(e.notes.iter().any(|n| n.contains("> 1")), "{:?}", e.notes);
     }
 }

@@ -1,13 +1,22 @@
 //! Pixel relighting with dynamic BRDFs (PIPELINES.md pipeline 1; [S] chapter 4): the BRDF space
-//! and its basis (`BrdfSpaceSample`, `BrdfPca`), material projection (`MaterialProject`) and
-//! the signed evaluation of basis BRDFs that the precompute uses (`basis_brdf`), and the
-//! transfer terms a scene needs (`terms`).
+//! and its basis (`BrdfSpaceSample`, `BrdfPca`), the dynamic objects' materials and their
+//! projection (`SceneMaterials`, `MaterialProject`), the precompute (`TransferPrecompute`, on
+//! the paths of `paths` weighted by `shades`; the terms a scene needs in `terms`; signed basis
+//! evaluation in `basis_brdf`), the interactive combine (`Relight`) and the same-seed render
+//! that measures the basis error alone (`RelightReference`).
 
 pub mod basis_brdf;
 pub mod brdf_pca;
 pub mod brdf_space_sample;
 pub mod material_project;
+pub mod paths;
+#[allow(clippy::module_inception)]
+pub mod relight;
+pub mod relight_reference;
+pub mod scene_materials;
+pub mod shades;
 pub mod terms;
+pub mod transfer_precompute;
 
 use relume_core::Registry;
 
@@ -15,7 +24,11 @@ use relume_core::Registry;
 pub fn register(reg: &mut Registry) {
     reg.add::<brdf_space_sample::BrdfSpaceSample>();
     reg.add::<brdf_pca::BrdfPca>();
+    reg.add::<scene_materials::SceneMaterials>();
     reg.add::<material_project::MaterialProject>();
+    reg.add::<transfer_precompute::TransferPrecompute>();
+    reg.add::<relight::Relight>();
+    reg.add::<relight_reference::RelightReference>();
 }
 
 /// Small BRDF spaces and bases for the unit tests of this folder, made by the nodes themselves.
@@ -46,6 +59,76 @@ pub(crate) mod test_support {
             std::iter::once(BrdfSample { kd: 1.0, ks: 0.0, s: 0.0 }).chain(s.iter().map(|&s| BrdfSample { kd: 0.0, ks: 1.0, s })).collect();
         let values = samples.iter().flat_map(|p| (0..grid.cells()).map(move |c| p.eval(grid.centre(c)) as f32)).collect();
         BrdfSpace { grid, samples, values }
+    }
+
+    /// The spheres scene made for relighting, `size`² pixels: spheres a and b one dynamic object
+    /// ("glossy"), sphere c another (coloured), a fixed reddish floor, a point light and a
+    /// small emitting quad of the same colour (so specular-only images are grey).
+    pub fn scene(size: usize) -> crate::types::Scene {
+        use crate::scene::builder::SceneBuilder;
+        use crate::types::{Light, Material};
+        use glam::Vec3;
+        let glossy = Material::BlinnPhong { kd: Vec3::splat(0.3), ks: Vec3::splat(0.4), exponent: 20.0 };
+        let coloured = Material::BlinnPhong { kd: Vec3::new(0.5, 0.2, 0.1), ks: Vec3::splat(0.3), exponent: 60.0 };
+        let floor = Material::Lambert { albedo: Vec3::new(0.6, 0.4, 0.3) };
+        let white = Material::Lambert { albedo: Vec3::splat(0.5) };
+        let mut s = SceneBuilder::new(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 40.0, size, size)
+            .sphere("a", Vec3::new(-0.8, 0.0, 0.0), 0.5, glossy, Vec3::ZERO, false)
+            .sphere("b", Vec3::new(0.7, 0.3, -0.5), 0.6, glossy, Vec3::ZERO, false)
+            .sphere("c", Vec3::new(0.0, -0.6, 0.8), 0.3, coloured, Vec3::ZERO, false)
+            .quad("floor", Vec3::new(-2.0, -1.0, 2.0), Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -4.0), floor, Vec3::ZERO)
+            .quad("lamp", Vec3::new(-0.3, 1.5, 0.3), Vec3::new(0.0, 0.0, -0.6), Vec3::new(0.6, 0.0, 0.0), white, Vec3::splat(4.0))
+            .light(Light::Point { position: Vec3::new(0.0, 2.0, 1.0), intensity: Vec3::splat(5.0) })
+            .build();
+        for o in &mut s.objects[..3] {
+            o.dynamic = true;
+        }
+        s.objects[0].material_name = "glossy".into();
+        s.objects[1].material_name = "glossy".into();
+        s
+    }
+
+    /// Everything `Relight` needs for `scene`: the accel, the projected scene materials, and
+    /// the precompute's outputs (transfer, metrics, notes) at the given path counts.
+    pub fn precompute(
+        scene: &crate::types::Scene,
+        basis: &BrdfBasis,
+        counts: [i64; 4],
+    ) -> (Value, crate::types::ObjectMaterials, crate::types::Transfer, relume_core::cache::CacheEntry) {
+        use crate::types::accel::BuildQuality;
+        let accel = Value::new(crate::types::Accel::build(scene, BuildQuality::Fast));
+        let m: crate::types::ObjectMaterials =
+            first(&run_on::<super::scene_materials::SceneMaterials>(&[], vec![Value::new(scene.clone())]).unwrap());
+        let m = first(&run_on::<super::material_project::MaterialProject>(&[], vec![Value::new(basis.clone()), Value::new(m)]).unwrap());
+        let p = [
+            ("spp", i(counts[0])),
+            ("light_samples", i(counts[1])),
+            ("bounce_rays", i(counts[2])),
+            ("bounce_light_samples", i(counts[3])),
+            ("seed", i(3)),
+        ];
+        let inputs = vec![Value::new(scene.clone()), accel.clone(), Value::new(basis.clone())];
+        let e = crate::testing::run_full::<super::transfer_precompute::TransferPrecompute>(&p, std::path::Path::new("."), inputs).unwrap();
+        (accel, m, first(&e.outputs), e)
+    }
+
+    /// A 2 × 1 transfer by hand: one dynamic object "a", S = 1, a merged RGB direct image and a
+    /// grey specular one (colour (1, 0.5, 0.25)); pixel 0 fixed, pixel 1 on "a"; `data` is
+    /// the 16 floats (stride 8).
+    pub fn tiny_transfer(data: Vec<f32>) -> crate::types::Transfer {
+        use super::terms::{Channels, First, Term};
+        crate::types::Transfer {
+            width: 2,
+            height: 1,
+            terms: vec![(Term::Direct(First::Merged), Channels::Rgb), (Term::Direct(First::Specular(1)), Channels::Grey)],
+            groups: vec!["a".into()],
+            specular_bases: 1,
+            colour: [1.0, 0.5, 0.25],
+            counts: crate::types::PathCounts { spp: 1, light_samples: 1, bounce_rays: 1, bounce_light_samples: 1, seed: 0 },
+            stride: 8,
+            class: vec![0, 1],
+            data,
+        }
     }
 
     /// `BrdfPca` of `space` with `bases` bases: the basis and its metrics.

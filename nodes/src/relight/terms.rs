@@ -16,8 +16,10 @@
 //! fixed-material object — and every light has the same colour; otherwise RGB. A scene without
 //! fixed-material objects has no `Bounce(_, Fixed)` terms (1 + S images fewer).
 
+use serde::{Deserialize, Serialize};
+
 /// What the first hit x′ contributes with.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub enum First {
     /// The diffuse basis of a dynamic object, or a fixed object's own BRDF.
     Merged,
@@ -26,7 +28,7 @@ pub enum First {
 }
 
 /// What the second hit x″ of a one-bounce path is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub enum Second {
     /// Any fixed-material object (its own BRDF).
     Fixed,
@@ -37,14 +39,14 @@ pub enum Second {
 }
 
 /// One stored image.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub enum Term {
     Direct(First),
     Bounce(First, Second),
 }
 
 /// Channels of a stored image.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Channels {
     Grey,
     Rgb,

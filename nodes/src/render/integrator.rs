@@ -24,20 +24,21 @@ pub struct Settings {
     pub seed: u64,
 }
 
-/// Per-sample random numbers: (seed, sample id, running dimension) → uniform [0, 1).
-struct Sampler {
-    seed: u64,
-    id: u64,
-    dim: u32,
+/// Per-sample random numbers: (seed, sample id, running dimension) → uniform [0, 1); `draw`
+/// advances the dimension first.
+pub struct Sampler {
+    pub seed: u64,
+    pub id: u64,
+    pub dim: u32,
 }
 
 impl Sampler {
-    fn next(&mut self) -> f32 {
+    pub fn draw(&mut self) -> f32 {
         self.dim += 1;
         uniform(self.seed, self.id, self.dim)
     }
-    fn next2(&mut self) -> Vec2 {
-        Vec2::new(self.next(), self.next())
+    pub fn draw2(&mut self) -> Vec2 {
+        Vec2::new(self.draw(), self.draw())
     }
 }
 
@@ -97,7 +98,7 @@ impl<'a> Tracer<'a> {
                             break;
                         }
                         o += d * t;
-                        d = uniform_sphere(rng.next2());
+                        d = uniform_sphere(rng.draw2());
                         // Isotropic phase: f = 1/4π, pdf = 1/4π, weight 1.
                         prev_pdf = UNIFORM_SPHERE_PDF;
                         prev_delta = false;
@@ -148,7 +149,7 @@ impl<'a> Tracer<'a> {
 
             // Next-event estimation.
             if !brdf::is_delta(&material) {
-                if let Some(ls) = self.lights.sample(self.scene, surf.p, rng.next(), rng.next2()) {
+                if let Some(ls) = self.lights.sample(self.scene, surf.p, rng.draw(), rng.draw2()) {
                     let wi = frame.to_local(ls.wi);
                     let f = brdf::eval(&material, wo, wi) * wi.z.abs();
                     if f != Vec3::ZERO && ls.li != Vec3::ZERO && ls.wi.dot(surf.ng) > 0.0 {
@@ -164,7 +165,7 @@ impl<'a> Tracer<'a> {
             }
 
             // BSDF sampling.
-            let Some(bs) = brdf::sample(&material, wo, rng.next2(), rng.next()) else { break };
+            let Some(bs) = brdf::sample(&material, wo, rng.draw2(), rng.draw()) else { break };
             if bs.pdf <= 0.0 || !bs.pdf.is_finite() {
                 break;
             }
@@ -205,7 +206,7 @@ impl<'a> Tracer<'a> {
             return true;
         }
         let q = throughput.max_element().min(0.95);
-        if q <= 0.0 || rng.next() >= q {
+        if q <= 0.0 || rng.draw() >= q {
             return false;
         }
         *throughput /= q;
@@ -230,9 +231,9 @@ fn sample_medium(m: &Medium, dist: f32, rng: &mut Sampler) -> MediumEvent {
         let tr = if dist.is_finite() { (-sigma_t * dist).exp() } else { Vec3::select(sigma_t.cmpgt(Vec3::ZERO), Vec3::ZERO, Vec3::ONE) };
         return MediumEvent::Pass(tr);
     }
-    let c = ((rng.next() * 3.0) as usize).min(2);
+    let c = ((rng.draw() * 3.0) as usize).min(2);
     let st = sigma_t[c];
-    let t = if st > 0.0 { -(1.0 - rng.next()).ln() / st } else { f32::INFINITY };
+    let t = if st > 0.0 { -(1.0 - rng.draw()).ln() / st } else { f32::INFINITY };
     if t < dist {
         let tr = (-sigma_t * t).exp();
         let pdf = (sigma_t * tr).element_sum() / 3.0;

@@ -47,7 +47,14 @@ impl SceneBuilder {
         s.triangles.extend(tris.into_iter().map(|t| t.map(|i| base + i)));
         let end = s.triangles.len() as u32;
         s.tri_object.extend((start..end).map(|_| s.objects.len() as u32));
-        s.objects.push(Object { name: name.into(), material, emission, dynamic: false, triangles: start..end });
+        s.objects.push(Object {
+            name: name.into(),
+            material,
+            emission,
+            dynamic: false,
+            triangles: start..end,
+            material_name: String::new(),
+        });
         self
     }
 

@@ -155,6 +155,7 @@ impl Builder {
         let (kind, v) = variant(v, "shape", &["Obj", "Sphere"])?;
         let mut f = Fields::new(v, &format!("{kind} shape"))?;
         let material = f.opt("material").map(|m| self.material(m)).transpose()?;
+        let material_name = f.opt("material").map(|m| str_of(m, "material")).transpose()?.unwrap_or("").to_string();
         let emission = f.opt("emission").map(|e| rgb(e, "emission", 1e9)).transpose()?;
         let dynamic = f.opt("dynamic").map(|d| bool_of(d, "dynamic")).transpose()?.unwrap_or(false);
         let name = f.opt("name").map(|n| str_of(n, "name")).transpose()?.map(str::to_string);
@@ -196,6 +197,7 @@ impl Builder {
                     let uvs = (m.uvs.len() == m.positions.len()).then(|| origin.iter().map(|&i| m.uvs[i as usize]).collect());
                     let obj_name = name.clone().unwrap_or(m.name);
                     self.push_object(obj_name, mat, emission.unwrap_or(m.emission), dynamic, &transform, pos, normals, uvs, tris);
+                    self.objects.last_mut().expect("just pushed").material_name = material_name.clone();
                 }
             }
             _ => {
@@ -215,6 +217,7 @@ impl Builder {
                     None,
                     tris,
                 );
+                self.objects.last_mut().expect("just pushed").material_name = material_name;
             }
         }
         f.finish(&[
@@ -272,12 +275,20 @@ impl Builder {
             }
             self.triangles.push(t.map(|i| base + i));
         }
-        self.objects.push(Object { name, material, emission, dynamic, triangles: start..self.triangles.len() as u32 });
+        self.objects.push(Object {
+            name,
+            material,
+            emission,
+            dynamic,
+            triangles: start..self.triangles.len() as u32,
+            material_name: String::new(),
+        });
     }
 
     fn override_object(&mut self, name: &str, v: &Ron) -> Result<(), LoadError> {
         let mut f = Fields::new(v, &format!("object \"{name}\""))?;
         let material = f.opt("material").map(|m| self.material(m)).transpose()?;
+        let name_of_material = f.opt("material").map(|m| str_of(m, "material").map(str::to_string)).transpose()?;
         let emission = f.opt("emission").map(|e| rgb(e, "emission", 1e9)).transpose()?;
         let dynamic = f.opt("dynamic").map(|d| bool_of(d, "dynamic")).transpose()?;
         f.finish(&["material", "emission", "dynamic"])?;
@@ -289,6 +300,7 @@ impl Builder {
             .ok_or_else(|| at(v, format!("no object \"{name}\" (objects: {})", known.join(", "))))?;
         if let Some(m) = material {
             obj.material = m;
+            obj.material_name = name_of_material.unwrap_or_default();
         }
         if let Some(e) = emission {
             obj.emission = e;

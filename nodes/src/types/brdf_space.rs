@@ -359,22 +359,6 @@ impl PortValue for BrdfBasis {
     }
 }
 
-/// One material's coefficients on a `BrdfBasis`, basis 0 (diffuse) first: what `Relight`
-/// weighs the stored images with.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct BasisCoefficients(pub Vec<f64>);
-
-/// Disk encoding: serde through postcard (a short list of f64).
-impl PortValue for BasisCoefficients {
-    const NAME: &'static str = "BasisCoefficients";
-    const COLOR: [u8; 3] = [230, 180, 250];
-    const DOC: &'static str = "a material's coefficients on a BRDF basis (diffuse first)";
-    fn byte_size(&self) -> usize {
-        self.0.len() * 8 + 8
-    }
-    relume_core::serde_codec!();
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -504,8 +488,6 @@ mod tests {
         assert_eq!(s.byte_size(), 2 * 60 * 4 + 2 * 12 + 32);
         let b = basis();
         assert_eq!(BrdfBasis::decode(&b.encode()).unwrap(), b);
-        let c = BasisCoefficients(vec![1.0, -0.25]);
-        assert_eq!(BasisCoefficients::decode(&c.encode()).unwrap(), c);
         for bytes in [s.encode(), b.encode()] {
             for len in [0, 3, bytes.len() / 2, bytes.len() - 1] {
                 assert!(BrdfSpace::decode(&bytes[..len]).is_none() && BrdfBasis::decode(&bytes[..len]).is_none(), "{len}");

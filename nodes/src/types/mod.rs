@@ -11,10 +11,11 @@ mod point_tree;
 mod points;
 mod receivers;
 mod scene;
+mod transfer;
 
 pub use self::image::{Image, MAX_IMAGE_BYTES};
 pub use accel::Accel;
-pub use brdf_space::{cos_half, BasisCoefficients, BrdfBasis, BrdfGrid, BrdfSample, BrdfSpace, Trilinear, MAX_BRDF_SPACE_BYTES};
+pub use brdf_space::{cos_half, BrdfBasis, BrdfGrid, BrdfSample, BrdfSpace, Trilinear, MAX_BRDF_SPACE_BYTES};
 pub use clusters::{Cluster, Clusters};
 pub use image_rows::{gather_rows, row_spec, ImageRows, Layer};
 pub use material::{Material, Medium};
@@ -23,6 +24,7 @@ pub use point_tree::{PointTree, TreeNode, MIN_AREA_FRACTION};
 pub use points::SurfacePoints;
 pub use receivers::{PointRadiance, Receivers};
 pub use scene::{Camera, EnvMap, Environment, Light, Object, Scene};
+pub use transfer::{floats_and_stride, ObjectMaterial, ObjectMaterials, PathCounts, Transfer, TransferRows, MAX_TRANSFER_BYTES};
 
 /// Serde of a `Vec` of plain 4-byte words (`f32`, `u32`, `Vec3`, `[u32; 3]`, …) as one byte
 /// string, little-endian: `#[serde(with = "super::pod_vec")]`. Through postcard that is the

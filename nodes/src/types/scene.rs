@@ -60,6 +60,11 @@ pub struct Object {
     /// Its material may be edited at run time (the relighting pipelines' split).
     pub dynamic: bool,
     pub triangles: Range<u32>,
+    /// The scene file's name of its material ("" for a material from an OBJ's MTL or built in
+    /// code). Dynamic objects sharing a named material form one dynamic object (the thesis'
+    /// "white walls": floor, ceiling and back edited together), see `Scene::dynamic_groups`.
+    #[serde(default)]
+    pub material_name: String,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -85,6 +90,21 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// The dynamic objects as the relighting pipelines edit them: (name, scene object indices),
+    /// in order of first appearance. Dynamic objects with the same named material form one
+    /// group named after the material; others are a group of their own, named after the object.
+    pub fn dynamic_groups(&self) -> Vec<(String, Vec<u32>)> {
+        let mut groups: Vec<(String, Vec<u32>)> = Vec::new();
+        for (i, o) in self.objects.iter().enumerate().filter(|(_, o)| o.dynamic) {
+            let name = if o.material_name.is_empty() { &o.name } else { &o.material_name };
+            match groups.iter_mut().find(|(n, _)| n == name) {
+                Some((_, members)) => members.push(i as u32),
+                None => groups.push((name.clone(), vec![i as u32])),
+            }
+        }
+        groups
+    }
+
     /// Corner positions of triangle `t`.
     pub fn corners(&self, t: usize) -> [Vec3; 3] {
         self.triangles[t].map(|i| self.positions[i as usize])
