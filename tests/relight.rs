@@ -72,6 +72,9 @@ fn a_material_edit_reruns_the_projection_the_combine_and_their_comparisons_only(
     let r = e.run(&g, &RunOptions::default()).unwrap();
     let t = r.report.node("transfer").unwrap();
     assert_eq!((t.metrics["images_grey"], t.metrics["images_rgb"]), (55.0, 29.0), "[S] 4.1.5: 55 grey and 29 RGB images");
+    assert_eq!(t.metrics["images_emitted"], 1.0, "the light seen directly has its own image");
+    let z = r.output("z_test").unwrap().get::<Metrics>().unwrap();
+    assert!(z.get("pass_fraction").unwrap() > 0.5, "{z:?}");
     let before = r.output("image").unwrap().get::<Image>().unwrap().clone();
 
     g.set_param_text(&reg, "project.object", "\"bunny\"").unwrap();
@@ -81,7 +84,11 @@ fn a_material_edit_reruns_the_projection_the_combine_and_their_comparisons_only(
     let r2 = e.run(&g, &RunOptions::default()).unwrap();
     let mut ran = r2.report.ran_ids();
     ran.sort();
-    assert_eq!(ran, ["basis_error", "error", "project", "relight", "same_seed"], "nothing upstream of the edit runs");
+    assert_eq!(
+        ran,
+        ["basis_error", "error", "paths_z_test", "project", "relight", "same_seed", "z_test"],
+        "nothing upstream of the edit runs"
+    );
     let after = r2.output("image").unwrap().get::<Image>().unwrap();
     assert_ne!(&before, after);
     // The edit holds up: the relit image still matches the same paths with the analytic BRDFs

@@ -435,6 +435,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
             "images",
             "images_grey",
             "images_rgb",
+            "images_emitted",
             "dynamic_objects",
             "bytes",
             "rays",

@@ -5,9 +5,11 @@
 //!
 //! Per pixel: `spp` camera rays jittered over the pixel find the first hits x′. The pixel's
 //! class (fixed/none, or dynamic object g) is the class most of them hit (ties to the lower
-//! class); samples that hit another class are dropped (counted), because a pixel has one
-//! object's coefficients in `Relight`. Per kept sample: emission seen directly (fixed
-//! emitters, the environment on a miss) goes to the first direct accumulator; direct light at
+//! class); their reflected light is dropped (counted), because a pixel has one object's
+//! coefficients in `Relight`, and the kept samples' mean stands for the pixel. Emission seen
+//! directly (fixed emitters, the environment on a miss) needs no coefficient: every sample's
+//! goes, averaged over all of them, to the `emitted` accumulator, so a light's edge is
+//! antialiased. Per kept sample: direct light at
 //! x′ from `light_samples` light samples → Direct(f) for each slot f at x′; `bounce_rays`
 //! uniform hemisphere rays x′ → x″ (no importance sampling: the basis BRDFs are signed), and at
 //! each x″ `bounce_light_samples` light samples → Bounce(f, x) for each slot f at x′ and x at
@@ -42,19 +44,20 @@ pub trait Shade: Sync {
 }
 
 /// Where slot values accumulate: `direct[f]` for Direct(f), `bounce[f * n_second + x]` for
-/// Bounce(f, x).
+/// Bounce(f, x), `emitted` for the light seen directly (`None`: the scene has none).
 #[derive(Clone, Debug)]
 pub struct Slots {
     pub direct: Vec<u32>,
     pub bounce: Vec<u32>,
     pub n_second: usize,
+    pub emitted: Option<u32>,
     pub accumulators: usize,
 }
 
 impl Slots {
     /// One accumulator for everything (a renderer of one material).
     pub fn single() -> Slots {
-        Slots { direct: vec![0], bounce: vec![0], n_second: 1, accumulators: 1 }
+        Slots { direct: vec![0], bounce: vec![0], n_second: 1, emitted: Some(0), accumulators: 1 }
     }
 }
 
@@ -143,8 +146,10 @@ impl<'a, S: Shade> Paths<'a, S> {
     }
 
     /// Traces pixel (x, y) of the camera: adds its paths into `acc` (`slots.accumulators` RGB
-    /// sums, zeroed by the caller) as the mean over its kept camera samples.
-    pub fn pixel(&self, x: usize, y: usize, acc: &mut [[f64; 3]]) -> PixelStats {
+    /// sums, zeroed by the caller) as the mean over its kept camera samples (the light seen
+    /// directly over all of them), calling `on_sample(acc)` after each camera sample (for
+    /// per-sample statistics; nothing is called when no sample is kept).
+    pub fn pixel(&self, x: usize, y: usize, acc: &mut [[f64; 3]], on_sample: &mut dyn FnMut(&[[f64; 3]])) -> PixelStats {
         let c = self.counts;
         let w = self.scene.camera.width;
         let pixel = (y * w + x) as u64;
@@ -169,75 +174,87 @@ impl<'a, S: Shade> Paths<'a, S> {
             return stats;
         }
         let weight = 1.0 / kept as f64;
-        let mut fv = [Vec3::ZERO; MAX_SLOTS];
-        let mut xv = [Vec3::ZERO; MAX_SLOTS];
-        let add = |acc: &mut [[f64; 3]], i: u32, v: Vec3| {
+        let add_weighted = |acc: &mut [[f64; 3]], i: u32, v: Vec3, weight: f64| {
             let a = &mut acc[i as usize];
             for k in 0..3 {
                 a[k] += v[k] as f64 * weight;
             }
         };
+        let add = |acc: &mut [[f64; 3]], i: u32, v: Vec3| add_weighted(acc, i, v, weight);
+        let mut fv = [Vec3::ZERO; MAX_SLOTS];
+        let mut xv = [Vec3::ZERO; MAX_SLOTS];
         for (s, (o, d, hit)) in firsts.into_iter().enumerate() {
-            let object_class = hit.map_or(0, |h| self.class[self.scene.tri_object[h.tri as usize] as usize]);
-            if object_class != class {
-                continue;
-            }
-            let mut rng = Sampler { seed: c.seed, id: pixel << 32 | s as u64, dim: 1 };
-            let Some(hit) = hit else {
-                add(acc, self.slots.direct[0], self.environment(d));
-                continue;
-            };
-            let surf = Surface::at(self.scene, &hit, o, d);
-            let obj = surf.object;
-            if d.dot(surf.ng) >= 0.0 {
-                continue; // one-sided: black from the back
-            }
-            let emission = self.scene.objects[obj as usize].emission;
-            if emission != Vec3::ZERO {
-                add(acc, self.slots.direct[0], emission);
-            }
-            let frame = Frame::from_normal(surf.ns);
-            let wo = frame.to_local(-d);
-            // Direct light at x′.
-            self.direct(&surf, &frame, c.light_samples, &mut rng, &mut stats.rays, |wi, g| {
-                let n = self.shade.first(obj, wi, wo, &mut fv);
-                for (f, v) in fv[..n].iter().enumerate() {
-                    add(acc, self.slots.direct[f], *v * g);
-                }
-            });
-            // One bounce: uniform hemisphere rays to x″, direct light there.
-            for _ in 0..c.bounce_rays {
-                let u = rng.draw2();
-                let z = u.x;
-                let r = (1.0 - z * z).max(0.0).sqrt();
-                let (sin, cos) = (2.0 * PI * u.y).sin_cos();
-                let local = Vec3::new(r * cos, r * sin, z);
-                let dir = frame.to_world(local);
-                if dir.dot(surf.ng) <= 0.0 || local.z <= 0.0 {
-                    continue;
-                }
-                stats.rays += 1;
-                let Some(h2) = self.accel.intersect(surf.spawn(dir, self.eps), dir, 0.0, f32::INFINITY) else { continue };
-                let s2 = Surface::at(self.scene, &h2, surf.spawn(dir, self.eps), dir);
-                if dir.dot(s2.ng) >= 0.0 {
-                    continue;
-                }
-                // x′'s slots for this direction: f cos θ′ / pdf, pdf = 1 / 2π, over the rays.
-                let n1 = self.shade.first(obj, local, wo, &mut fv);
-                let scale = local.z * 2.0 * PI / c.bounce_rays as f32;
-                fv[..n1].iter_mut().for_each(|v| *v *= scale);
-                let frame2 = Frame::from_normal(s2.ns);
-                let wo2 = frame2.to_local(-dir);
-                self.direct(&s2, &frame2, c.bounce_light_samples, &mut rng, &mut stats.rays, |wi2, g2| {
-                    let (base, n2) = self.shade.second(s2.object, wi2, wo2, &mut xv);
-                    for (f, fv) in fv[..n1].iter().enumerate() {
-                        let row = f * self.slots.n_second + base;
-                        for (x, xv) in xv[..n2].iter().enumerate() {
-                            add(acc, self.slots.bounce[row + x], *fv * *xv * g2);
+            'sample: {
+                // The light seen directly, from every sample.
+                let seen = match hit {
+                    None => self.environment(d),
+                    Some(h) => {
+                        let e = self.scene.objects[self.scene.tri_object[h.tri as usize] as usize].emission;
+                        if e != Vec3::ZERO && d.dot(Surface::at(self.scene, &h, o, d).ng) < 0.0 {
+                            e
+                        } else {
+                            Vec3::ZERO
                         }
                     }
+                };
+                if let (Some(slot), true) = (self.slots.emitted, seen != Vec3::ZERO) {
+                    add_weighted(acc, slot, seen, 1.0 / c.spp as f64);
+                }
+                let object_class = hit.map_or(0, |h| self.class[self.scene.tri_object[h.tri as usize] as usize]);
+                if object_class != class {
+                    break 'sample;
+                }
+                let mut rng = Sampler { seed: c.seed, id: pixel << 32 | s as u64, dim: 1 };
+                let Some(hit) = hit else { break 'sample };
+                let surf = Surface::at(self.scene, &hit, o, d);
+                let obj = surf.object;
+                if d.dot(surf.ng) >= 0.0 {
+                    break 'sample; // one-sided: black from the back
+                }
+                let frame = Frame::from_normal(surf.ns);
+                let wo = frame.to_local(-d);
+                // Direct light at x′.
+                self.direct(&surf, &frame, c.light_samples, &mut rng, &mut stats.rays, |wi, g| {
+                    let n = self.shade.first(obj, wi, wo, &mut fv);
+                    for (f, v) in fv[..n].iter().enumerate() {
+                        add(acc, self.slots.direct[f], *v * g);
+                    }
                 });
+                // One bounce: uniform hemisphere rays to x″, direct light there.
+                for _ in 0..c.bounce_rays {
+                    let u = rng.draw2();
+                    let z = u.x;
+                    let r = (1.0 - z * z).max(0.0).sqrt();
+                    let (sin, cos) = (2.0 * PI * u.y).sin_cos();
+                    let local = Vec3::new(r * cos, r * sin, z);
+                    let dir = frame.to_world(local);
+                    if dir.dot(surf.ng) <= 0.0 || local.z <= 0.0 {
+                        continue;
+                    }
+                    stats.rays += 1;
+                    let Some(h2) = self.accel.intersect(surf.spawn(dir, self.eps), dir, 0.0, f32::INFINITY) else { continue };
+                    let s2 = Surface::at(self.scene, &h2, surf.spawn(dir, self.eps), dir);
+                    if dir.dot(s2.ng) >= 0.0 {
+                        continue;
+                    }
+                    // x′'s slots for this direction: f cos θ′ / pdf, pdf = 1 / 2π, over the rays.
+                    let n1 = self.shade.first(obj, local, wo, &mut fv);
+                    let scale = local.z * 2.0 * PI / c.bounce_rays as f32;
+                    fv[..n1].iter_mut().for_each(|v| *v *= scale);
+                    let frame2 = Frame::from_normal(s2.ns);
+                    let wo2 = frame2.to_local(-dir);
+                    self.direct(&s2, &frame2, c.bounce_light_samples, &mut rng, &mut stats.rays, |wi2, g2| {
+                        let (base, n2) = self.shade.second(s2.object, wi2, wo2, &mut xv);
+                        for (f, fv) in fv[..n1].iter().enumerate() {
+                            let row = f * self.slots.n_second + base;
+                            for (x, xv) in xv[..n2].iter().enumerate() {
+                                add(acc, self.slots.bounce[row + x], *fv * *xv * g2);
+                            }
+                        }
+                    });
+                }
             }
+            on_sample(acc);
         }
         stats
     }

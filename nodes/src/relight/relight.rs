@@ -41,14 +41,15 @@ pub fn class_weights(t: &Transfer, m: &ObjectMaterials) -> Result<Vec<f32>, Stri
         let rows = &mut w[class * 3 * stride..(class + 1) * 3 * stride];
         for (i, (term, ch)) in t.terms.iter().enumerate() {
             let (first, second) = match *term {
-                Term::Direct(f) => (f, None),
-                Term::Bounce(f, s) => (f, Some(s)),
+                Term::Direct(f) => (Some(f), None),
+                Term::Bounce(f, s) => (Some(f), Some(s)),
+                Term::Emitted => (None, None),
             };
             let cf = match (first, class) {
-                (First::Merged, 0) => [1.0; 3],
-                (First::Merged, g) => coef(g as u16 - 1, 0),
-                (First::Specular(_), 0) => [0.0; 3],
-                (First::Specular(k), g) => coef(g as u16 - 1, k as usize),
+                (None, _) | (Some(First::Merged), 0) => [1.0; 3],
+                (Some(First::Merged), g) => coef(g as u16 - 1, 0),
+                (Some(First::Specular(_)), 0) => [0.0; 3],
+                (Some(First::Specular(k)), g) => coef(g as u16 - 1, k as usize),
             };
             let cs = match second {
                 None | Some(Second::Fixed) => [1.0; 3],
@@ -181,8 +182,8 @@ mod tests {
         let (accel, m, t, _) = precompute(&s, b, counts);
         let relit: Image = first(&run_on::<Relight>(&[], vec![Value::new(t.clone()), Value::new(m.clone())]).unwrap());
         let rows = reference_rows(&s, accel.get::<Accel>().unwrap(), t.counts, b, &m, brdf, 0..size, None).unwrap();
-        let (mut r, _) = gather_rows(size, size, 1, &[&rows]).unwrap();
-        (relit, r.pop().unwrap(), t, m)
+        let (mut r, _) = gather_rows(size, size, 2, &[&rows]).unwrap();
+        (relit, r.swap_remove(0), t, m)
     }
 
     fn max_rel_diff(a: &Image, b: &Image) -> f64 {

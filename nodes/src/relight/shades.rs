@@ -71,6 +71,7 @@ pub fn scene_terms(scene: &Scene, bases: usize) -> TermSet {
         fixed_objects: class.contains(&0),
         one_light_colour: light_colour(scene).is_some(),
         specular_bases: bases - 1,
+        emitters: scene.environment.is_some() || scene.objects.iter().any(|o| o.emission != Vec3::ZERO),
     })
 }
 
@@ -107,7 +108,8 @@ impl<'a> BasisShade<'a> {
         let direct = (0..nb).map(|f| index(Term::Direct(first(f)))).collect();
         let bounce =
             (0..nb).flat_map(|f| (0..n_second).map(move |x| (f, x))).map(|(f, x)| index(Term::Bounce(first(f), second(x)))).collect();
-        let slots = Slots { direct, bounce, n_second, accumulators: set.terms.len() };
+        let emitted = set.index(Term::Emitted).map(|i| i as u32);
+        let slots = Slots { direct, bounce, n_second, emitted, accumulators: set.terms.len() };
         (BasisShade { basis, kinds, dynamic_offset }, slots)
     }
 

@@ -18,8 +18,10 @@ use std::ops::Range;
 /// counts them and says what was left out). Basis BRDFs are signed: nothing is clamped,
 /// rouletted or importance-sampled by them. Camera samples are jittered over the pixel (the
 /// reference's box filter); a pixel takes the object most of its samples hit (the object-id
-/// image) and drops the others (counted: `dropped_samples`, `mixed_pixels`). Emitters seen
-/// directly go into the merged direct image. Seeded: the same bytes on any thread count and
+/// image) and drops the reflected light of the others (counted: `dropped_samples`,
+/// `mixed_pixels`). Light seen directly (emitters, the environment) has an image of its own
+/// (`images_emitted`) averaged over every camera sample, so a light's edge is antialiased as in
+/// the reference. Seeded: the same bytes on any thread count and
 /// any sharding (sharded over image rows for `relume shard` / `--processes`). The held bytes
 /// (images × pixels × 4) are checked against the limit before anything is allocated.
 #[derive(Params)]
@@ -109,7 +111,7 @@ pub fn precompute_rows(
             let mut counters = [0u64; 3];
             for x in 0..w {
                 acc.iter_mut().for_each(|a| *a = [0.0; 3]);
-                let st = paths.pixel(x, y0 + r, &mut acc);
+                let st = paths.pixel(x, y0 + r, &mut acc, &mut |_| {});
                 classes[x] = st.class;
                 counters[0] += st.rays;
                 counters[1] += st.dropped as u64;
@@ -183,7 +185,7 @@ pub fn gather_transfer(
     Ok((transfer, counters))
 }
 
-#[node(category = "relight", sharded)]
+#[node(category = "relight", version = 2, sharded)]
 impl TransferPrecompute {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The images' count depends on the scene's objects and lights: the node checks the
@@ -207,6 +209,7 @@ impl TransferPrecompute {
         cx.metric("images", set.terms.len() as f64);
         cx.metric("images_grey", set.count(Channels::Grey) as f64);
         cx.metric("images_rgb", set.count(Channels::Rgb) as f64);
+        cx.metric("images_emitted", set.emitted() as u8 as f64);
         cx.metric("dynamic_objects", transfer.groups.len() as f64);
         cx.metric("bytes", (transfer.data.len() * 4) as f64);
         cx.metric("rays", rays as f64);
@@ -274,6 +277,32 @@ mod tests {
         assert!(t.terms.iter().all(|t| !matches!(t.0, Term::Bounce(_, Second::Fixed))));
         assert!(e.notes.iter().any(|n| n.contains("no fixed-material object")), "{:?}", e.notes);
         assert!(!t.class.contains(&0) || t.class.iter().all(|&c| c <= 3));
+    }
+
+    #[test]
+    fn a_light_seen_directly_is_averaged_over_every_camera_sample_so_its_edge_is_antialiased() {
+        // Look up at the lamp (emission 4, facing down): its edge pixels mix lamp and background
+        // samples of other classes, and the emitted image counts every sample, not the kept ones.
+        let (b, _) = basis(&space(4, 4, 8, 6, 1.0, 100.0), 3);
+        let mut s = scene(24);
+        s.camera.target = glam::Vec3::new(0.0, 1.5, 0.0);
+        let spp = 8;
+        let (_, m, t, e) = precompute(&s, &b, [spp, 1, 1, 1]);
+        assert!(!e.notes.iter().any(|n| n.contains("no emitter")), "{:?}", e.notes);
+        let emitted = t.image(t.terms.iter().position(|x| x.0 == Term::Emitted).expect("an emitted image"));
+        let k: Vec<f32> = emitted.pixels.iter().map(|p| p[0] / 4.0 * spp as f32).collect();
+        // Every value is (samples on the lamp) × 4 / spp, in [0, spp].
+        assert!(k.iter().all(|k| (k - k.round()).abs() < 1e-4 && (0.0..=spp as f32).contains(k)), "{k:?}");
+        let full = k.iter().filter(|k| k.round() == spp as f32).count();
+        let partial = k.iter().filter(|k| k.round() > 0.0 && k.round() < spp as f32).count();
+        assert!(full > 4 && partial > 4, "lamp pixels {full}, edge pixels {partial}");
+        // The relit image carries the fraction: on an edge pixel that is not the lamp's class
+        // the light still shows.
+        let relit = super::super::relight::relight(&t, &m, None).unwrap();
+        let lamp_class_not_kept = (0..t.pixels()).filter(|&p| k[p].round() > 0.0 && k[p].round() < spp as f32 / 2.0);
+        for p in lamp_class_not_kept {
+            assert!(relit.pixels[p][0] >= k[p] * 4.0 / spp as f32 * 0.999, "pixel {p}: {:?}", relit.pixels[p]);
+        }
     }
 
     #[test]

@@ -30,18 +30,36 @@ pub fn per_pixel(
     height: usize,
     f: impl Fn(usize, usize, &mut Counts) -> [f32; 3] + Sync + Send,
 ) -> Result<(Image, u64), NodeError> {
-    let mut img = Image::try_new(width, height)?;
+    let ([img], rays) = per_pixel_layers(cx, width, height, |x, y, c| [f(x, y, c)])?;
+    Ok((img, rays))
+}
+
+/// `per_pixel` for `L` images at once (a mean and its variance): `f` gives pixel (x, y) of each.
+pub fn per_pixel_layers<const L: usize>(
+    cx: &RunCtx,
+    width: usize,
+    height: usize,
+    f: impl Fn(usize, usize, &mut Counts) -> [[f32; 3]; L] + Sync + Send,
+) -> Result<([Image; L], u64), NodeError> {
+    let mut imgs = Vec::with_capacity(L);
+    for _ in 0..L {
+        imgs.push(Image::try_new(width, height)?);
+    }
     let rows = cx.par_map(height, |y| {
         let mut counts = Counts::default();
-        let row: Vec<[f32; 3]> = (0..width).map(|x| f(x, y, &mut counts)).collect();
+        let row: Vec<[[f32; 3]; L]> = (0..width).map(|x| f(x, y, &mut counts)).collect();
         (row, counts.rays)
     })?;
     let mut rays = 0;
-    for (out, (row, r)) in img.pixels.chunks_mut(width).zip(rows) {
-        out.copy_from_slice(&row);
+    for (y, (row, r)) in rows.into_iter().enumerate() {
+        for (l, img) in imgs.iter_mut().enumerate() {
+            for (out, px) in img.pixels[y * width..(y + 1) * width].iter_mut().zip(&row) {
+                *out = px[l];
+            }
+        }
         rays += r;
     }
-    Ok((img, rays))
+    Ok((imgs.try_into().unwrap_or_else(|_| unreachable!("L images")), rays))
 }
 
 /// One row of a film: sums of the samples and of their squares per pixel (f64), and counts.
