@@ -76,6 +76,7 @@ fn a_material_edit_reruns_the_projection_the_combine_and_their_comparisons_only(
     let z = r.output("z_test").unwrap().get::<Metrics>().unwrap();
     assert!(z.get("pass_fraction").unwrap() > 0.5, "{z:?}");
     let before = r.output("image").unwrap().get::<Image>().unwrap().clone();
+    let error_before = r.output("error").unwrap().get::<Metrics>().unwrap().get("l2_percent").unwrap();
 
     g.set_param_text(&reg, "project.object", "\"bunny\"").unwrap();
     g.set_param_text(&reg, "project.kd", "(0.6, 0.1, 0.1)").unwrap();
@@ -86,7 +87,7 @@ fn a_material_edit_reruns_the_projection_the_combine_and_their_comparisons_only(
     ran.sort();
     assert_eq!(
         ran,
-        ["basis_error", "error", "paths_z_test", "project", "relight", "same_seed", "z_test"],
+        ["applied", "basis_error", "error", "paths_z_test", "project", "reference", "relight", "same_seed", "z_test"],
         "nothing upstream of the edit runs"
     );
     let after = r2.output("image").unwrap().get::<Image>().unwrap();
@@ -95,6 +96,18 @@ fn a_material_edit_reruns_the_projection_the_combine_and_their_comparisons_only(
     // within the basis error.
     let b = r2.output("basis_error").unwrap().get::<Metrics>().unwrap();
     assert!(b.get("l2_percent").unwrap() < 2.0, "{b:?}");
+    // And the reference follows the edit (`applied`): after brightening the white walls the
+    // error against the path tracer stays what it was, where the unedited reference is far off.
+    g.set_param_text(&reg, "project.object", "\"white-walls\"").unwrap();
+    g.set_param_text(&reg, "project.kd", "(0.7, 0.7, 0.7)").unwrap();
+    g.set_param_text(&reg, "project.ks", "(0.1, 0.1, 0.1)").unwrap();
+    let r3 = e.run(&g, &RunOptions::default()).unwrap();
+    let image = |r: &relume_core::RunResult, name: &str| r.output(name).unwrap().get::<Image>().unwrap().clone();
+    let mean = |img: &Image| img.as_floats().iter().map(|v| *v as f64).sum::<f64>() / img.as_floats().len() as f64;
+    let (walls, new_ref, old_ref) = (mean(&image(&r3, "image")), mean(&image(&r3, "reference")), mean(&image(&r, "reference")));
+    assert!((walls - new_ref).abs() < 0.2 * (walls - old_ref).abs(), "relit {walls}, new reference {new_ref}, old {old_ref}");
+    let error_after = r3.output("error").unwrap().get::<Metrics>().unwrap().get("l2_percent").unwrap();
+    assert!(error_after < 1.2 * error_before, "{error_before} {error_after}");
 }
 
 #[test]

@@ -49,6 +49,9 @@ pub struct EditorApp {
     edit_started: Option<Instant>,
     /// Time from the last edit to its image, in ms.
     pub edit_to_image_ms: Option<f64>,
+    /// The revision whose other outputs run once its viewed image is in (a run computes the
+    /// viewed image first, so an edit shows before the error figures that compare it).
+    rest_after: Option<u64>,
     pub report: Option<RunReport>,
     /// What the viewer shows: a graph output name, or `node.port`.
     pub view_target: Option<String>,
@@ -82,6 +85,7 @@ impl EditorApp {
             pending_run: None,
             edit_started: None,
             edit_to_image_ms: None,
+            rest_after: None,
             report: None,
             view_target: None,
             last_outputs: Vec::new(),
@@ -274,13 +278,40 @@ impl EditorApp {
         }
         self.pending_run = None;
         self.edit_started.get_or_insert_with(Instant::now);
-        self.runner.start(g, outputs, self.doc.revision);
+        // The viewed image first, alone; the other outputs when it is in (`take_in`).
+        let view = self.view_output_name();
+        match view.filter(|v| outputs.len() > 1 && outputs.contains(v)) {
+            Some(v) => {
+                self.rest_after = Some(self.doc.revision);
+                self.runner.start(g, vec![v], self.doc.revision);
+            }
+            None => {
+                self.rest_after = None;
+                self.runner.start(g, outputs, self.doc.revision);
+            }
+        }
         self.status = "running...".into();
+    }
+
+    /// Whether no run is under way, waiting (the viewed image's and the rest's) or ended but
+    /// not taken in yet.
+    pub fn is_idle(&self) -> bool {
+        !self.runner.is_running() && !self.runner.has_finished() && self.pending_run.is_none() && self.rest_after.is_none()
+    }
+
+    /// The output name under which a run delivers the viewed image.
+    fn view_output_name(&self) -> Option<String> {
+        match &self.view_target {
+            Some(t) if self.doc.graph.outputs.iter().any(|o| &o.name == t) => Some(t.clone()),
+            Some(_) => Some(VIEW_OUTPUT.to_string()),
+            None => None,
+        }
     }
 
     pub fn cancel(&mut self) {
         self.runner.cancel();
         self.pending_run = None;
+        self.rest_after = None;
         self.planned = None;
         self.status = "run cancelled".into();
     }
@@ -328,11 +359,17 @@ impl EditorApp {
                     if let Some(t0) = self.edit_started.take() {
                         self.edit_to_image_ms = Some(t0.elapsed().as_secs_f64() * 1e3);
                     }
+                    if self.rest_after.take() == Some(f.revision) {
+                        let (g, outputs) = self.run_request();
+                        self.runner.start(g, outputs, self.doc.revision);
+                        self.status = format!("{}; the other outputs are running...", self.status);
+                    }
                 }
             }
             Err(m) => {
                 self.status = m;
                 self.edit_started = None;
+                self.rest_after = None;
             }
         }
         self.done_states = Some((f.revision, live));
@@ -340,11 +377,7 @@ impl EditorApp {
 
     /// Puts the viewed output of the last run in the viewer.
     pub fn show_target(&mut self) {
-        let name = match &self.view_target {
-            Some(t) if self.doc.graph.outputs.iter().any(|o| &o.name == t) => t.clone(),
-            Some(_) => VIEW_OUTPUT.to_string(),
-            None => return,
-        };
+        let Some(name) = self.view_output_name() else { return };
         let img = self.last_outputs.iter().find(|(n, _)| *n == name).and_then(|(_, v)| v.get::<Image>()).cloned();
         if img.is_some() {
             self.viewer.set_image(img.map(Arc::new));
@@ -486,10 +519,14 @@ impl EditorApp {
         }
     }
 
-    /// Waits for the run under way and takes it in (tests, the screenshot mode).
+    /// Waits for the run under way and takes it in, and for the outputs that run after the
+    /// viewed image (tests, the screenshot mode).
     pub fn wait_for_run(&mut self) {
-        if let Some(f) = self.runner.wait() {
+        while let Some(f) = self.runner.wait() {
             self.take_in(f);
+            if !self.runner.is_running() {
+                break;
+            }
         }
     }
 }

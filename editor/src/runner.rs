@@ -106,6 +106,11 @@ impl Runner {
         self.shared.lock().unwrap().running
     }
 
+    /// Whether a run ended and `take_finished` has not taken it yet.
+    pub fn has_finished(&self) -> bool {
+        self.shared.lock().unwrap().finished.is_some()
+    }
+
     /// Starts a run of `outputs` of `graph` (cancelling the one under way).
     pub fn start(&mut self, graph: Graph, outputs: Vec<String>, revision: u64) {
         self.cancel();

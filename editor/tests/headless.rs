@@ -172,32 +172,42 @@ fn frames_until_refreshed(ctx: &egui::Context, app: &mut EditorApp) {
     }
 }
 
+/// Opens a shipped graph in a fresh editor, copied into `dir` with its scenes reached from
+/// `graphs/`, at a smaller size than shipped (`params`: node, parameter, value) so the test is
+/// quick; the wiring is the file's.
+fn open_shipped(dir: &Path, name: &str, params: &[(&str, &str, ParamValue)]) -> EditorApp {
+    let mut app = app();
+    let path = dir.join(name);
+    let text = std::fs::read_to_string(graphs().join(name)).unwrap();
+    std::fs::write(&path, text.replace("\"scenes/", &format!("\"{}/scenes/", graphs().display()))).unwrap();
+    app.open(&path).unwrap();
+    for (id, param, v) in params {
+        app.set_param(id, param, v.clone()).unwrap();
+    }
+    app
+}
+
 #[test]
 fn pbgi_cornell_edits_rerun_only_what_they_reach() {
     let dir = tempfile::tempdir().unwrap();
-    let mut app = app();
-    let path = dir.path().join("pbgi_cornell.ron");
-    // The graph as shipped, with the scene and assets reached from its folder.
-    let mut text = std::fs::read_to_string(graphs().join("pbgi_cornell.ron")).unwrap();
-    text = text.replace("\"scenes/", &format!("\"{}/scenes/", graphs().display()));
-    std::fs::write(&path, text).unwrap();
-    app.open(&path).unwrap();
-    // Smaller than shipped so the test is quick; the wiring is the file's.
-    for (id, name, v) in [
-        ("scene", "width", ParamValue::Int(64)),
-        ("scene", "height", ParamValue::Int(64)),
-        ("points", "count", ParamValue::Int(4000)),
-        ("direct", "pixel_samples", ParamValue::Int(2)),
-    ] {
-        app.set_param(id, name, v).unwrap();
-    }
+    let mut app = open_shipped(
+        dir.path(),
+        "pbgi_cornell.ron",
+        &[
+            ("scene", "width", ParamValue::Int(64)),
+            ("scene", "height", ParamValue::Int(64)),
+            ("points", "count", ParamValue::Int(4000)),
+            ("direct", "pixel_samples", ParamValue::Int(2)),
+        ],
+    );
     let ctx = egui::Context::default();
     frame(&ctx, &mut app);
     app.run();
     app.wait_for_run();
     frame(&ctx, &mut app);
+    // The viewed image first, then the other outputs: the last report has the rest.
     let report = app.report.clone().expect("a report");
-    assert_eq!(report.cached, 0);
+    assert!(app.is_idle() && report.ran + report.cached > 0, "{}", app.status);
     let img = app.viewer.image().expect("the image is shown").clone();
     assert_eq!((img.width, img.height), (64, 64));
     assert!(stale(&app).is_empty());
@@ -293,4 +303,54 @@ fn save_image_layers_writes_every_image_output_of_the_last_run_beside_the_graph(
         assert!(header.contains(name), "{name} in the header");
     }
     assert!(app.status.contains("filters.layers.exr"), "{}", app.status);
+}
+
+#[test]
+fn a_material_edit_on_relight_cornell_bunny_shows_the_relit_image_first_with_its_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut app = open_shipped(
+        dir.path(),
+        "relight_cornell_bunny.ron",
+        &[
+            ("scene", "width", ParamValue::Int(24)),
+            ("scene", "height", ParamValue::Int(24)),
+            ("space", "n_theta_i", ParamValue::Int(12)),
+            ("space", "n_theta_o", ParamValue::Int(12)),
+            ("space", "n_phi", ParamValue::Int(24)),
+            ("space", "samples", ParamValue::Int(41)),
+            ("transfer", "spp", ParamValue::Int(2)),
+            ("transfer", "bounce_rays", ParamValue::Int(2)),
+            ("reference", "spp", ParamValue::Int(4)),
+        ],
+    );
+    assert_eq!(app.view_target.as_deref(), Some("image"));
+    let ctx = egui::Context::default();
+    frame(&ctx, &mut app);
+    app.run();
+    app.wait_for_run();
+    frame(&ctx, &mut app);
+    assert!(app.is_idle());
+    assert!(app.report.as_ref().unwrap().ran_ids().contains(&"z_test"), "the whole graph ran");
+    let img = app.viewer.image().expect("the relit image is shown").clone();
+
+    app.set_param("project", "object", ParamValue::Text("bunny".into())).unwrap();
+    app.set_param("project", "kd", ParamValue::Tuple(vec![ParamValue::Float(0.7), ParamValue::Float(0.1), ParamValue::Float(0.1)]))
+        .unwrap();
+    frames_until_refreshed(&ctx, &mut app);
+    // The image came alone: the projection and the combine, nothing else.
+    assert_eq!(app.report.as_ref().unwrap().ran_ids(), ["project", "relight"]);
+    assert!(!std::sync::Arc::ptr_eq(&img, app.viewer.image().unwrap()), "the viewer shows the edit");
+    let ms = app.edit_to_image_ms.unwrap();
+    assert!(ms > 0.0);
+    // Then the comparisons that need it, while the status bar keeps the edit-to-image time.
+    let t0 = Instant::now();
+    while !app.is_idle() {
+        assert!(t0.elapsed() < Duration::from_secs(600), "{}", app.status);
+        frame(&ctx, &mut app);
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let mut rest = app.report.as_ref().unwrap().ran_ids();
+    rest.sort();
+    assert_eq!(rest, ["applied", "basis_error", "error", "paths_z_test", "reference", "same_seed", "z_test"]);
+    assert_eq!(app.edit_to_image_ms, Some(ms));
 }

@@ -5,6 +5,7 @@
 //! evaluation in `basis_brdf`), the interactive combine (`Relight`) and the same-seed render
 //! that measures the basis error alone (`RelightReference`).
 
+pub mod apply_materials;
 pub mod basis_brdf;
 pub mod brdf_pca;
 pub mod brdf_space_sample;
@@ -29,6 +30,7 @@ pub fn register(reg: &mut Registry) {
     reg.add::<transfer_precompute::TransferPrecompute>();
     reg.add::<relight::Relight>();
     reg.add::<relight_reference::RelightReference>();
+    reg.add::<apply_materials::ApplyMaterials>();
 }
 
 /// Small BRDF spaces and bases for the unit tests of this folder, made by the nodes themselves.
