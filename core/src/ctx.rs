@@ -173,6 +173,8 @@ pub struct RunCtx<'a> {
     pub(crate) notes: Mutex<Vec<String>>,
     pub(crate) deps: Mutex<Vec<(PathBuf, Hash)>>,
     writes: WriteRoots,
+    /// What the whole run may hold (`--memory-budget`).
+    memory_budget: u64,
     last_permille: AtomicU64,
     /// The share of the node's whole work that progress reports now cover, in permille
     /// (`from << 32 | to`), set by `phase`.
@@ -192,6 +194,7 @@ impl<'a> RunCtx<'a> {
             notes: Mutex::default(),
             deps: Mutex::default(),
             writes: WriteRoots::anywhere(),
+            memory_budget: crate::memory::default_budget(),
             last_permille: AtomicU64::new(u64::MAX),
             span: AtomicU64::new(1000),
             outer: AtomicU64::new(1000),
@@ -207,6 +210,18 @@ impl<'a> RunCtx<'a> {
     pub fn with_write_roots(mut self, roots: WriteRoots) -> Self {
         self.writes = roots;
         self
+    }
+
+    /// Sets the run's memory budget (the engine passes `--memory-budget`).
+    pub fn with_memory_budget(mut self, bytes: u64) -> Self {
+        self.memory_budget = bytes;
+        self
+    }
+
+    /// What the whole run may hold, in bytes: a node whose needs are known only at run time
+    /// (they depend on its inputs' content) refuses, before allocating, what would exceed it.
+    pub fn memory_budget(&self) -> u64 {
+        self.memory_budget
     }
 
     /// Call before writing a file named by parameter `param` (an output file): refuses, as a

@@ -433,7 +433,7 @@ impl Engine {
         if let Some(o) = observer {
             o.event(&Event::Started { id: n.id, kind: n.kind.kind() });
         }
-        let cx = RunCtx::new(n.id, cancel, observer).with_write_roots(writes.clone());
+        let cx = RunCtx::new(n.id, cancel, observer).with_write_roots(writes.clone()).with_memory_budget(self.run_budget);
         let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match n.kind.sharded() {
             Some(sh) => {
                 self.run_sharded(sh, n.id, n.params, n.key, n.inputs, &cx, shards).map(|r| (r.outputs.unwrap_or_default(), Some(r.stats)))

@@ -53,8 +53,12 @@ pub fn fmt_bytes(b: u64) -> String {
     let g = b as f64 / (1u64 << 30) as f64;
     if g >= 1.0 {
         format!("{g:.2} GiB")
-    } else {
+    } else if b >= 1 << 20 {
         format!("{:.1} MiB", b as f64 / (1u64 << 20) as f64)
+    } else if b >= 1 << 10 {
+        format!("{:.1} KiB", b as f64 / 1024.0)
+    } else {
+        format!("{b} B")
     }
 }
 

@@ -59,14 +59,14 @@ impl TransferPrecompute {
 }
 
 /// The terms of the scene after the checks, with the bytes they will hold refused over the
-/// limit.
-fn terms_checked(scene: &Scene, basis: &BrdfBasis) -> Result<TermSet, NodeError> {
+/// limit: 16 GiB or the run's memory budget (`--memory-budget`), the lower.
+fn terms_checked(scene: &Scene, basis: &BrdfBasis, budget: u64) -> Result<TermSet, NodeError> {
     check_scene(scene, basis.bases()).map_err(|m| NodeError::input("scene", m))?;
     let set = scene_terms(scene, basis.bases());
     let (_, stride) = floats_and_stride(&set.terms);
     let (w, h) = (scene.camera.width as u64, scene.camera.height as u64);
     let bytes = stride as u64 * 4 * w * h;
-    let limit = MAX_TRANSFER_BYTES.min(relume_core::memory::default_budget());
+    let limit = MAX_TRANSFER_BYTES.min(budget);
     if bytes > limit {
         return Err(NodeError::OverLimit {
             param: None,
@@ -93,7 +93,8 @@ pub fn precompute_rows(
     rows: Range<usize>,
     cx: Option<&RunCtx>,
 ) -> Result<TransferRows, NodeError> {
-    let set = terms_checked(scene, basis)?;
+    let budget = cx.map_or_else(relume_core::memory::default_budget, |c| c.memory_budget());
+    let set = terms_checked(scene, basis, budget)?;
     let (floats, stride) = floats_and_stride(&set.terms);
     let w = scene.camera.width;
     let colour = light_colour(scene).unwrap_or([1.0; 3]);
@@ -149,8 +150,9 @@ pub fn gather_transfer(
     basis: &BrdfBasis,
     counts: PathCounts,
     parts: &[&TransferRows],
+    budget: u64,
 ) -> Result<(Transfer, [u64; 3]), NodeError> {
-    let set = terms_checked(scene, basis)?;
+    let set = terms_checked(scene, basis, budget)?;
     let (_, stride) = floats_and_stride(&set.terms);
     let (w, h) = (scene.camera.width, scene.camera.height);
     let mut data = vec![0.0f32; w * h * stride];
@@ -195,7 +197,7 @@ impl TransferPrecompute {
     }
 
     fn shard(&self, i: &TransferPrecomputeIn) -> Result<ShardSpec, NodeError> {
-        terms_checked(i.scene, i.basis)?;
+        terms_checked(i.scene, i.basis, relume_core::memory::default_budget())?;
         Ok(row_spec(i.scene.camera.width, i.scene.camera.height))
     }
 
@@ -204,7 +206,7 @@ impl TransferPrecompute {
     }
 
     fn gather(&self, i: &TransferPrecomputeIn, parts: &[&TransferRows], cx: &RunCtx) -> Result<TransferPrecomputeOut, NodeError> {
-        let (transfer, [rays, dropped, mixed]) = gather_transfer(i.scene, i.basis, self.counts(), parts)?;
+        let (transfer, [rays, dropped, mixed]) = gather_transfer(i.scene, i.basis, self.counts(), parts, cx.memory_budget())?;
         let set = scene_terms(i.scene, i.basis.bases());
         cx.metric("images", set.terms.len() as f64);
         cx.metric("images_grey", set.count(Channels::Grey) as f64);
@@ -313,10 +315,10 @@ mod tests {
         let c = PathCounts { spp: 2, light_samples: 1, bounce_rays: 2, bounce_light_samples: 1, seed: 9 };
         let whole = precompute_rows(&s, &accel, &b, c, 0..12, None).unwrap();
         let parts = [0..5, 5..6, 6..12].map(|r| precompute_rows(&s, &accel, &b, c, r, None).unwrap());
-        let (t1, c1) = gather_transfer(&s, &b, c, &[&whole]).unwrap();
-        let (t2, c2) = gather_transfer(&s, &b, c, &[&parts[2], &parts[0], &parts[1]]).unwrap();
+        let (t1, c1) = gather_transfer(&s, &b, c, &[&whole], u64::MAX).unwrap();
+        let (t2, c2) = gather_transfer(&s, &b, c, &[&parts[2], &parts[0], &parts[1]], u64::MAX).unwrap();
         assert_eq!((t1, c1), (t2, c2));
-        assert!(gather_transfer(&s, &b, c, &[&parts[0]]).is_err(), "missing rows are an error");
+        assert!(gather_transfer(&s, &b, c, &[&parts[0]], u64::MAX).is_err(), "missing rows are an error");
     }
 
     #[test]
@@ -325,9 +327,20 @@ mod tests {
         let mut s = scene(8);
         s.camera.width = 40_000;
         s.camera.height = 40_000;
-        let e = terms_checked(&s, &b).unwrap_err();
+        let e = terms_checked(&s, &b, u64::MAX).unwrap_err();
         assert!(matches!(e, NodeError::OverLimit { .. }), "{e}");
         assert!(e.to_string().contains("GiB"), "{e}");
+        // The run's --memory-budget lowers the limit: an 8² transfer (144 floats a pixel: 36 KiB)
+        // fits in 1 MiB, not in 16 KiB, and a run refuses it before tracing anything.
+        let small = scene(8);
+        assert!(terms_checked(&small, &b, 1 << 20).is_ok());
+        let e = terms_checked(&small, &b, 16 << 10).unwrap_err();
+        assert!(matches!(e, NodeError::OverLimit { .. }) && e.to_string().contains("16.0 KiB"), "{e}");
+        let accel = crate::types::Accel::build(&small, crate::types::accel::BuildQuality::Fast);
+        let cancel = relume_core::CancelToken::new();
+        let cx = RunCtx::new("t", &cancel, None).with_memory_budget(16 << 10);
+        let c = PathCounts { spp: 1, light_samples: 1, bounce_rays: 1, bounce_light_samples: 1, seed: 1 };
+        assert!(matches!(precompute_rows(&small, &accel, &b, c, 0..8, Some(&cx)), Err(NodeError::OverLimit { .. })));
     }
 
     #[test]
@@ -335,11 +348,11 @@ mod tests {
         let (b, _) = basis(&space(4, 4, 8, 6, 1.0, 100.0), 3);
         let mut s = scene(8);
         s.objects[3].material = Material::Dielectric { ior: 1.5, medium: None };
-        assert!(terms_checked(&s, &b).unwrap_err().to_string().contains("\"floor\" is a dielectric"));
+        assert!(terms_checked(&s, &b, u64::MAX).unwrap_err().to_string().contains("\"floor\" is a dielectric"));
         let mut s = scene(8);
         let lamp = s.objects.iter().position(|o| o.name == "lamp").unwrap();
         s.objects[lamp].dynamic = true;
-        assert!(terms_checked(&s, &b).unwrap_err().to_string().contains("\"lamp\" is dynamic and emits"));
+        assert!(terms_checked(&s, &b, u64::MAX).unwrap_err().to_string().contains("\"lamp\" is dynamic and emits"));
     }
 
     #[test]
