@@ -60,6 +60,80 @@ fn ring_envlit_and_glass_load_with_their_lights() {
 }
 
 #[test]
+fn cornell_spot_textures_the_cow_and_the_path_tracer_shows_the_texture() {
+    let (s, notes) = load("cornell-spot");
+    let spot = object(&s, "spot");
+    assert!(spot.dynamic && notes.is_empty(), "{notes:?}");
+    assert_eq!(spot.material, Material::BlinnPhong { kd: Vec3::splat(0.7), ks: Vec3::splat(0.2), exponent: 40.0 });
+    let kd = spot.maps.kd.as_ref().expect("a Kd map");
+    assert_eq!((kd.width, kd.height), (256, 256));
+    assert!(spot.maps.ks.is_none() && spot.maps.exponent.is_none());
+    assert_eq!(s.uvs.len(), s.positions.len(), "every vertex has a UV (zero off the cow)");
+    let lo = spot.triangles.clone().flat_map(|t| s.corners(t as usize)).fold(f32::INFINITY, |m, p| m.min(p.y));
+    assert!((lo - -1.0).abs() < 0.01, "Spot stands on the floor at y = -1: lowest point {lo}");
+    // The cow's hide is dark under its spots: with the map, the pixels showing Spot are darker
+    // than without it, and the walls do not change by more than the noise and the bounce.
+    let mut small = s.clone();
+    small.camera.width = 48;
+    small.camera.height = 48;
+    let mut plain = small.clone();
+    plain.objects.iter_mut().for_each(|o| *o.maps = Default::default());
+    let accel = relume_nodes::types::Accel::build(&small, relume_nodes::types::accel::BuildQuality::Fast);
+    let pt = relume_nodes::reference::path_trace::PathTrace { spp: 16, max_depth: 2, rr_depth: 5, seed: 1 };
+    let render = |sc: &Scene| relume_nodes::reference::path_trace::render(sc, &accel, &pt, None).unwrap().0;
+    let (textured, untextured) = (render(&small), render(&plain));
+    let cam = relume_nodes::render::camera::CameraRays::new(&small.camera);
+    let spot_index = s.objects.iter().position(|o| o.name == "spot").unwrap() as u32;
+    let (mut on, mut on_plain, mut off, mut off_plain) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    for y in 0..48 {
+        for x in 0..48 {
+            let (o, d) = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
+            let hit = accel.intersect(o, d, 0.0, f32::INFINITY).map(|h| small.tri_object[h.tri as usize]);
+            let (a, b) = (textured.pixels[y * 48 + x][1] as f64, untextured.pixels[y * 48 + x][1] as f64);
+            if hit == Some(spot_index) {
+                (on, on_plain) = (on + a, on_plain + b);
+            } else {
+                (off, off_plain) = (off + a, off_plain + b);
+            }
+        }
+    }
+    assert!(on < 0.9 * on_plain, "Spot with its map {on}, without {on_plain}");
+    assert!((off - off_plain).abs() < 0.05 * off_plain, "elsewhere {off} vs {off_plain}");
+}
+
+#[test]
+fn texture_maps_need_uvs_an_image_and_a_material_they_apply_to() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    std::fs::copy(graphs_dir().join("assets/spot/spot_kd.png"), dir.path().join("kd.png")).unwrap();
+    let cam = "camera: (origin: (0, 0, 3), target: (0, 0, 0), up: (0, 1, 0), fov: 40, width: 8, height: 8)";
+    write("tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    write("uv.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n");
+    let err = |text: String| load_scene_file(&write("s.ron", &text)).err().unwrap();
+    let e = err(format!("Scene({cam},\n materials: {{ \"m\": Lambert(albedo: 0.5, kd_map: \"kd.png\") }},\n shapes: [Obj(path: \"tri.obj\", material: \"m\")])"));
+    assert!(e.contains("object \"tri\"") && e.contains("no UVs"), "{e}");
+    let e = err(format!("Scene({cam},\n materials: {{ \"m\": Lambert(albedo: 0.5, ks_map: \"kd.png\") }},\n shapes: [])"));
+    assert!(e.contains("s.ron:2:") && e.contains("`ks_map` does not apply"), "{e}");
+    let e = err(format!("Scene({cam},\n materials: {{ \"m\": Lambert(albedo: 0.5, kd_map: \"none.png\") }},\n shapes: [])"));
+    assert!(e.contains("s.ron:2:") && e.contains("none.png"), "{e}");
+    write("bad.png", "not a png");
+    let e = err(format!("Scene({cam},\n materials: {{ \"m\": Lambert(albedo: 0.5, kd_map: \"bad.png\") }},\n shapes: [])"));
+    assert!(e.contains("bad.png: not a readable PNG"), "{e}");
+    // With UVs it loads, and the texture file is a dependency of the scene.
+    let ok = load_scene_file(&write(
+        "ok.ron",
+        &format!("Scene({cam},\n materials: {{ \"m\": Lambert(albedo: 0.5, kd_map: \"kd.png\") }},\n shapes: [Obj(path: \"uv.obj\", material: \"m\")])"),
+    ))
+    .unwrap();
+    assert!(ok.scene.objects[0].maps.kd.is_some());
+    assert!(ok.files.iter().any(|(p, _)| p.ends_with("kd.png")));
+}
+
+#[test]
 fn scene_errors_name_the_file_and_line() {
     let dir = tempfile::tempdir().unwrap();
     let write = |name: &str, text: &str| {

@@ -25,7 +25,7 @@ pub fn gbuffer(scene: &Scene, accel: &Accel, cx: &RunCtx) -> Result<Receivers, N
                 let (o, d) = cam.ray((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
                 let hit = accel.intersect(o, d, 0.0, f32::INFINITY)?;
                 let s = Surface::at(scene, &hit, o, d);
-                let m = scene.objects[s.object as usize].material;
+                let m = s.material(scene);
                 (d.dot(s.ng) < 0.0 && !matches!(m, Material::Dielectric { .. })).then_some((i as u32, s, -d))
             })
             .collect()
@@ -37,7 +37,7 @@ pub fn gbuffer(scene: &Scene, accel: &Accel, cx: &RunCtx) -> Result<Receivers, N
         r.normal.push(s.ns);
         r.wo.push(wo);
         r.object.push(s.object);
-        r.material.push(scene.objects[s.object as usize].material);
+        r.material.push(s.material(scene));
     }
     Ok(r)
 }

@@ -106,7 +106,7 @@ pub fn render_rows(scene: &Scene, accel: &Accel, p: &DirectLight, rows: Range<us
                             t.radiance(o, d, id, counts)
                         } else if front {
                             let sample = (s * ls, ls, spp * ls);
-                            obj.emission + shade(&t, &surf, &obj.material, d, sample, (p.seed, pattern ^ 0x5bd1_e995), id, counts)
+                            obj.emission + shade(&t, &surf, &surf.material(scene), d, sample, (p.seed, pattern ^ 0x5bd1_e995), id, counts)
                         } else {
                             Vec3::ZERO
                         }

@@ -36,11 +36,11 @@ pub const MAX_SLOTS: usize = 64;
 /// What a surface point contributes with on a path, for one pair of local directions (+z the
 /// shading normal; `wi` toward the light, `wo` toward the viewer).
 pub trait Shade: Sync {
-    /// The slot values at a first hit x′ on scene object `obj`; returns how many were written.
-    fn first(&self, obj: u32, wi: Vec3, wo: Vec3, out: &mut [Vec3]) -> usize;
+    /// The slot values at a first hit x′ (`at`); returns how many were written.
+    fn first(&self, at: &Surface, wi: Vec3, wo: Vec3, out: &mut [Vec3]) -> usize;
     /// The slot values at a second hit x″ on `obj`; returns (the index of the first among all
     /// second slots, how many were written).
-    fn second(&self, obj: u32, wi: Vec3, wo: Vec3, out: &mut [Vec3]) -> (usize, usize);
+    fn second(&self, at: &Surface, wi: Vec3, wo: Vec3, out: &mut [Vec3]) -> (usize, usize);
 }
 
 /// Where slot values accumulate: `direct[f]` for Direct(f), `bounce[f * n_second + x]` for
@@ -207,7 +207,6 @@ impl<'a, S: Shade> Paths<'a, S> {
                 let mut rng = Sampler { seed: c.seed, id: pixel << 32 | s as u64, dim: 1 };
                 let Some(hit) = hit else { break 'sample };
                 let surf = Surface::at(self.scene, &hit, o, d);
-                let obj = surf.object;
                 if d.dot(surf.ng) >= 0.0 {
                     break 'sample; // one-sided: black from the back
                 }
@@ -215,7 +214,7 @@ impl<'a, S: Shade> Paths<'a, S> {
                 let wo = frame.to_local(-d);
                 // Direct light at x′.
                 self.direct(&surf, &frame, c.light_samples, &mut rng, &mut stats.rays, |wi, g| {
-                    let n = self.shade.first(obj, wi, wo, &mut fv);
+                    let n = self.shade.first(&surf, wi, wo, &mut fv);
                     for (f, v) in fv[..n].iter().enumerate() {
                         add(acc, self.slots.direct[f], *v * g);
                     }
@@ -238,13 +237,13 @@ impl<'a, S: Shade> Paths<'a, S> {
                         continue;
                     }
                     // x′'s slots for this direction: f cos θ′ / pdf, pdf = 1 / 2π, over the rays.
-                    let n1 = self.shade.first(obj, local, wo, &mut fv);
+                    let n1 = self.shade.first(&surf, local, wo, &mut fv);
                     let scale = local.z * 2.0 * PI / c.bounce_rays as f32;
                     fv[..n1].iter_mut().for_each(|v| *v *= scale);
                     let frame2 = Frame::from_normal(s2.ns);
                     let wo2 = frame2.to_local(-dir);
                     self.direct(&s2, &frame2, c.bounce_light_samples, &mut rng, &mut stats.rays, |wi2, g2| {
-                        let (base, n2) = self.shade.second(s2.object, wi2, wo2, &mut xv);
+                        let (base, n2) = self.shade.second(&s2, wi2, wo2, &mut xv);
                         for (f, fv) in fv[..n1].iter().enumerate() {
                             let row = f * self.slots.n_second + base;
                             for (x, xv) in xv[..n2].iter().enumerate() {

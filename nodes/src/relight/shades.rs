@@ -5,24 +5,21 @@
 use super::paths::{object_classes, Shade, Slots, MAX_SLOTS};
 use super::terms::{enumerate, First, SceneTraits, Second, Term, TermSet};
 use crate::brdf;
+use crate::render::surface::Surface;
 use crate::types::{BrdfBasis, Environment, Light, Material, ObjectMaterials, Scene};
 use glam::Vec3;
 
 /// What an object is on a relighting path.
 #[derive(Clone, Copy, Debug)]
 enum Kind {
-    /// Its own BRDF.
-    Fixed(Material),
+    /// Its own BRDF (with its texture maps, at the hit).
+    Fixed,
     /// Dynamic object g.
     Dynamic(u32),
 }
 
 fn kinds(scene: &Scene) -> Vec<Kind> {
-    object_classes(scene)
-        .iter()
-        .zip(&scene.objects)
-        .map(|(&c, o)| if c == 0 { Kind::Fixed(o.material) } else { Kind::Dynamic(c - 1) })
-        .collect()
+    object_classes(scene).iter().map(|&c| if c == 0 { Kind::Fixed } else { Kind::Dynamic(c - 1) }).collect()
 }
 
 /// Checks that pixel relighting can render `scene`: no delta (dielectric) materials, no
@@ -40,6 +37,12 @@ pub fn check_scene(scene: &Scene, bases: usize) -> Result<(), String> {
         }
         if o.dynamic && o.emission != Vec3::ZERO {
             return Err(format!("object \"{}\" is dynamic and emits: an emitter's material cannot be edited here", o.name));
+        }
+        if o.dynamic && !o.maps.is_empty() {
+            return Err(format!(
+                "object \"{}\" is dynamic and has texture maps: the spatially varying extension of pixel relighting ([S] 4.2) is not finished; make it fixed (its textures are then rendered) or drop the maps",
+                o.name
+            ));
         }
     }
     Ok(())
@@ -77,6 +80,7 @@ pub fn scene_terms(scene: &Scene, bases: usize) -> TermSet {
 
 /// Every basis BRDF at dynamic objects, the own BRDF at fixed ones.
 pub struct BasisShade<'a> {
+    scene: &'a Scene,
     basis: &'a BrdfBasis,
     kinds: Vec<Kind>,
     /// Index of dynamic object 0's first second slot (1 when fixed objects exist).
@@ -85,7 +89,7 @@ pub struct BasisShade<'a> {
 
 impl<'a> BasisShade<'a> {
     /// The shade and the slots of `set` (from `scene_terms(scene, basis.bases())`).
-    pub fn new(scene: &Scene, basis: &'a BrdfBasis, set: &TermSet) -> (BasisShade<'a>, Slots) {
+    pub fn new(scene: &'a Scene, basis: &'a BrdfBasis, set: &TermSet) -> (BasisShade<'a>, Slots) {
         let nb = basis.bases();
         let kinds = kinds(scene);
         let fixed = set.terms.iter().any(|t| matches!(t.0, Term::Bounce(_, Second::Fixed)));
@@ -110,7 +114,7 @@ impl<'a> BasisShade<'a> {
             (0..nb).flat_map(|f| (0..n_second).map(move |x| (f, x))).map(|(f, x)| index(Term::Bounce(first(f), second(x)))).collect();
         let emitted = set.index(Term::Emitted).map(|i| i as u32);
         let slots = Slots { direct, bounce, n_second, emitted, accumulators: set.terms.len() };
-        (BasisShade { basis, kinds, dynamic_offset }, slots)
+        (BasisShade { scene, basis, kinds, dynamic_offset }, slots)
     }
 
     fn bases(&self, wi: Vec3, wo: Vec3, out: &mut [Vec3]) -> usize {
@@ -125,19 +129,19 @@ impl<'a> BasisShade<'a> {
 }
 
 impl Shade for BasisShade<'_> {
-    fn first(&self, obj: u32, wi: Vec3, wo: Vec3, out: &mut [Vec3]) -> usize {
-        match self.kinds[obj as usize] {
-            Kind::Fixed(m) => {
-                out[0] = brdf::eval(&m, wo, wi);
+    fn first(&self, at: &Surface, wi: Vec3, wo: Vec3, out: &mut [Vec3]) -> usize {
+        match self.kinds[at.object as usize] {
+            Kind::Fixed => {
+                out[0] = brdf::eval(&at.material(self.scene), wo, wi);
                 1
             }
             Kind::Dynamic(_) => self.bases(wi, wo, out),
         }
     }
-    fn second(&self, obj: u32, wi: Vec3, wo: Vec3, out: &mut [Vec3]) -> (usize, usize) {
-        match self.kinds[obj as usize] {
-            Kind::Fixed(m) => {
-                out[0] = brdf::eval(&m, wo, wi);
+    fn second(&self, at: &Surface, wi: Vec3, wo: Vec3, out: &mut [Vec3]) -> (usize, usize) {
+        match self.kinds[at.object as usize] {
+            Kind::Fixed => {
+                out[0] = brdf::eval(&at.material(self.scene), wo, wi);
                 (0, 1)
             }
             Kind::Dynamic(g) => (self.dynamic_offset + g as usize * self.basis.bases(), self.bases(wi, wo, out)),
@@ -156,19 +160,20 @@ pub enum MaterialBrdf<'a> {
 /// One material per object: the dynamic objects' from `ObjectMaterials`, the fixed objects'
 /// own. Use with `Slots::single()`.
 pub struct MaterialShade<'a> {
+    scene: &'a Scene,
     kinds: Vec<Kind>,
     materials: &'a ObjectMaterials,
     brdf: MaterialBrdf<'a>,
 }
 
 impl<'a> MaterialShade<'a> {
-    pub fn new(scene: &Scene, materials: &'a ObjectMaterials, brdf: MaterialBrdf<'a>) -> Self {
-        MaterialShade { kinds: kinds(scene), materials, brdf }
+    pub fn new(scene: &'a Scene, materials: &'a ObjectMaterials, brdf: MaterialBrdf<'a>) -> Self {
+        MaterialShade { scene, kinds: kinds(scene), materials, brdf }
     }
 
-    fn eval(&self, obj: u32, wi: Vec3, wo: Vec3) -> Vec3 {
-        match self.kinds[obj as usize] {
-            Kind::Fixed(m) => brdf::eval(&m, wo, wi),
+    fn eval(&self, at: &Surface, wi: Vec3, wo: Vec3) -> Vec3 {
+        match self.kinds[at.object as usize] {
+            Kind::Fixed => brdf::eval(&at.material(self.scene), wo, wi),
             Kind::Dynamic(g) => {
                 let m = &self.materials.0[g as usize];
                 match self.brdf {
@@ -195,12 +200,12 @@ impl<'a> MaterialShade<'a> {
 }
 
 impl Shade for MaterialShade<'_> {
-    fn first(&self, obj: u32, wi: Vec3, wo: Vec3, out: &mut [Vec3]) -> usize {
-        out[0] = self.eval(obj, wi, wo);
+    fn first(&self, at: &Surface, wi: Vec3, wo: Vec3, out: &mut [Vec3]) -> usize {
+        out[0] = self.eval(at, wi, wo);
         1
     }
-    fn second(&self, obj: u32, wi: Vec3, wo: Vec3, out: &mut [Vec3]) -> (usize, usize) {
-        out[0] = self.eval(obj, wi, wo);
+    fn second(&self, at: &Surface, wi: Vec3, wo: Vec3, out: &mut [Vec3]) -> (usize, usize) {
+        out[0] = self.eval(at, wi, wo);
         (0, 1)
     }
 }

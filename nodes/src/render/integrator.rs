@@ -134,7 +134,7 @@ impl<'a> Tracer<'a> {
             if depth + 1 >= max_depth {
                 break;
             }
-            let material = obj.material;
+            let material = surf.material(self.scene);
             // Shading frame on the side the ray arrives from for dielectrics; opaque models
             // are one-sided (black from the back).
             let (ns, two_sided) = match material {

@@ -1,8 +1,8 @@
 //! The surface point a ray hit: position, geometric and shading normals, object.
 
 use crate::types::accel::Hit;
-use crate::types::Scene;
-use glam::Vec3;
+use crate::types::{Material, Scene};
+use glam::{Vec2, Vec3};
 
 #[derive(Clone, Copy, Debug)]
 pub struct Surface {
@@ -14,6 +14,8 @@ pub struct Surface {
     pub object: u32,
     pub tri: u32,
     pub area: f32,
+    /// Interpolated texture coordinates (zero when the scene has none).
+    pub uv: Vec2,
 }
 
 impl Surface {
@@ -29,7 +31,18 @@ impl Surface {
         };
         let ns = if ns.dot(ng) < 0.0 { -ns } else { ns };
         let p = o + d * hit.t;
-        Surface { p, ng, ns, object: scene.tri_object[t], tri: hit.tri, area }
+        let uv = if scene.uvs.is_empty() { Vec2::ZERO } else { scene.uvs[i0] * b0 + scene.uvs[i1] * hit.b1 + scene.uvs[i2] * hit.b2 };
+        Surface { p, ng, ns, object: scene.tri_object[t], tri: hit.tri, area, uv }
+    }
+
+    /// The material at this point: the object's, with its texture maps applied at `uv`.
+    pub fn material(&self, scene: &Scene) -> Material {
+        let o = &scene.objects[self.object as usize];
+        if o.maps.is_empty() {
+            o.material
+        } else {
+            o.maps.apply(o.material, self.uv)
+        }
     }
 
     /// A ray origin just off the surface on the side `dir` leaves to, with an offset scaled by

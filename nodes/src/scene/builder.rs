@@ -54,6 +54,7 @@ impl SceneBuilder {
             dynamic: false,
             triangles: start..end,
             material_name: String::new(),
+            maps: Box::default(),
         });
         self
     }

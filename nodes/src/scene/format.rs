@@ -22,7 +22,7 @@ use super::envmap::Sky;
 use super::obj::load_obj_file;
 use super::shapes::{crease_normals, sphere};
 use crate::image::io::decode_image;
-use crate::types::{Camera, EnvMap, Environment, Light, Material, Medium, Object, Scene};
+use crate::types::{Camera, EnvMap, Environment, Light, Material, MaterialMaps, Medium, Object, Scene, Texture};
 use glam::{Mat3, Mat4, Vec2, Vec3};
 use relume_core::ron::fields::{bool_of, f64_in, f64_of, list_of, map_of, str_of, triple, usize_in, variant, Fields};
 use relume_core::ron::{parse, Ron, SyntaxError};
@@ -84,6 +84,10 @@ struct Builder {
     dir: PathBuf,
     scene_file: PathBuf,
     materials: Vec<(String, Material)>,
+    /// Texture maps by material name (only materials that have some).
+    maps: Vec<(String, MaterialMaps)>,
+    /// Whether each object came with UVs.
+    object_uvs: Vec<bool>,
     objects: Vec<Object>,
     positions: Vec<Vec3>,
     normals: Vec<Vec3>,
@@ -111,7 +115,11 @@ impl Builder {
         self.camera = Some(read_camera(camera)?);
         if let Some(m) = f.opt("materials") {
             for (name, _, v) in map_of(m, "materials")? {
-                let mat = read_material(v)?;
+                let (mat, map_fields) = read_material(v)?;
+                let maps = self.read_maps(name, &mat, map_fields)?;
+                if !maps.is_empty() {
+                    self.maps.push((name.to_string(), maps));
+                }
                 self.materials.push((name.to_string(), mat));
             }
         }
@@ -132,6 +140,46 @@ impl Builder {
             self.environment = Some(self.read_environment(e)?);
         }
         f.finish(TOP)?;
+        self.assign_maps(doc)
+    }
+
+    /// The textures of a material's `kd_map` / `ks_map` / `exponent_map` (image files, paths
+    /// relative to the scene file; dependencies of the scene).
+    fn read_maps(&mut self, name: &str, m: &Material, fields: [Option<&Ron>; 3]) -> Result<MaterialMaps, LoadError> {
+        let mut maps = MaterialMaps::default();
+        for (k, field) in fields.into_iter().enumerate() {
+            let Some(v) = field else { continue };
+            let allowed = match m {
+                Material::Lambert { .. } => k == 0,
+                Material::BlinnPhong { .. } => true,
+                Material::CookTorrance { .. } => k < 2,
+                _ => false,
+            };
+            let key = ["kd_map", "ks_map", "exponent_map"][k];
+            if !allowed {
+                return Err(at(v, format!("material \"{name}\": `{key}` does not apply to this kind of material")));
+            }
+            let (p, bytes) = self.read_file(v)?;
+            let img = decode_image(&p, &bytes).map_err(|e| at(v, e))?;
+            let tex = Texture::new(img.width, img.height, img.pixels.iter().map(|p| Vec3::from(*p)).collect())
+                .ok_or_else(|| at(v, format!("{}: an empty image", p.display())))?;
+            *[&mut maps.kd, &mut maps.ks, &mut maps.exponent][k] = Some(tex);
+        }
+        Ok(maps)
+    }
+
+    /// Gives every object the maps of its named material; an object with maps needs UVs.
+    fn assign_maps(&mut self, doc: &Ron) -> Result<(), LoadError> {
+        for (i, o) in self.objects.iter_mut().enumerate() {
+            let Some((_, maps)) = self.maps.iter().find(|(n, _)| *n == o.material_name) else { continue };
+            if !self.object_uvs[i] {
+                return Err(at(
+                    doc,
+                    format!("object \"{}\" has no UVs, but its material \"{}\" has texture maps", o.name, o.material_name),
+                ));
+            }
+            *o.maps = maps.clone();
+        }
         Ok(())
     }
 
@@ -250,6 +298,7 @@ impl Builder {
         tris: Vec<[u32; 3]>,
     ) {
         let base = self.positions.len() as u32;
+        self.object_uvs.push(uvs.is_some());
         let normal_m = Mat3::from_mat4(*m).inverse().transpose();
         let flip = Mat3::from_mat4(*m).determinant() < 0.0;
         self.positions.extend(pos.iter().map(|p| m.transform_point3(*p)));
@@ -282,6 +331,7 @@ impl Builder {
             dynamic,
             triangles: start..self.triangles.len() as u32,
             material_name: String::new(),
+            maps: Box::default(),
         });
     }
 
@@ -386,9 +436,11 @@ fn read_camera(v: &Ron) -> Result<Camera, LoadError> {
     Ok(cam)
 }
 
-fn read_material(v: &Ron) -> Result<Material, LoadError> {
+/// A material and its texture-map fields (`kd_map`, `ks_map`, `exponent_map`: image paths).
+fn read_material(v: &Ron) -> Result<(Material, [Option<&Ron>; 3]), LoadError> {
     let (kind, v) = variant(v, "material", &["Lambert", "BlinnPhong", "CookTorrance", "Dielectric"])?;
     let mut f = Fields::new(v, kind)?;
+    let maps = [f.opt("kd_map"), f.opt("ks_map"), f.opt("exponent_map")];
     let m = match kind {
         "Lambert" => Material::Lambert { albedo: rgb(f.req("albedo")?, "albedo", 1.0)? },
         "BlinnPhong" | "CookTorrance" => {
@@ -414,8 +466,8 @@ fn read_material(v: &Ron) -> Result<Material, LoadError> {
             Material::Dielectric { ior, medium }
         }
     };
-    f.finish(&["albedo", "kd", "ks", "exponent", "roughness", "f0", "ior", "sigma_a", "sigma_s"])?;
-    Ok(m)
+    f.finish(&["albedo", "kd", "ks", "exponent", "roughness", "f0", "ior", "sigma_a", "sigma_s", "kd_map", "ks_map", "exponent_map"])?;
+    Ok((m, maps))
 }
 
 fn read_light(v: &Ron) -> Result<Light, LoadError> {

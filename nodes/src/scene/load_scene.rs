@@ -23,7 +23,7 @@ pub struct LoadScene {
 
 outputs!(pub LoadSceneOut { scene: Scene });
 
-#[node(category = "scene")]
+#[node(category = "scene", version = 2)]
 impl LoadScene {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The scene's bytes are known only once its meshes are read; the resolution is the

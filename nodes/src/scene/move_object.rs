@@ -38,7 +38,7 @@ pub fn move_object(scene: &Scene, name: &str, t: Vec3) -> Result<Scene, NodeErro
     Ok(s)
 }
 
-#[node(category = "scene")]
+#[node(category = "scene", version = 2)]
 impl MoveObject {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         relume_core::MemoryEstimate { outputs: vec![inputs[0]], working: 0 }

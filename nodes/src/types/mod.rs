@@ -11,6 +11,7 @@ mod point_tree;
 mod points;
 mod receivers;
 mod scene;
+mod texture;
 mod transfer;
 
 pub use self::image::{Image, MAX_IMAGE_BYTES};
@@ -24,6 +25,7 @@ pub use point_tree::{PointTree, TreeNode, MIN_AREA_FRACTION};
 pub use points::SurfacePoints;
 pub use receivers::{PointRadiance, Receivers};
 pub use scene::{Camera, EnvMap, Environment, Light, Object, Scene};
+pub use texture::{MaterialMaps, Texture};
 pub use transfer::{floats_and_stride, ObjectMaterial, ObjectMaterials, PathCounts, Transfer, TransferRows, MAX_TRANSFER_BYTES};
 
 /// Serde of a `Vec` of plain 4-byte words (`f32`, `u32`, `Vec3`, `[u32; 3]`, …) as one byte

@@ -65,6 +65,9 @@ pub struct Object {
     /// "white walls": floor, ceiling and back edited together), see `Scene::dynamic_groups`.
     #[serde(default)]
     pub material_name: String,
+    /// Texture maps multiplying its material's parameters at each point (`material_at`).
+    #[serde(default)]
+    pub maps: Box<super::MaterialMaps>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
