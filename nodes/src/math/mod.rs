@@ -1,6 +1,7 @@
 //! Shared math used by several nodes (one place for each piece).
 
 pub mod frame;
+pub mod haar;
 pub mod kmeans;
 pub mod pca;
 pub mod rng;
