@@ -16,6 +16,7 @@ pub mod relight;
 pub mod relight_reference;
 pub mod scene_materials;
 pub mod shades;
+pub mod sv_terms;
 pub mod terms;
 pub mod transfer_precompute;
 
