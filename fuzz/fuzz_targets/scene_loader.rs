@@ -1,7 +1,7 @@
 //! The scene loader: the input is a scene file (RON), written into a temporary folder that
-//! also holds small meshes (with an MTL) and an environment map, and loaded through
-//! `load_scene_file`, the function the LoadScene node calls. Any input must give a scene or
-//! an error message, never a panic, a stack overflow or a hang.
+//! also holds small meshes (with an MTL, one with UVs), a texture and an environment map, and
+//! loaded through `load_scene_file`, the function the LoadScene node calls. Any input must give
+//! a scene or an error message, never a panic, a stack overflow or a hang.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -20,6 +20,9 @@ fn dir() -> &'static PathBuf {
         w("box.obj", include_bytes!("../../graphs/assets/cornell/cornell_box.obj"));
         w("cornell_box.mtl", include_bytes!("../../graphs/assets/cornell/cornell_box.mtl"));
         w("floor.obj", include_bytes!("../../graphs/assets/glass/floor.obj"));
+        // A triangle with UVs and a texture for the material maps.
+        w("uv.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n");
+        w("kd.png", include_bytes!("../../graphs/assets/spot/spot_kd.png"));
         // A 4 × 2 Radiance HDR map (flat RGBE scanlines).
         let mut hdr = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 4\n".to_vec();
         for i in 0..8u8 {
