@@ -9,3 +9,4 @@ pub mod sampling;
 pub mod sh;
 pub mod srgb;
 pub mod ssim;
+pub mod streamed_pca;

@@ -265,7 +265,7 @@ fn gram_block<T: Copy + Into<f64>>(x: &[T], rows: usize, cols: usize, w: &[f64],
 
 /// Eigenvalues (ascending) and eigenvectors (columns) of the symmetric matrix `g`,
 /// sequentially, so the bytes never depend on a thread pool.
-fn symmetric_eigen(g: &Mat<f64>) -> Result<(Vec<f64>, Mat<f64>), NodeError> {
+pub(crate) fn symmetric_eigen(g: &Mat<f64>) -> Result<(Vec<f64>, Mat<f64>), NodeError> {
     let n = g.nrows();
     let mut s = Diag::<f64>::zeros(n);
     let mut u = Mat::<f64>::zeros(n, n);
