@@ -22,6 +22,11 @@ fn every_graph_in_graphs_runs_and_its_outputs_are_finite() {
                     g.set_param_text(&reg, &format!("{}.spp", n.id), "2").unwrap();
                     g.set_param_text(&reg, &format!("{}.bounce_rays", n.id), "2").unwrap();
                 }
+                "SvTransferPrecompute" => {
+                    g.set_param_text(&reg, &format!("{}.spp", n.id), "2").unwrap();
+                    g.set_param_text(&reg, &format!("{}.bounce_rays", n.id), "2").unwrap();
+                    g.set_param_text(&reg, &format!("{}.sub_regions", n.id), "4").unwrap();
+                }
                 "SampleSurface" => g.set_param_text(&reg, &format!("{}.count", n.id), "2000").unwrap(),
                 _ => {}
             }

@@ -121,3 +121,36 @@ fn the_ring_stores_no_fixed_object_terms_and_says_so() {
     let basis = r.output("basis_error").unwrap().get::<Metrics>().unwrap();
     assert!(basis.get("l2_percent").unwrap() < 5.0, "{basis:?}");
 }
+
+#[test]
+fn the_spatially_varying_graph_compresses_its_groups_and_a_brush_stroke_reruns_only_the_combine_and_the_comparison() {
+    let reg = relume_nodes::registry();
+    let e = Engine::new(relume_nodes::registry());
+    let mut g = small("relight_sv_spot.ron");
+    g.set_param_text(&reg, "transfer.sub_regions", "4").unwrap();
+    let r = e.run(&g, &RunOptions::default()).unwrap();
+    let t = r.report.node("transfer").unwrap();
+    // One dynamic object, 4 indirect bases: 2 · 4 − 1 = 7 groups of 16 sub-region images.
+    assert_eq!((t.metrics["groups"], t.metrics["sub_regions"], t.metrics["components"]), (7.0, 16.0, 2.0));
+    assert!(t.metrics["compression_ratio"] > 1.0, "{:?}", t.metrics);
+    assert!(t.metrics["bytes"] < t.metrics["uncompressed_bytes"]);
+    let before = r.output("image").unwrap().get::<Image>().unwrap().clone();
+    let err = |r: &relume_core::RunResult| r.output("error").unwrap().get::<Metrics>().unwrap().get("l2_percent").unwrap();
+    let error_before = err(&r);
+    assert!(error_before < 40.0, "{error_before}");
+
+    // Paint Spot's whole Kd map red: only the stroke, the projection, the combine and the
+    // comparison with the re-rendered reference run.
+    for (k, v) in [("paint.object", "\"spot\""), ("paint.radius", "2.0"), ("paint.value", "(1.0, 0.05, 0.05)"), ("paint.size", "16")] {
+        g.set_param_text(&reg, k, v).unwrap();
+    }
+    let r2 = e.run(&g, &RunOptions::default()).unwrap();
+    let mut ran = r2.report.ran_ids();
+    ran.sort();
+    assert_eq!(ran, ["applied", "error", "paint", "project", "reference", "relight"], "nothing upstream of the edit runs");
+    let after = r2.output("image").unwrap().get::<Image>().unwrap();
+    let redder = before.pixels.iter().zip(&after.pixels).filter(|(b, a)| a[0] - a[1] > b[0] - b[1] + 0.01).count();
+    assert!(redder > 10, "{redder} pixels turned redder");
+    // The reference follows the paint: the error stays of the same size.
+    assert!(err(&r2) < 1.5 * error_before + 2.0, "{error_before} {}", err(&r2));
+}

@@ -51,6 +51,11 @@ impl Gram {
         }
     }
 
+    /// The trace: the squared norm of every column seen (the energy the components share).
+    pub fn trace(&self) -> f64 {
+        (0..self.n).map(|i| self.g[i * (i + 1) / 2 + i]).sum()
+    }
+
     /// Adds another Gram matrix of the same rows (a tile's, summed in tile order).
     pub fn merge(&mut self, other: &Gram) {
         assert_eq!(self.n, other.n, "Gram matrices of different sizes");

@@ -5,7 +5,7 @@ use glam::Vec3;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
 /// The scene with its dynamic objects' materials replaced by `materials` (Blinn-Phong (Kd, Ks,
-/// s) per dynamic object, every member of a group alike): what a path tracer renders to compare
+/// s) and its texture maps per dynamic object, every member of a group alike): what a path tracer renders to compare
 /// with a relit image after a material edit, so that the error figures follow the edit. Objects
 /// that are not dynamic are untouched. Materials of other objects than the scene's dynamic ones
 /// are an input error.
@@ -27,6 +27,7 @@ pub fn apply_materials(scene: &Scene, materials: &ObjectMaterials) -> Result<Sce
     for ((_, members), m) in groups.iter().zip(&materials.0) {
         for &o in members {
             out.objects[o as usize].material = Material::BlinnPhong { kd: Vec3::from(m.kd), ks: Vec3::from(m.ks), exponent: m.s };
+            *out.objects[o as usize].maps = m.maps.clone();
         }
     }
     Ok(out)

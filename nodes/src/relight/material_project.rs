@@ -78,7 +78,7 @@ mod tests {
     use std::path::Path;
 
     fn one(kd: [f32; 3], ks: [f32; 3], s: f32) -> ObjectMaterials {
-        ObjectMaterials(vec![ObjectMaterial { name: "obj".into(), kd, ks, s, coefficients: vec![] }])
+        ObjectMaterials(vec![ObjectMaterial { name: "obj".into(), kd, ks, s, coefficients: vec![], maps: Default::default() }])
     }
 
     /// Edits the one object to (kd, ks, s) grey and returns its red coefficients.
@@ -92,7 +92,14 @@ mod tests {
     fn channels_project_separately_and_unedited_objects_keep_their_material() {
         let (b, _) = basis(&space(6, 6, 12, 20, 1.0, 200.0), 4);
         let mut two = one([0.2, 0.2, 0.0], [0.2, 0.2, 0.0], 180.0);
-        two.0.push(ObjectMaterial { name: "plane".into(), kd: [0.2; 3], ks: [0.2; 3], s: 5.0, coefficients: vec![] });
+        two.0.push(ObjectMaterial {
+            name: "plane".into(),
+            kd: [0.2; 3],
+            ks: [0.2; 3],
+            s: 5.0,
+            coefficients: vec![],
+            maps: Default::default(),
+        });
         let out = run_on::<MaterialProject>(&[], vec![Value::new(b.clone()), Value::new(two.clone())]).unwrap();
         let m = first::<ObjectMaterials>(&out);
         let yellow = &m.0[0];

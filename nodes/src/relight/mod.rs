@@ -10,13 +10,18 @@ pub mod basis_brdf;
 pub mod brdf_pca;
 pub mod brdf_space_sample;
 pub mod material_project;
+pub mod paint_material;
 pub mod paths;
 #[allow(clippy::module_inception)]
 pub mod relight;
 pub mod relight_reference;
 pub mod scene_materials;
 pub mod shades;
+pub mod sv_precompute;
+pub mod sv_relight;
+pub mod sv_shade;
 pub mod sv_terms;
+pub mod sv_transfer_precompute;
 pub mod terms;
 pub mod transfer_precompute;
 
@@ -32,6 +37,9 @@ pub fn register(reg: &mut Registry) {
     reg.add::<relight::Relight>();
     reg.add::<relight_reference::RelightReference>();
     reg.add::<apply_materials::ApplyMaterials>();
+    reg.add::<paint_material::PaintMaterial>();
+    reg.add::<sv_transfer_precompute::SvTransferPrecompute>();
+    reg.add::<sv_relight::SvRelight>();
 }
 
 /// Small BRDF spaces and bases for the unit tests of this folder, made by the nodes themselves.
@@ -88,6 +96,36 @@ pub(crate) mod test_support {
         }
         s.objects[0].material_name = "glossy".into();
         s.objects[1].material_name = "glossy".into();
+        s
+    }
+
+    /// `scene(size)` with UVs: spherical ones about each sphere's centre, planar ones on the
+    /// floor and the lamp (what the SV extension's sub-regions need).
+    pub fn sv_scene(size: usize) -> crate::types::Scene {
+        use glam::{Vec2, Vec3};
+        let mut s = scene(size);
+        let mut object_of = vec![0u32; s.positions.len()];
+        for (t, tri) in s.triangles.iter().enumerate() {
+            tri.iter().for_each(|&v| object_of[v as usize] = s.tri_object[t]);
+        }
+        let mut centre = vec![(Vec3::ZERO, 0.0f32); s.objects.len()];
+        for (p, &o) in s.positions.iter().zip(&object_of) {
+            centre[o as usize].0 += *p;
+            centre[o as usize].1 += 1.0;
+        }
+        s.uvs = s
+            .positions
+            .iter()
+            .zip(&object_of)
+            .map(|(p, &o)| {
+                if o < 3 {
+                    let d = (*p - centre[o as usize].0 / centre[o as usize].1).normalize();
+                    Vec2::new(d.z.atan2(d.x) / std::f32::consts::TAU + 0.5, d.y.clamp(-1.0, 1.0).asin() / std::f32::consts::PI + 0.5)
+                } else {
+                    Vec2::new((p.x + 2.0) / 4.0, (p.z + 2.0) / 4.0)
+                }
+            })
+            .collect();
         s
     }
 

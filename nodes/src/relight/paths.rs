@@ -68,6 +68,11 @@ pub struct PixelStats {
     /// Camera samples dropped because they hit another class than the pixel's.
     pub dropped: u32,
     pub rays: u64,
+    /// The UV of x′ for the kept camera sample nearest the pixel's centre (the texel a
+    /// spatially varying material is read at; zero when no kept sample hit a front face).
+    pub uv: [f32; 2],
+    /// The scene object (index + 1; 0: none) under that sample: the object-id image.
+    pub object: u32,
 }
 
 /// Everything the paths of one render share.
@@ -155,7 +160,7 @@ impl<'a, S: Shade> Paths<'a, S> {
         let pixel = (y * w + x) as u64;
         let mut stats = PixelStats::default();
         // First hits of every camera sample, and the pixel's class by majority.
-        let mut firsts: Vec<(Vec3, Vec3, Option<Hit>)> = Vec::with_capacity(c.spp as usize);
+        let mut firsts: Vec<(Vec3, Vec3, Option<Hit>, f32)> = Vec::with_capacity(c.spp as usize);
         let mut votes = vec![0u32; self.classes];
         for s in 0..c.spp {
             let id = pixel << 32 | s as u64;
@@ -164,7 +169,7 @@ impl<'a, S: Shade> Paths<'a, S> {
             let hit = self.accel.intersect(o, d, 0.0, f32::INFINITY);
             stats.rays += 1;
             votes[hit.map_or(0, |h| self.class[self.scene.tri_object[h.tri as usize] as usize]) as usize] += 1;
-            firsts.push((o, d, hit));
+            firsts.push((o, d, hit, (jx - 0.5).powi(2) + (jy - 0.5).powi(2)));
         }
         let class = (0..self.classes).max_by_key(|&k| (votes[k], std::cmp::Reverse(k))).unwrap_or(0) as u32;
         stats.class = class;
@@ -183,7 +188,8 @@ impl<'a, S: Shade> Paths<'a, S> {
         let add = |acc: &mut [[f64; 3]], i: u32, v: Vec3| add_weighted(acc, i, v, weight);
         let mut fv = [Vec3::ZERO; MAX_SLOTS];
         let mut xv = [Vec3::ZERO; MAX_SLOTS];
-        for (s, (o, d, hit)) in firsts.into_iter().enumerate() {
+        let mut nearest = f32::INFINITY;
+        for (s, (o, d, hit, centre_dist)) in firsts.into_iter().enumerate() {
             'sample: {
                 // The light seen directly, from every sample.
                 let seen = match hit {
@@ -209,6 +215,9 @@ impl<'a, S: Shade> Paths<'a, S> {
                 let surf = Surface::at(self.scene, &hit, o, d);
                 if d.dot(surf.ng) >= 0.0 {
                     break 'sample; // one-sided: black from the back
+                }
+                if centre_dist < nearest {
+                    (nearest, stats.uv, stats.object) = (centre_dist, surf.uv.to_array(), surf.object + 1);
                 }
                 let frame = Frame::from_normal(surf.ns);
                 let wo = frame.to_local(-d);

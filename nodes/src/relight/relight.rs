@@ -26,6 +26,12 @@ pub fn class_weights(t: &Transfer, m: &ObjectMaterials) -> Result<Vec<f32>, Stri
     if names != t.groups.iter().map(String::as_str).collect::<Vec<_>>() {
         return Err(format!("the materials are for the objects [{}], the transfer for [{}]", names.join(", "), t.groups.join(", ")));
     }
+    if let Some(o) = m.0.iter().find(|o| !o.maps.is_empty()) {
+        return Err(format!(
+            "\"{}\" has texture maps: this transfer keeps one material per object; textured materials need `SvTransferPrecompute` and `SvRelight`",
+            o.name
+        ));
+    }
     if let Some(o) = m.0.iter().find(|o| o.coefficients.len() != nb) {
         return Err(format!(
             "\"{}\" has {} coefficients, the transfer {nb} bases (project the materials on the basis the transfer used)",
@@ -283,6 +289,7 @@ mod tests {
             ks: [0.0; 3],
             s: 1.0,
             coefficients: vec![[0.5, 0.25, 0.0], [2.0, 2.0, 4.0]],
+            maps: Default::default(),
         }]);
         let img = relight(&t, &m, None).unwrap();
         // Class 0 (fixed): merged image × 1, no specular term.

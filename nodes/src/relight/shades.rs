@@ -23,8 +23,37 @@ fn kinds(scene: &Scene) -> Vec<Kind> {
 }
 
 /// Checks that pixel relighting can render `scene`: no delta (dielectric) materials, no
-/// dynamic emitter, few enough bases. Errors name the object.
+/// dynamic emitter, few enough bases, no textured dynamic object (the SV precompute takes
+/// those: `check_scene_sv`). Errors name the object.
 pub fn check_scene(scene: &Scene, bases: usize) -> Result<(), String> {
+    check_scene_with(scene, bases, false)
+}
+
+/// `check_scene` for the spatially varying extension: textured dynamic objects are welcome,
+/// and every dynamic object needs UVs (its sub-regions are cells of its UV square).
+pub fn check_scene_sv(scene: &Scene, bases: usize) -> Result<(), String> {
+    check_scene_with(scene, bases, true)?;
+    for (name, members) in scene.dynamic_groups() {
+        let (mut lo, mut hi) = (glam::Vec2::splat(f32::INFINITY), glam::Vec2::splat(f32::NEG_INFINITY));
+        for &m in &members {
+            let tris = scene.objects[m as usize].triangles.clone();
+            for t in &scene.triangles[tris.start as usize..tris.end as usize] {
+                for &v in t {
+                    let uv = scene.uvs.get(v as usize).copied().unwrap_or(glam::Vec2::ZERO);
+                    (lo, hi) = (lo.min(uv), hi.max(uv));
+                }
+            }
+        }
+        if !(hi.x > lo.x && hi.y > lo.y) {
+            return Err(format!(
+                "dynamic object \"{name}\" has no UVs: the spatially varying extension splits each dynamic object into cells of its UV square"
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn check_scene_with(scene: &Scene, bases: usize, maps: bool) -> Result<(), String> {
     if bases == 0 || bases > MAX_SLOTS {
         return Err(format!("the basis has {bases} BRDFs; pixel relighting takes 1 to {MAX_SLOTS}"));
     }
@@ -38,9 +67,9 @@ pub fn check_scene(scene: &Scene, bases: usize) -> Result<(), String> {
         if o.dynamic && o.emission != Vec3::ZERO {
             return Err(format!("object \"{}\" is dynamic and emits: an emitter's material cannot be edited here", o.name));
         }
-        if o.dynamic && !o.maps.is_empty() {
+        if o.dynamic && !maps && !o.maps.is_empty() {
             return Err(format!(
-                "object \"{}\" is dynamic and has texture maps: the spatially varying extension of pixel relighting ([S] 4.2) is not finished; make it fixed (its textures are then rendered) or drop the maps",
+                "object \"{}\" is dynamic and has texture maps: this precompute keeps one material per object: use `SvTransferPrecompute` and `SvRelight` (the spatially varying extension, [S] 4.2), make it fixed (its textures are then rendered) or drop the maps",
                 o.name
             ));
         }
@@ -74,8 +103,13 @@ pub fn scene_terms(scene: &Scene, bases: usize) -> TermSet {
         fixed_objects: class.contains(&0),
         one_light_colour: light_colour(scene).is_some(),
         specular_bases: bases - 1,
-        emitters: scene.environment.is_some() || scene.objects.iter().any(|o| o.emission != Vec3::ZERO),
+        emitters: has_emitters(scene),
     })
+}
+
+/// Whether light can be seen directly: an environment or an emitting object.
+pub fn has_emitters(scene: &Scene) -> bool {
+    scene.environment.is_some() || scene.objects.iter().any(|o| o.emission != Vec3::ZERO)
 }
 
 /// Every basis BRDF at dynamic objects, the own BRDF at fixed ones.
@@ -179,7 +213,7 @@ impl<'a> MaterialShade<'a> {
                 match self.brdf {
                     MaterialBrdf::Analytic => {
                         let bp = Material::BlinnPhong { kd: Vec3::from(m.kd), ks: Vec3::from(m.ks), exponent: m.s };
-                        brdf::eval(&bp, wo, wi)
+                        brdf::eval(&m.maps.apply(bp, at.uv), wo, wi)
                     }
                     MaterialBrdf::Tabulated(basis) => {
                         let nb = basis.bases();

@@ -353,14 +353,14 @@ mod tests {
         let lamp = s.objects.iter().position(|o| o.name == "lamp").unwrap();
         s.objects[lamp].dynamic = true;
         assert!(terms_checked(&s, &b, u64::MAX).unwrap_err().to_string().contains("\"lamp\" is dynamic and emits"));
-        // Textured dynamic objects need the spatially varying extension, not finished yet;
-        // a textured fixed object is rendered with its texture.
+        // Textured dynamic objects need the spatially varying extension's nodes; a textured
+        // fixed object is rendered with its texture.
         let mut s = scene(8);
         s.uvs = vec![glam::Vec2::ZERO; s.positions.len()];
         let grey = crate::types::Texture::new(1, 1, vec![glam::Vec3::splat(0.5)]).unwrap();
         s.objects[2].maps.kd = Some(grey.clone());
         let e = terms_checked(&s, &b, u64::MAX).unwrap_err().to_string();
-        assert!(e.contains("\"c\" is dynamic and has texture maps") && e.contains("not finished"), "{e}");
+        assert!(e.contains("\"c\" is dynamic and has texture maps") && e.contains("SvTransferPrecompute"), "{e}");
         *s.objects[2].maps = Default::default();
         s.objects[3].maps.kd = Some(grey);
         assert!(terms_checked(&s, &b, u64::MAX).is_ok());

@@ -11,6 +11,7 @@ mod point_tree;
 mod points;
 mod receivers;
 mod scene;
+mod sv_transfer;
 mod texture;
 mod transfer;
 
@@ -25,6 +26,7 @@ pub use point_tree::{PointTree, TreeNode, MIN_AREA_FRACTION};
 pub use points::SurfacePoints;
 pub use receivers::{PointRadiance, Receivers};
 pub use scene::{Camera, EnvMap, Environment, Light, Object, Scene};
+pub use sv_transfer::{SparsePlane, SvBlock, SvTransfer};
 pub use texture::{MaterialMaps, Texture};
 pub use transfer::{floats_and_stride, ObjectMaterial, ObjectMaterials, PathCounts, Transfer, TransferRows, MAX_TRANSFER_BYTES};
 

@@ -4,6 +4,7 @@
 //! objects' materials and their basis coefficients, what `Relight` weighs the images with).
 
 use super::pod_vec;
+use super::texture::MaterialMaps;
 use crate::relight::terms::{Channels, Term};
 use relume_core::{codec, PortValue};
 use serde::{Deserialize, Serialize};
@@ -145,6 +146,10 @@ pub struct ObjectMaterial {
     pub s: f32,
     /// Empty until projected (`MaterialProject`); then one RGB triple per basis.
     pub coefficients: Vec<[f64; 3]>,
+    /// Texture maps multiplying Kd, Ks and s over the object's UVs (the spatially varying
+    /// extension, [S] 4.2; `PaintMaterial` edits them). None by default.
+    #[serde(default)]
+    pub maps: MaterialMaps,
 }
 
 /// The materials of a scene's dynamic objects, in `Scene::dynamic_groups` order.
@@ -157,7 +162,7 @@ impl PortValue for ObjectMaterials {
     const COLOR: [u8; 3] = [230, 180, 250];
     const DOC: &'static str = "the dynamic objects' materials and their coefficients on a BRDF basis";
     fn byte_size(&self) -> usize {
-        self.0.iter().map(|m| m.name.len() + 40 + m.coefficients.len() * 24).sum::<usize>() + 8
+        self.0.iter().map(|m| m.name.len() + 40 + m.coefficients.len() * 24 + m.maps.byte_size()).sum::<usize>() + 8
     }
     relume_core::serde_codec!();
 }
@@ -190,6 +195,7 @@ mod tests {
             ks: [0.2; 3],
             s: 3.0,
             coefficients: vec![[1.0, -0.5, 0.0]],
+            maps: Default::default(),
         }]);
         assert_eq!(ObjectMaterials::decode(&m.encode()).unwrap(), m);
     }
