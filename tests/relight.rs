@@ -138,6 +138,10 @@ fn the_spatially_varying_graph_compresses_its_groups_and_a_brush_stroke_reruns_o
     let err = |r: &relume_core::RunResult| r.output("error").unwrap().get::<Metrics>().unwrap().get("l2_percent").unwrap();
     let error_before = err(&r);
     assert!(error_before < 40.0, "{error_before}");
+    // Against the same paths with the analytic textured BRDFs: basis, sub-region and
+    // compression errors, no noise.
+    let basis_error = r.output("basis_error").unwrap().get::<Metrics>().unwrap().get("l2_percent").unwrap();
+    assert!(basis_error < 10.0 && basis_error < error_before, "{basis_error} {error_before}");
 
     // Paint Spot's whole Kd map red: only the stroke, the projection, the combine and the
     // comparison with the re-rendered reference run.
@@ -147,7 +151,11 @@ fn the_spatially_varying_graph_compresses_its_groups_and_a_brush_stroke_reruns_o
     let r2 = e.run(&g, &RunOptions::default()).unwrap();
     let mut ran = r2.report.ran_ids();
     ran.sort();
-    assert_eq!(ran, ["applied", "error", "paint", "project", "reference", "relight"], "nothing upstream of the edit runs");
+    assert_eq!(
+        ran,
+        ["applied", "basis_error", "error", "paint", "paths_z_test", "project", "reference", "relight", "same_seed", "z_test"],
+        "nothing upstream of the edit runs"
+    );
     let after = r2.output("image").unwrap().get::<Image>().unwrap();
     let redder = before.pixels.iter().zip(&after.pixels).filter(|(b, a)| a[0] - a[1] > b[0] - b[1] + 0.01).count();
     assert!(redder > 10, "{redder} pixels turned redder");

@@ -403,7 +403,7 @@ fn param_text(reg: &Registry, graph: &Graph, target: &str) -> String {
 fn reported_metrics(kind: &str) -> &'static [&'static str] {
     match kind {
         "ImageError" => &["mse", "rel_mse", "psnr_db", "l2_percent", "flip", "ssim", "nonfinite_pixels"],
-        "ZTest" => &["pass_fraction", "max_abs_z", "mean_z", "pixels", "nonfinite_pixels"],
+        "ZTest" => &["pass_fraction", "max_abs_z", "mean_z", "pixels", "nonfinite_pixels", "zero_variance_channels"],
         "PbgiGather" => &["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver"],
         "FactorizedGather" => {
             &["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver", "clusters"]
@@ -444,6 +444,23 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
             "mixed_pixels",
         ],
         "RelightReference" => &["rays"],
+        "SvTransferPrecompute" => &[
+            "groups",
+            "sub_regions",
+            "images_uncompressed",
+            "components",
+            "uncompressed_bytes",
+            "bytes",
+            "compression_ratio",
+            "pca_energy_lost_pct",
+            "haar_energy_lost_pct",
+            "passes",
+            "rays",
+            "dropped_samples",
+            "mixed_pixels",
+        ],
+        "SvRelight" => &["clamped_texels"],
+        "PaintMaterial" => &["texels_painted"],
         _ => &[],
     }
 }

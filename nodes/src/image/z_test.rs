@@ -9,8 +9,9 @@ use relume_core::{inputs, node, outputs, CancelToken, NodeError, Params, RunCtx}
 /// A pixel passes when all its channels have |z| ≤ `z`, so equal values with zero variance
 /// pass and unequal ones fail. A pixel with any value not finite fails and is counted in
 /// `nonfinite_pixels`. Metrics: `pass_fraction` (of all pixels), `max_abs_z` and signed
-/// `mean_z` (bias shows as mean_z away from 0; both over the finite pixels' channels),
-/// `pixels`; a note says whether pass_fraction ≥ `min_pass`. Under an unbiased Gaussian
+/// `mean_z` (bias shows as mean_z away from 0; both over the finite pixels' channels with some
+/// variance: a difference without noise has no z worth averaging), `zero_variance_channels`
+/// (channels with no variance in either image; they pass only when equal), `pixels`; a note says whether pass_fraction ≥ `min_pass`. Under an unbiased Gaussian
 /// estimate with exact variances about 1 − 3 · P(|N| > z) of pixels pass (99.7 % at 3.29);
 /// variances estimated from few samples have heavier tails: use more samples or a larger
 /// `z`. Outputs the |z| map (f32::MAX where not finite or too large).
@@ -39,6 +40,8 @@ pub struct ZTestOutcome {
     pub pixels: usize,
     /// Pixels with a value that is not finite in any of the four images (all fail).
     pub nonfinite_pixels: usize,
+    /// Channels with zero variance in both images (outside max_abs_z and mean_z).
+    pub zero_variance_channels: usize,
     /// |z| per channel, f32::MAX where not finite or beyond f32.
     pub z_map: Image,
 }
@@ -57,6 +60,7 @@ impl ZTestOutcome {
             ("mean_z".into(), self.mean_z),
             ("pixels".into(), self.pixels as f64),
             ("nonfinite_pixels".into(), self.nonfinite_pixels as f64),
+            ("zero_variance_channels".into(), self.zero_variance_channels as f64),
         ])
     }
 }
@@ -89,7 +93,7 @@ pub fn z_test_with(
     image.check_same_size(reference, "image", "reference")?;
     image.check_same_size(reference_variance, "image", "reference_variance")?;
     let tiny = f64::MIN_POSITIVE;
-    let (mut passed, mut bad, mut channels) = (0usize, 0usize, 0usize);
+    let (mut passed, mut bad, mut channels, mut flat) = (0usize, 0usize, 0usize, 0usize);
     let (mut max_abs, mut sum) = (0.0f64, 0.0f64);
     let mut map = Vec::with_capacity(image.pixels.len());
     let (n, w) = (image.pixels.len(), image.width.max(1));
@@ -109,11 +113,15 @@ pub fn z_test_with(
                 let v = (vx[c] as f64).max(0.0) + (vr[c] as f64).max(0.0);
                 let zc = (x[c] as f64 - r[c] as f64) / (v + tiny).sqrt();
                 ok &= zc.abs() <= z;
+                px[c] = zc.abs().min(f32::MAX as f64) as f32;
+                if v == 0.0 {
+                    flat += 1;
+                    continue;
+                }
                 max_abs = max_abs.max(zc.abs());
                 sum += zc;
-                px[c] = zc.abs().min(f32::MAX as f64) as f32;
+                channels += 1;
             }
-            channels += 3;
             passed += ok as usize;
             map.push(px);
         }
@@ -125,11 +133,12 @@ pub fn z_test_with(
         mean_z: if channels == 0 { 0.0 } else { sum / channels as f64 },
         pixels,
         nonfinite_pixels: bad,
+        zero_variance_channels: flat,
         z_map: Image { width: image.width, height: image.height, pixels: map },
     })
 }
 
-#[node(category = "quality")]
+#[node(category = "quality", version = 2)]
 impl ZTest {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let outputs = (0..2).map(|k| if k == 1 { inputs[0] } else { Some(relume_core::PortSize::bytes(256)) }).collect();
@@ -287,6 +296,26 @@ mod tests {
     }
 
     #[test]
+    fn channels_without_variance_pass_only_when_equal_and_stay_out_of_the_statistics() {
+        // A light pixel: every sample saw it, so neither image has variance there; a float
+        // apart it fails, but its z (difference / 1e-154) must not swamp max_abs_z and mean_z.
+        let t = truth(4, 4);
+        let zero = Image::from_fn(4, 4, |_, _| [0.0; 3]);
+        let noisy = Image::from_fn(4, 4, |_, _| [0.01; 3]);
+        let mut x = t.clone();
+        x.pixels[5][0] += 1e-3;
+        let mut vx = noisy.clone();
+        vx.pixels[5] = [0.0; 3];
+        let mut vr = zero.clone();
+        vr.pixels[6] = [0.0; 3];
+        let o = z_test(&x, &vx, &t, &vr, 3.29).unwrap();
+        assert_eq!(o.zero_variance_channels, 3);
+        assert_eq!(o.pass_fraction, 15.0 / 16.0, "the unequal pixel without variance fails");
+        assert_eq!((o.max_abs_z, o.mean_z), (0.0, 0.0), "the noisy pixels agree exactly");
+        assert!(o.z_map.pixels[5][0] > 1e30);
+    }
+
+    #[test]
     fn the_node_reports_metrics_and_says_whether_the_test_passed() {
         let t = truth(32, 32);
         let (x, vx) = estimate(&t, [0.1; 3], 0.0, 4);
@@ -295,7 +324,7 @@ mod tests {
         let e = run_full::<ZTest>(&[], Path::new("."), inputs()).unwrap();
         let m: Metrics = e.outputs[0].get::<Metrics>().unwrap().clone();
         let names: Vec<_> = e.metrics.iter().map(|(k, _)| k.as_str()).collect();
-        assert_eq!(names, ["pass_fraction", "max_abs_z", "mean_z", "pixels", "nonfinite_pixels"]);
+        assert_eq!(names, ["pass_fraction", "max_abs_z", "mean_z", "pixels", "nonfinite_pixels", "zero_variance_channels"]);
         assert_eq!(m.get("pixels"), Some(1024.0));
         assert!(e.notes[0].starts_with("z-test passes"), "{:?}", e.notes);
         let zmap: Image = e.outputs[1].get::<Image>().unwrap().clone();

@@ -68,21 +68,34 @@ impl Gram {
         if self.g.iter().any(|v| !v.is_finite()) {
             return Err(NodeError::failed("PCA: the Gram matrix is not finite"));
         }
-        let full = Mat::<f64>::from_fn(n, n, |i, j| if j <= i { self.g[i * (i + 1) / 2 + j] } else { self.g[j * (j + 1) / 2 + i] });
-        let (lambda, u) = symmetric_eigen(&full)?;
+        // Only rows some column reached take part (a zero diagonal means a zero row), and the
+        // matrix is scaled to a unit largest diagonal: sparse blocks leave most rows empty,
+        // and an eigensolver meets neither the exact zeros nor tiny magnitudes.
+        let diag = |i: usize| self.g[i * (i + 1) / 2 + i];
+        let active: Vec<usize> = (0..n).filter(|&i| diag(i) > 0.0).collect();
+        let scale = active.iter().map(|&i| diag(i)).fold(0.0f64, f64::max);
+        let at = |i: usize, j: usize| if j <= i { self.g[i * (i + 1) / 2 + j] } else { self.g[j * (j + 1) / 2 + i] };
+        let m = active.len();
+        let (mut sigma, mut vectors) = (Vec::new(), Vec::new());
+        if m == 0 {
+            return Ok(StreamedPca { n, sigma, u: vectors });
+        }
+        let reduced = Mat::<f64>::from_fn(m, m, |a, b| at(active[a], active[b]) / scale);
+        let (lambda, u) = symmetric_eigen(&reduced)?;
         let top = lambda.last().copied().unwrap_or(0.0).max(0.0);
-        let mut sigma = Vec::new();
-        let mut vectors = Vec::new();
-        for c in (0..n).rev() {
+        for c in (0..m).rev() {
             if sigma.len() == k || lambda[c] <= RANK_TOLERANCE * top || lambda[c] <= 0.0 {
                 break;
             }
-            let mut v: Vec<f64> = (0..n).map(|i| u[(i, c)]).collect();
+            let mut v = vec![0.0f64; n];
+            for (a, &i) in active.iter().enumerate() {
+                v[i] = u[(a, c)];
+            }
             let big = (0..n).fold(0, |b, i| if v[i].abs() > v[b].abs() { i } else { b });
             if v[big] < 0.0 {
                 v.iter_mut().for_each(|x| *x = -*x);
             }
-            sigma.push(lambda[c].sqrt());
+            sigma.push((lambda[c] * scale).sqrt());
             vectors.push(v);
         }
         Ok(StreamedPca { n, sigma, u: vectors })
@@ -226,5 +239,25 @@ mod tests {
         let mut bad = Gram::new(2).unwrap();
         bad.add(&[0], &[f64::NAN]);
         assert!(bad.decompose(1).is_err());
+    }
+
+    #[test]
+    fn a_gram_matrix_with_mostly_empty_rows_and_tiny_values_decomposes() {
+        // 1024 rows, columns touching 6 of them with values around 1e-12: what a small image's
+        // sparse block gives.
+        let n = 1024;
+        let rows = [3u32, 40, 41, 300, 777, 1000];
+        let mut g = Gram::new(n).unwrap();
+        for p in 0..50u64 {
+            let v: Vec<f64> = (0..rows.len()).map(|r| 1e-12 * (uniform(2, p * 8 + r as u64, 0) as f64 + 0.1)).collect();
+            g.add(&rows, &v);
+        }
+        let pca = g.decompose(8).unwrap();
+        assert_eq!(pca.components(), 6);
+        let sum: f64 = pca.sigma.iter().map(|s| s * s).sum();
+        assert!((sum - g.trace()).abs() < 1e-9 * g.trace(), "the components carry the whole trace");
+        assert!(pca.u.iter().all(|u| (0..n as u32).filter(|i| !rows.contains(i)).all(|i| u[i as usize] == 0.0)));
+        let empty = Gram::new(n).unwrap().decompose(4).unwrap();
+        assert_eq!(empty.components(), 0);
     }
 }

@@ -1,17 +1,19 @@
 //! RelightReference node.
 
 use super::paths::{Paths, Slots};
-use super::shades::{check_scene, MaterialBrdf, MaterialShade};
+use super::shades::{check_scene_textured, MaterialBrdf, MaterialShade};
 use crate::render::film::{per_pixel_layers, with_ctx};
 use crate::types::accel::Accel;
-use crate::types::{gather_rows, row_spec, BrdfBasis, Image, ImageRows, ObjectMaterials, PathCounts, Scene, Transfer};
+use crate::types::{gather_rows, row_spec, BrdfBasis, Image, ImageRows, ObjectMaterials, PathCounts, Scene};
 use relume_core::{inputs, node, outputs, NodeError, ParamEnum, Params, RunCtx, ShardSpec};
 use std::ops::Range;
 
-/// The same-seed render of pixel relighting: exactly the paths `TransferPrecompute` traced for
-/// `transfer` (its sample counts and seed), weighted with one material per object instead of
-/// every basis. With `Analytic` BRDFs its difference to `Relight` is the basis error alone, no
-/// Monte Carlo noise — the figure [S] 4.1.5 reports (figures 4-3, 4-4). With `Tabulated` BRDFs
+/// The same-seed render of pixel relighting: exactly the paths the precompute traced (`paths`:
+/// the sample counts and seed of `TransferPrecompute` or `SvTransferPrecompute`), weighted with
+/// one material per object instead of every basis. With `Analytic` BRDFs (texture maps read at
+/// every hit) its difference to `Relight` is the basis error alone, no Monte Carlo noise — the
+/// figure [S] 4.1.5 reports (figures 4-3, 4-4); to `SvRelight`, the basis, the sub-region and
+/// the compression errors together. With `Tabulated` BRDFs
 /// (each dynamic material as Σ c_k ρ̃_k on the basis) it equals `Relight` to float precision:
 /// the test that the stored images and the combine are right. Also the variance of its mean
 /// over the camera samples: `Relight`'s image has the same paths, so this is its variance too
@@ -32,7 +34,7 @@ pub enum ReferenceBrdf {
     Tabulated,
 }
 
-inputs!(pub RelightReferenceIn { scene: Scene, accel: Accel, transfer: Transfer, basis: BrdfBasis, materials: ObjectMaterials });
+inputs!(pub RelightReferenceIn { scene: Scene, accel: Accel, paths: PathCounts, basis: BrdfBasis, materials: ObjectMaterials });
 outputs!(pub RelightReferenceOut { image: Image, variance: Image });
 
 /// Rows `rows` of the same-seed render with path counts `counts`.
@@ -47,10 +49,16 @@ pub fn reference_rows(
     rows: Range<usize>,
     cx: Option<&RunCtx>,
 ) -> Result<ImageRows, NodeError> {
-    check_scene(scene, basis.bases()).map_err(|m| NodeError::input("scene", m))?;
+    check_scene_textured(scene, basis.bases()).map_err(|m| NodeError::input("scene", m))?;
     let groups = scene.dynamic_groups();
     if materials.0.len() != groups.len() || materials.0.iter().zip(&groups).any(|(m, g)| m.name != g.0) {
         return Err(NodeError::input("materials", "the materials are not those of the scene's dynamic objects"));
+    }
+    if brdf == ReferenceBrdf::Tabulated && materials.0.iter().any(|m| !m.maps.is_empty()) {
+        return Err(NodeError::input(
+            "materials",
+            "textured materials have no tabulated form here (one coefficient set per object): use Analytic",
+        ));
     }
     if brdf == ReferenceBrdf::Tabulated && materials.0.iter().any(|m| m.coefficients.len() != basis.bases()) {
         return Err(NodeError::input("materials", "tabulated BRDFs need the materials projected on this basis (MaterialProject)"));
@@ -88,7 +96,7 @@ pub fn reference_rows(
     Ok(ImageRows::new(w, rows, vec![img, var], vec![rays]))
 }
 
-#[node(category = "relight", version = 3, sharded)]
+#[node(category = "relight", version = 4, sharded)]
 impl RelightReference {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let image = inputs[0].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));
@@ -96,27 +104,11 @@ impl RelightReference {
     }
 
     fn shard(&self, i: &RelightReferenceIn) -> Result<ShardSpec, NodeError> {
-        let (w, h) = (i.scene.camera.width, i.scene.camera.height);
-        if (w as u32, h as u32) != (i.transfer.width, i.transfer.height) {
-            return Err(NodeError::input(
-                "transfer",
-                format!("the transfer is {} × {}, the scene's camera {w} × {h}", i.transfer.width, i.transfer.height),
-            ));
-        }
-        Ok(row_spec(w, h))
+        Ok(row_spec(i.scene.camera.width, i.scene.camera.height))
     }
 
     fn run_items(&self, i: &RelightReferenceIn, rows: Range<u64>, cx: &RunCtx) -> Result<ImageRows, NodeError> {
-        reference_rows(
-            i.scene,
-            i.accel,
-            i.transfer.counts,
-            i.basis,
-            i.materials,
-            self.brdf,
-            rows.start as usize..rows.end as usize,
-            Some(cx),
-        )
+        reference_rows(i.scene, i.accel, *i.paths, i.basis, i.materials, self.brdf, rows.start as usize..rows.end as usize, Some(cx))
     }
 
     fn gather(&self, i: &RelightReferenceIn, parts: &[&ImageRows], cx: &RunCtx) -> Result<RelightReferenceOut, NodeError> {
@@ -145,7 +137,7 @@ mod tests {
         let parts = [0..3, 3..10].map(|r| reference_rows(&s, a, t.counts, &b, &m, ReferenceBrdf::Analytic, r, None).unwrap());
         assert_eq!(gather_rows(10, 10, 2, &[&whole]).unwrap(), gather_rows(10, 10, 2, &[&parts[0], &parts[1]]).unwrap());
         // The node over the graph's inputs gives the same image.
-        let inputs = vec![Value::new(s.clone()), accel.clone(), Value::new(t.clone()), Value::new(b.clone()), Value::new(m.clone())];
+        let inputs = vec![Value::new(s.clone()), accel.clone(), Value::new(t.counts), Value::new(b.clone()), Value::new(m.clone())];
         let img: Image = first(&run_on::<RelightReference>(&[("brdf", id("Analytic"))], inputs).unwrap());
         assert_eq!(img, gather_rows(10, 10, 2, &[&whole]).unwrap().0[0]);
         // Materials of another scene are refused.
@@ -215,6 +207,6 @@ mod tests {
         let mut t = t;
         t.counts.bounce_rays = 16;
         t.counts.spp = 4;
-        cancels_midway::<RelightReference>(&[], vec![Value::new(s), accel, Value::new(t), Value::new(b), Value::new(m)]);
+        cancels_midway::<RelightReference>(&[], vec![Value::new(s), accel, Value::new(t.counts), Value::new(b), Value::new(m)]);
     }
 }

@@ -53,6 +53,11 @@ pub fn check_scene_sv(scene: &Scene, bases: usize) -> Result<(), String> {
     Ok(())
 }
 
+/// `check_scene` with textured dynamic objects allowed (a renderer that reads the maps).
+pub fn check_scene_textured(scene: &Scene, bases: usize) -> Result<(), String> {
+    check_scene_with(scene, bases, true)
+}
+
 fn check_scene_with(scene: &Scene, bases: usize, maps: bool) -> Result<(), String> {
     if bases == 0 || bases > MAX_SLOTS {
         return Err(format!("the basis has {bases} BRDFs; pixel relighting takes 1 to {MAX_SLOTS}"));

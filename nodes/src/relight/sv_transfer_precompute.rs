@@ -20,7 +20,8 @@ use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 /// the uncompressed blocks (21 GiB in the thesis' setting) are never held. What it would hold
 /// is checked against the memory budget before anything is allocated. Every dynamic object
 /// needs UVs; its texture maps may be anything (`SvRelight` reads them per edit). Seeded:
-/// the same bytes on any thread count. Not sharded: the second pass needs every pixel's
+/// the same bytes on any thread count; `paths` gives the path counts to a same-seed render
+/// (`RelightReference`, which reads the texture maps at every hit). Not sharded: the second pass needs every pixel's
 /// Gram sums first.
 #[derive(Params)]
 pub struct SvTransferPrecompute {
@@ -57,7 +58,7 @@ pub struct SvTransferPrecompute {
 }
 
 inputs!(pub SvTransferPrecomputeIn { scene: Scene, accel: Accel, basis: BrdfBasis });
-outputs!(pub SvTransferPrecomputeOut { transfer: SvTransfer });
+outputs!(pub SvTransferPrecomputeOut { transfer: SvTransfer, paths: PathCounts });
 
 impl SvTransferPrecompute {
     pub fn counts(&self) -> PathCounts {
@@ -87,7 +88,7 @@ impl SvTransferPrecompute {
         // What it holds depends on the scene's objects: the node checks its own estimate
         // (`sv_precompute::memory`) against the budget before allocating.
         let px = inputs[0].and_then(|s| s.pixels()).unwrap_or(0);
-        relume_core::MemoryEstimate { outputs: vec![None], working: px * 16 }
+        relume_core::MemoryEstimate { outputs: vec![None, Some(relume_core::PortSize::bytes(32))], working: px * 16 }
     }
 
     fn run(&self, i: SvTransferPrecomputeIn, cx: &RunCtx) -> Result<SvTransferPrecomputeOut, NodeError> {
@@ -125,6 +126,6 @@ impl SvTransferPrecompute {
         if !i.scene.has_lights() {
             cx.note("the scene has no light: every image is black");
         }
-        Ok(SvTransferPrecomputeOut { transfer })
+        Ok(SvTransferPrecomputeOut { transfer, paths: self.counts() })
     }
 }

@@ -22,7 +22,8 @@ use std::ops::Range;
 /// `mixed_pixels`). Light seen directly (emitters, the environment) has an image of its own
 /// (`images_emitted`) averaged over every camera sample, so a light's edge is antialiased as in
 /// the reference. Seeded: the same bytes on any thread count and
-/// any sharding (sharded over image rows for `relume shard` / `--processes`). The held bytes
+/// any sharding (sharded over image rows for `relume shard` / `--processes`); `paths` gives
+/// the path counts to a same-seed render (`RelightReference`). The held bytes
 /// (images × pixels × 4) are checked against the limit before anything is allocated.
 #[derive(Params)]
 pub struct TransferPrecompute {
@@ -44,7 +45,7 @@ pub struct TransferPrecompute {
 }
 
 inputs!(pub TransferPrecomputeIn { scene: Scene, accel: Accel, basis: BrdfBasis });
-outputs!(pub TransferPrecomputeOut { transfer: Transfer });
+outputs!(pub TransferPrecomputeOut { transfer: Transfer, paths: PathCounts });
 
 impl TransferPrecompute {
     pub fn counts(&self) -> PathCounts {
@@ -187,13 +188,13 @@ pub fn gather_transfer(
     Ok((transfer, counters))
 }
 
-#[node(category = "relight", version = 2, sharded)]
+#[node(category = "relight", version = 3, sharded)]
 impl TransferPrecompute {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The images' count depends on the scene's objects and lights: the node checks the
         // bytes itself before allocating; here, the per-pixel classes and row buffers.
         let px = inputs[0].and_then(|s| s.pixels()).unwrap_or(0);
-        relume_core::MemoryEstimate { outputs: vec![None], working: px * 8 }
+        relume_core::MemoryEstimate { outputs: vec![None, Some(relume_core::PortSize::bytes(32))], working: px * 8 }
     }
 
     fn shard(&self, i: &TransferPrecomputeIn) -> Result<ShardSpec, NodeError> {
@@ -224,7 +225,7 @@ impl TransferPrecompute {
         if !i.scene.has_lights() {
             cx.note("the scene has no light: every image is black");
         }
-        Ok(TransferPrecomputeOut { transfer })
+        Ok(TransferPrecomputeOut { transfer, paths: self.counts() })
     }
 }
 

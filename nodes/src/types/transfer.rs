@@ -28,6 +28,19 @@ pub struct PathCounts {
     pub seed: u64,
 }
 
+/// Disk encoding: serde through postcard. A port of its own, so that a same-seed render reads
+/// the paths of either precompute (`RelightReference` after `TransferPrecompute` or
+/// `SvTransferPrecompute`).
+impl PortValue for PathCounts {
+    const NAME: &'static str = "PathCounts";
+    const COLOR: [u8; 3] = [160, 210, 190];
+    const DOC: &'static str = "how a relighting precompute sampled its paths (camera, light and hemisphere samples, seed)";
+    fn byte_size(&self) -> usize {
+        32
+    }
+    relume_core::serde_codec!();
+}
+
 /// Every stored image of a scene's terms at `width × height`, pixel-major: pixel p's floats are
 /// `data[p * stride ..][.. floats]`, term by term in `terms` order (grey: one float, RGB:
 /// three), zero-padded to `stride` (a multiple of 8, for the combine's vector loop).
