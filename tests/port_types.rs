@@ -37,6 +37,23 @@ fn every_port(mut g: Graph) -> Graph {
     g
 }
 
+/// A relighting graph at test size: 12 × 10 pixels, a small BRDF space, few paths.
+fn small_relight(name: &str, extra: &[(&str, &str)]) -> Graph {
+    let mut set = vec![
+        ("scene.width", "12"),
+        ("scene.height", "10"),
+        ("space.n_theta_i", "8"),
+        ("space.n_theta_o", "8"),
+        ("space.n_phi", "16"),
+        ("space.samples", "21"),
+        ("transfer.spp", "2"),
+        ("transfer.bounce_rays", "2"),
+        ("reference.spp", "2"),
+    ];
+    set.extend_from_slice(extra);
+    load_graph(name, &set)
+}
+
 #[test]
 fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
     let reg = relume_nodes::registry();
@@ -45,37 +62,10 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
     let first = Engine::new(relume_nodes::registry()).with_disk_cache(dir.path()).with_disk_policy(DiskPolicy::Always);
     let r1 = first.run(&g, &RunOptions::default()).unwrap();
     // The relighting types come from the ring's relighting graph (same engine, same cache).
-    let b = every_port(load_graph(
-        "relight_ring.ron",
-        &[
-            ("scene.width", "12"),
-            ("scene.height", "12"),
-            ("space.n_theta_i", "8"),
-            ("space.n_theta_o", "8"),
-            ("space.n_phi", "16"),
-            ("space.samples", "21"),
-            ("transfer.spp", "2"),
-            ("transfer.bounce_rays", "2"),
-            ("reference.spp", "2"),
-        ],
-    ));
+    let b = every_port(small_relight("relight_ring.ron", &[]));
     let rb = first.run(&b, &RunOptions::default()).unwrap();
     // The spatially varying relighting's transfer from its own graph.
-    let c = every_port(load_graph(
-        "relight_sv_spot.ron",
-        &[
-            ("scene.width", "12"),
-            ("scene.height", "10"),
-            ("space.n_theta_i", "8"),
-            ("space.n_theta_o", "8"),
-            ("space.n_phi", "16"),
-            ("space.samples", "21"),
-            ("transfer.spp", "2"),
-            ("transfer.bounce_rays", "2"),
-            ("transfer.sub_regions", "4"),
-            ("reference.spp", "2"),
-        ],
-    ));
+    let c = every_port(small_relight("relight_sv_spot.ron", &[("transfer.sub_regions", "4")]));
     let rc = first.run(&c, &RunOptions::default()).unwrap();
 
     // Every registered port type is produced by this graph (as an output, or as the partial
