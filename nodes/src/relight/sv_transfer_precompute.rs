@@ -82,7 +82,7 @@ impl SvTransferPrecompute {
     }
 }
 
-#[node(category = "relight")]
+#[node(category = "relight", version = 2)]
 impl SvTransferPrecompute {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // What it holds depends on the scene's objects: the node checks its own estimate
