@@ -296,4 +296,20 @@ mod tests {
         assert!(!project_clamped(&b, Vec3::splat(0.5), Vec3::ZERO, 500.0, &mut out), "without Ks the exponent plays no part");
         assert_eq!(out[1], [0.0; 3]);
     }
+
+    #[test]
+    fn the_node_counts_clamped_exponents_and_says_so() {
+        let (b, _) = basis(&space(4, 4, 8, 6, 1.0, 100.0), 3);
+        let scene = sv_scene(6);
+        let t = sv(&scene, &b, &lossless(2, 2));
+        let mut m = scene_materials(&scene).unwrap();
+        m.0[1].maps.exponent = Texture::new(3, 5, vec![Vec3::splat(50.0); 15]);
+        let inputs = vec![relume_core::Value::new(t), relume_core::Value::new(b), relume_core::Value::new(m)];
+        let e = crate::testing::run_full::<SvRelight>(&[], std::path::Path::new("."), inputs).unwrap();
+        let clamped = e.metrics.iter().find(|x| x.0 == "clamped_texels").unwrap().1;
+        // Sphere c's s = 60 × 50 is beyond 100: its 4 sub-regions and its pixels are clamped.
+        assert!(clamped >= 4.0, "{clamped}");
+        assert!(e.notes.iter().any(|n| n.contains("clamped to it")), "{:?}", e.notes);
+        assert!(e.outputs[0].get::<Image>().unwrap().as_floats().iter().all(|v| v.is_finite()));
+    }
 }

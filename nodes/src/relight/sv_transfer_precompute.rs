@@ -129,3 +129,47 @@ impl SvTransferPrecompute {
         Ok(SvTransferPrecomputeOut { transfer, paths: self.counts() })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::relight::test_support::{basis, space, sv_scene};
+    use crate::testing::{cancels_midway, f, i, run_full};
+    use relume_core::Value;
+
+    fn inputs(size: usize) -> Vec<Value> {
+        let (b, _) = basis(&space(4, 4, 8, 6, 1.0, 100.0), 3);
+        let s = sv_scene(size);
+        let accel = Accel::build(&s, crate::types::accel::BuildQuality::Fast);
+        vec![Value::new(s), Value::new(accel), Value::new(b)]
+    }
+
+    #[test]
+    fn the_report_counts_groups_components_and_bytes_and_the_paths_go_out() {
+        let p = [("spp", i(2)), ("bounce_rays", i(2)), ("sub_regions", i(4)), ("indirect_bases", i(2)), ("pca_keep", f(0.25))];
+        let e = run_full::<SvTransferPrecompute>(&p, std::path::Path::new("."), inputs(8)).unwrap();
+        let m = |k: &str| e.metrics.iter().find(|x| x.0 == k).unwrap_or_else(|| panic!("no {k}")).1;
+        // Two dynamic objects × (2 · 2 − 1) groups of 16 sub-regions, 4 components each.
+        assert_eq!((m("groups"), m("sub_regions"), m("components"), m("passes")), (6.0, 16.0, 4.0, 2.0));
+        assert_eq!(m("images_uncompressed"), 6.0 * 16.0 + 3.0 + 2.0);
+        assert_eq!(m("uncompressed_bytes"), m("images_uncompressed") * 64.0 * 12.0);
+        let t = e.outputs[0].get::<SvTransfer>().unwrap();
+        assert_eq!(m("bytes"), t.bytes() as f64);
+        assert!(e.notes.iter().any(|n| n.contains("6 groups of 16 sub-region images")), "{:?}", e.notes);
+        let paths = e.outputs[1].get::<PathCounts>().unwrap();
+        assert_eq!((paths.spp, paths.bounce_rays, paths.seed), (2, 2, 0));
+        assert_eq!(t.counts, *paths);
+    }
+
+    #[test]
+    fn indirect_bases_beyond_the_basis_are_a_parameter_error() {
+        let e = run_full::<SvTransferPrecompute>(&[("indirect_bases", i(5))], std::path::Path::new("."), inputs(4)).unwrap_err();
+        assert!(e.to_string().contains("1 to 3"), "{e}");
+    }
+
+    #[test]
+    fn the_node_stops_midway_when_cancelled() {
+        let p = [("spp", i(4)), ("bounce_rays", i(8)), ("sub_regions", i(2)), ("indirect_bases", i(2))];
+        cancels_midway::<SvTransferPrecompute>(&p, inputs(16));
+    }
+}
