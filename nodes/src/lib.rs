@@ -13,6 +13,7 @@ pub mod scene;
 #[cfg(test)]
 pub(crate) mod testing;
 pub mod types;
+pub mod volume;
 
 use relume_core::Registry;
 
