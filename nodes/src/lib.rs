@@ -25,6 +25,7 @@ pub fn register_all(reg: &mut Registry) {
     reference::register(reg);
     pbgi::register(reg);
     relight::register(reg);
+    volume::register(reg);
 }
 
 /// A registry with every node of this crate.

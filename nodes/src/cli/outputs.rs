@@ -24,9 +24,22 @@ pub(crate) fn write_outputs(dir: &Path, outputs: &[(String, Value)]) -> Result<V
             files.push(json);
         } else if let Some(c) = v.get::<ObjectMaterials>() {
             // A JSON list of the dynamic objects' materials with their RGB coefficients, the
-            // diffuse basis first.
+            // diffuse basis first; texture maps by their size (their texels are not text).
             let json = dir.join(format!("{name}.json"));
-            let text = serde_json::to_string_pretty(&c.0).map_err(|e| format!("cannot encode {name}: {e}"))?;
+            let size = |t: &Option<crate::types::Texture>| t.as_ref().map(|t| format!("{} × {} texture", t.width, t.height));
+            let list: Vec<serde_json::Value> =
+                c.0.iter()
+                    .map(|m| {
+                        let mut v = serde_json::json!({ "name": m.name, "kd": m.kd, "ks": m.ks, "s": m.s, "coefficients": m.coefficients });
+                        for (key, t) in [("kd_map", &m.maps.kd), ("ks_map", &m.maps.ks), ("exponent_map", &m.maps.exponent)] {
+                            if let Some(text) = size(t) {
+                                v[key] = serde_json::Value::String(text);
+                            }
+                        }
+                        v
+                    })
+                    .collect();
+            let text = serde_json::to_string_pretty(&list).map_err(|e| format!("cannot encode {name}: {e}"))?;
             relume_core::graph::write_atomic(&json, text.as_bytes()).map_err(|e| format!("cannot write {}: {e}", json.display()))?;
             files.push(json);
         } else {

@@ -461,6 +461,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         ],
         "SvRelight" => &["clamped_texels"],
         "PaintMaterial" => &["texels_painted"],
+        "Voxelize" => &["voxels", "inside_volume", "volume_error_pct", "index"],
         _ => &[],
     }
 }

@@ -1,8 +1,20 @@
 //! Pipeline 3, dynamic refractive and scattering objects ([S] chapter 6; PIPELINES.md
 //! "Pipeline 3"): the shared volume code — the min/max pyramid the octree reads
-//! (`pyramid`), the separable 3-D Gaussian blur (`blur`) — with the `Volume` port type in
-//! `types::volume`. The stage nodes (`Voxelize`, `Octree`, `EmitPhotons`, `MarchPhotons`,
-//! `EikonalRender`, …) come next, one file each.
+//! (`pyramid`), the separable 3-D Gaussian blur (`blur`), inside fractions of closed meshes
+//! by scanlines (`scanline`) — with the `Volume` port type in
+//! `types::volume`. The stage nodes: `Voxelize`, and `VolumeSlice` to look inside a volume; to come `Octree`, `EmitPhotons`, `MarchPhotons`,
+//! `EikonalRender`, …, one file each.
 
 pub mod blur;
 pub mod pyramid;
+pub mod scanline;
+pub mod volume_slice;
+pub mod voxelize;
+
+use relume_core::Registry;
+
+/// Registers the volume nodes.
+pub fn register(reg: &mut Registry) {
+    reg.add::<voxelize::Voxelize>();
+    reg.add::<volume_slice::VolumeSlice>();
+}
