@@ -462,6 +462,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "SvRelight" => &["clamped_texels"],
         "PaintMaterial" => &["texels_painted"],
         "Voxelize" => &["voxels", "inside_volume", "volume_error_pct", "index"],
+        "Octree" => &["unbounded_pct", "stepped_pct", "minimum_step_pct"],
         _ => &[],
     }
 }

@@ -2,10 +2,11 @@
 //! "Pipeline 3"): the shared volume code — the min/max pyramid the octree reads
 //! (`pyramid`), the separable 3-D Gaussian blur (`blur`), inside fractions of closed meshes
 //! by scanlines (`scanline`) — with the `Volume` port type in
-//! `types::volume`. The stage nodes: `Voxelize`, and `VolumeSlice` to look inside a volume; to come `Octree`, `EmitPhotons`, `MarchPhotons`,
+//! `types::volume`. The stage nodes: `Voxelize`, `Octree`, and `VolumeSlice` to look inside a volume; to come `EmitPhotons`, `MarchPhotons`,
 //! `EikonalRender`, …, one file each.
 
 pub mod blur;
+pub mod octree;
 pub mod pyramid;
 pub mod scanline;
 pub mod volume_slice;
@@ -17,4 +18,5 @@ use relume_core::Registry;
 pub fn register(reg: &mut Registry) {
     reg.add::<voxelize::Voxelize>();
     reg.add::<volume_slice::VolumeSlice>();
+    reg.add::<octree::Octree>();
 }
