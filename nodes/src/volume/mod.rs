@@ -2,7 +2,7 @@
 //! "Pipeline 3"): the shared volume code — the min/max pyramid the octree reads
 //! (`pyramid`), the separable 3-D Gaussian blur (`blur`), inside fractions of closed meshes
 //! by scanlines (`scanline`) — with the `Volume` port type in
-//! `types::volume`. The stage nodes: `Voxelize`, `Octree`, and `VolumeSlice` to look inside a volume; to come `EmitPhotons`, `MarchPhotons`,
+//! `types::volume`. The stage nodes: `Voxelize`, `VolumeSource`, `Octree`, and `VolumeSlice` to look inside a volume; to come `EmitPhotons`, `MarchPhotons`,
 //! `EikonalRender`, …, one file each.
 
 pub mod blur;
@@ -10,6 +10,7 @@ pub mod octree;
 pub mod pyramid;
 pub mod scanline;
 pub mod volume_slice;
+pub mod volume_source;
 pub mod voxelize;
 
 use relume_core::Registry;
@@ -19,4 +20,5 @@ pub fn register(reg: &mut Registry) {
     reg.add::<voxelize::Voxelize>();
     reg.add::<volume_slice::VolumeSlice>();
     reg.add::<octree::Octree>();
+    reg.add::<volume_source::VolumeSource>();
 }
