@@ -463,6 +463,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "PaintMaterial" => &["texels_painted"],
         "Voxelize" => &["voxels", "inside_volume", "volume_error_pct", "index"],
         "Octree" => &["unbounded_pct", "stepped_pct", "minimum_step_pct"],
+        "VolumePaint" => &["voxels_painted"],
         _ => &[],
     }
 }
