@@ -1,6 +1,10 @@
 //! `Accel`: a compressed-wide BVH (obvhs CwBvh) over a scene's triangles, with closest-hit
 //! queries that return barycentrics and shadow queries that stop at the first hit
-//! (`ray_traverse_miss`; obvhs' `ray_traverse_anyhit` visits every hit).
+//! (`ray_traverse_miss`; obvhs' `ray_traverse_anyhit` visits every hit). Directions reach
+//! obvhs with −0 components made +0: its traversal takes a component's sign from `< 0` but
+//! its inverse from the sign bit, so a ray straight down the y axis written as −n, (−0, −1,
+//! −0), missed a floor it stood on. Measured, not fixed here: rays starting within about 10⁻⁴
+//! of a surface may miss it (obvhs' quantised boxes); callers start such rays farther back.
 
 use crate::types::Scene;
 use glam::{Vec3, Vec3A};
@@ -73,8 +77,16 @@ pub struct Accel {
 
 impl Accel {
     pub fn build(scene: &Scene, quality: BuildQuality) -> Accel {
-        let obv: Vec<Triangle> = (0..scene.triangles.len())
-            .map(|t| {
+        Accel::build_filtered(scene, quality, |_| true)
+    }
+
+    /// A BVH over the scene triangles `keep` accepts; hits still name scene triangle indices.
+    pub fn build_filtered(scene: &Scene, quality: BuildQuality, keep: impl Fn(usize) -> bool) -> Accel {
+        let kept: Vec<u32> = (0..scene.triangles.len() as u32).filter(|&t| keep(t as usize)).collect();
+        let obv: Vec<Triangle> = kept
+            .iter()
+            .map(|&t| {
+                let t = t as usize;
                 let [a, b, c] = scene.corners(t);
                 Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
             })
@@ -85,20 +97,43 @@ impl Accel {
             BuildQuality::Slow => BvhBuildParams::slow_build(),
         };
         let bvh = build_cwbvh_from_tris(&obv, params, &mut std::time::Duration::default());
-        let prim = bvh.primitive_indices.clone();
-        let tris = prim
+        let tris = bvh
+            .primitive_indices
             .iter()
             .map(|&i| {
                 let t = &obv[i as usize];
                 Tri { v0: t.v0, e1: t.v1 - t.v0, e2: t.v2 - t.v0 }
             })
             .collect();
+        let prim = bvh.primitive_indices.iter().map(|&i| kept[i as usize]).collect();
         Accel { bvh, tris, prim }
+    }
+
+    /// The bounding box of its triangles (an inverted box when it has none).
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.bounds_within(Vec3::splat(f32::NEG_INFINITY), Vec3::splat(f32::INFINITY))
+            .unwrap_or((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)))
+    }
+
+    /// The bounding box of the triangles whose own boxes meet `lo … hi`, clipped to it: where
+    /// a ray inside that box may hit something (`None` when nothing is there).
+    pub fn bounds_within(&self, lo: Vec3, hi: Vec3) -> Option<(Vec3, Vec3)> {
+        let (a, b) = self.tris.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(a, b), t| {
+            let (p, q, r) = (Vec3::from(t.v0), Vec3::from(t.v0 + t.e1), Vec3::from(t.v0 + t.e2));
+            let (tl, th) = (p.min(q).min(r), p.max(q).max(r));
+            if tl.cmple(hi).all() && th.cmpge(lo).all() {
+                (a.min(tl), b.max(th))
+            } else {
+                (a, b)
+            }
+        });
+        let (a, b) = (a.max(lo), b.min(hi));
+        a.cmple(b).all().then_some((a, b))
     }
 
     /// Closest hit along `o + t d` for t in (tmin, tmax).
     pub fn intersect(&self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
-        let (o, d) = (Vec3A::from(o), Vec3A::from(d));
+        let (o, d) = (Vec3A::from(o), Vec3A::from(d) + Vec3A::ZERO);
         let ray = Ray::new(o, d, tmin, tmax);
         let mut hit = RayHit::none();
         let mut best = (f32::INFINITY, 0.0, 0.0);
@@ -114,7 +149,7 @@ impl Accel {
 
     /// Whether anything blocks `o + t d` for t in (tmin, tmax); stops at the first blocker.
     pub fn occluded(&self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool {
-        let (o, d) = (Vec3A::from(o), Vec3A::from(d));
+        let (o, d) = (Vec3A::from(o), Vec3A::from(d) + Vec3A::ZERO);
         let ray = Ray::new(o, d, tmin, tmax);
         !self.bvh.ray_traverse_miss(ray, |r, id| self.tris[id].intersect(o, d, r.tmin, r.tmax).map_or(f32::INFINITY, |h| h.0))
     }
