@@ -1,12 +1,14 @@
-//! Scenes: the file format, OBJ loading, analytic shapes, environment maps, and the
-//! LoadScene node.
+//! Scenes: the file format, OBJ loading, analytic shapes, environment maps, and the scene
+//! nodes: LoadScene, MoveObject, DeformMesh, OrbitCamera.
 
 pub mod builder;
+pub mod deform_mesh;
 pub mod envmap;
 pub mod format;
 pub mod load_scene;
 pub mod move_object;
 pub mod obj;
+pub mod orbit_camera;
 pub mod shapes;
 
 use relume_core::Registry;
@@ -14,4 +16,6 @@ use relume_core::Registry;
 pub fn register(reg: &mut Registry) {
     reg.add::<load_scene::LoadScene>();
     reg.add::<move_object::MoveObject>();
+    reg.add::<deform_mesh::DeformMesh>();
+    reg.add::<orbit_camera::OrbitCamera>();
 }

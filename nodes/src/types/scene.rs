@@ -20,6 +20,44 @@ pub struct Camera {
     pub height: usize,
 }
 
+impl Camera {
+    /// Whether the camera can render: finite vectors, origin ≠ target, `up` not along the view
+    /// direction, 1 … 16384 pixels a side, a field of view strictly between 0° and 180°.
+    pub fn is_consistent(&self) -> bool {
+        let dir = self.target - self.origin;
+        self.origin.is_finite()
+            && self.target.is_finite()
+            && self.up.is_finite()
+            && dir.length_squared() > 0.0
+            && dir.cross(self.up).length_squared() > 0.0
+            && (1..=16384).contains(&self.width)
+            && (1..=16384).contains(&self.height)
+            && self.fov_deg > 0.0
+            && self.fov_deg < 180.0
+    }
+}
+
+/// A camera on its own port: a render that takes it as an input re-runs alone when only the
+/// view changes (`OrbitCamera`). Decoding refuses a camera that could not render.
+impl PortValue for Camera {
+    const NAME: &'static str = "Camera";
+    const COLOR: [u8; 3] = [235, 120, 120];
+    const DOC: &'static str = "a look-at pinhole camera: origin, target, up, field of view, resolution";
+    /// Bytes, and the resolution: the size of the images rendered from it.
+    fn size(&self) -> relume_core::PortSize {
+        relume_core::PortSize { bytes: self.byte_size() as u64, dims: Some([self.width, self.height]) }
+    }
+    fn byte_size(&self) -> usize {
+        std::mem::size_of::<Camera>()
+    }
+    fn encode(&self) -> Vec<u8> {
+        codec::to_bytes(self)
+    }
+    fn decode(bytes: &[u8]) -> Option<Self> {
+        codec::from_bytes::<Camera>(bytes).filter(Camera::is_consistent)
+    }
+}
+
 /// Delta lights. Area lights are objects with emission; the environment is separate.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Light {
