@@ -69,6 +69,7 @@ pub fn graph_edits() -> Vec<GraphEdit> {
         ("relight_ring.ron", "project.kd", |k| format!("({}, 0.2, 0.2)", 0.2 + k as f64 * 1e-6)),
         ("relight_vs_reference.ron", "transfer.spp", |k| format!("{}", 16 + k)),
         ("voxelize_glass.ron", "voxelize.index", |k| format!("{}", 1.5 + k as f64 * 1e-6)),
+        ("refract_glass.ron", "light.translation", |k| format!("({}, 0, 0)", k as f64 * 1e-6)),
         ("relight_sv_spot.ron", "project.kd", |k| format!("({}, 0.7, 0.7)", 0.7 + k as f64 * 1e-6)),
         ("image_error.ron", "error_denoised.epsilon", |k| format!("{}", 0.01 + k as f64 * 1e-9)),
         ("reference_cornell.ron", "reference.seed", |k| format!("{}", 1000 + k)),

@@ -7,7 +7,8 @@ use relume_tests::{add_output, files_under, load_graph};
 use std::collections::BTreeSet;
 
 /// `pbgi_vs_reference.ron` at test size with every output port of every node as an output:
-/// with `relight_ring.ron`, `relight_sv_spot.ron` and `voxelize_glass.ron` it produces every
+/// with `relight_ring.ron`, `relight_sv_spot.ron`, `voxelize_glass.ron` and
+/// `refract_glass.ron` it produces every
 /// port type relume registers.
 fn every_port_graph() -> Graph {
     let g = load_graph(
@@ -70,13 +71,19 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
     // The volume of pipeline 3.
     let d = every_port(load_graph("voxelize_glass.ron", &[("voxelize.resolution", "12")]));
     let rd = first.run(&d, &RunOptions::default()).unwrap();
+    // Photons, their caustic map and the camera from the refraction graph.
+    let e = every_port(load_graph(
+        "refract_glass.ron",
+        &[("voxelize.resolution", "12"), ("emit.resolution", "24"), ("reference.spp", "1"), ("scene.width", "8"), ("scene.height", "8")],
+    ));
+    let re = first.run(&e, &RunOptions::default()).unwrap();
 
     // Every registered port type is produced by this graph (as an output, or as the partial
     // results of its sharded nodes, kept on disk chunk by chunk), and each value decodes to
     // itself.
     let mut produced: BTreeSet<&str> =
-        r1.outputs.iter().chain(&rb.outputs).chain(&rc.outputs).chain(&rd.outputs).map(|(_, v)| v.type_name()).collect();
-    for n in r1.report.nodes.iter().chain(&rb.report.nodes).chain(&rc.report.nodes).chain(&rd.report.nodes) {
+        r1.outputs.iter().chain(&rb.outputs).chain(&rc.outputs).chain(&rd.outputs).chain(&re.outputs).map(|(_, v)| v.type_name()).collect();
+    for n in r1.report.nodes.iter().chain(&rb.report.nodes).chain(&rc.report.nodes).chain(&rd.report.nodes).chain(&re.report.nodes) {
         let kind = reg.node(&n.kind).unwrap();
         if let (Some(sh), Some(stats)) = (kind.sharded(), &n.shards) {
             assert_eq!((stats.ran, stats.cached), (stats.chunks, 0), "{}: every chunk ran", n.id);
@@ -85,7 +92,7 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
     }
     let registered: BTreeSet<&str> = reg.port_types().map(|t| t.name).collect();
     assert_eq!(produced, registered, "the graph covers every registered port type");
-    for (name, v) in r1.outputs.iter().chain(&rb.outputs).chain(&rc.outputs).chain(&rd.outputs) {
+    for (name, v) in r1.outputs.iter().chain(&rb.outputs).chain(&rc.outputs).chain(&rd.outputs).chain(&re.outputs) {
         let bytes = v.encode();
         let info = reg.port_type(v.type_name()).unwrap();
         let back = (info.decode)(&bytes, v.fingerprint()).unwrap_or_else(|| panic!("{name} ({}) does not decode", v.type_name()));
@@ -98,7 +105,7 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
 
     // A second engine (another process) gets every node's result from disk, the same values.
     let second = Engine::new(relume_nodes::registry()).with_disk_cache(dir.path());
-    for (graph, r) in [(&g, &r1), (&b, &rb), (&c, &rc), (&d, &rd)] {
+    for (graph, r) in [(&g, &r1), (&b, &rb), (&c, &rc), (&d, &rd), (&e, &re)] {
         let r2 = second.run(graph, &RunOptions::default()).unwrap();
         assert_eq!(r2.report.ran, 0, "{:?}", r2.report.ran_ids());
         // From disk, or from memory where an earlier graph had the same node (the BRDF space

@@ -27,3 +27,47 @@ fn a_paint_stroke_reruns_the_octree_onward_and_not_the_voxelisation() {
     let brighter = a.pixels.iter().zip(&b.pixels).filter(|(x, y)| y[0] > x[0] + 0.05).count();
     assert!(brighter > 5, "{brighter} voxels of the slice gained index");
 }
+
+/// `refract_glass.ron` at test size.
+fn small_refract(extra: &[(&str, &str)]) -> relume_core::Graph {
+    let mut set = vec![
+        ("scene.width", "32"),
+        ("scene.height", "32"),
+        ("voxelize.resolution", "32"),
+        ("emit.resolution", "64"),
+        ("march.map_resolution", "64"),
+        ("reference.spp", "16"),
+    ];
+    set.extend_from_slice(extra);
+    load_graph("refract_glass.ron", &set)
+}
+
+#[test]
+fn each_edit_of_the_refraction_graph_reruns_only_what_it_reaches() {
+    let reg = relume_nodes::registry();
+    let e = Engine::new(relume_nodes::registry());
+    let mut g = small_refract(&[]);
+    let r = e.run(&g, &RunOptions::default()).unwrap();
+    let img = r.output("image").unwrap().get::<Image>().unwrap().clone();
+    assert_eq!((img.width, img.height), (32, 32));
+    assert_eq!(img.nonfinite_pixels(), 0);
+    let march = r.report.node("march").unwrap();
+    assert!(march.metrics["photons"] > 1000.0 && march.metrics["landed_pct"] > 30.0, "{:?}", march.metrics);
+    let mut rerun = |param: &str, value: &str| {
+        g.set_param_text(&reg, param, value).unwrap();
+        let r = e.run(&g, &RunOptions::default()).unwrap();
+        let mut ran: Vec<String> = r.report.ran_ids().into_iter().map(String::from).collect();
+        ran.sort();
+        ran
+    };
+    // Orbiting: the camera and the render, nothing else (the reference keeps the scene's view).
+    assert_eq!(rerun("camera.azimuth", "20"), ["camera", "error", "render"]);
+    // Moving the light: the photons onward, and the geometry it is part of (the lamp is a
+    // sphere in the BVH), and the reference.
+    assert_eq!(
+        rerun("light.translation", "(0.2, 0.0, 0.0)"),
+        ["bvh", "emit", "error", "full_bvh", "light", "march", "reference", "render"]
+    );
+    // A paint stroke: the octree onward, never the voxelisation.
+    assert_eq!(rerun("paint.weight", "0.2"), ["emit", "error", "march", "octree", "paint", "render"]);
+}

@@ -462,6 +462,11 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "SvRelight" => &["clamped_texels"],
         "PaintMaterial" => &["texels_painted"],
         "Voxelize" => &["voxels", "inside_volume", "volume_error_pct", "index"],
+        "EmitPhotons" => &["photons", "lights", "power_w"],
+        "MarchPhotons" => {
+            &["photons", "photon_steps", "steps_per_photon", "landed_pct", "left_pct", "absorbed_pct", "stopped_pct", "straight_pct"]
+        }
+        "EikonalRender" => &["rays"],
         "Octree" => &["unbounded_pct", "stepped_pct", "minimum_step_pct"],
         "VolumePaint" => &["voxels_painted"],
         _ => &[],

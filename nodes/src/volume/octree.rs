@@ -2,6 +2,7 @@
 
 use super::pyramid::MinMaxPyramid;
 use crate::types::Volume;
+use glam::Vec3;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
 /// The adaptive step of photon marching ([S] 6.3.2, 6.4.3, figure 6-4), per voxel of the
@@ -11,10 +12,17 @@ use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 /// Δs_max is unbounded where the leaf's range is below ε (`uniform`, 0.005), `step` voxels (8)
 /// where it is between, and 0 — the marcher's minimum step — where even the voxel's own cell
 /// spans ε′ or more. This is the reading PIPELINES.md gives: read literally (leaves built with
-/// ε, then "8 voxels below ε′") the ε′ rule never fires. Extinction is not thresholded ([S]
-/// 6.3.2 found it mattered little). Output: a 2-channel volume on the same grid: the leaf level
-/// (cell side 2^level voxels, aligned to multiples of it) and Δs_max in voxels (+∞ for
-/// unbounded).
+/// ε, then "8 voxels below ε′") the ε′ rule never fires. Extinction does not shape the leaves ([S] 6.3.2 found it mattered little: the
+/// marcher integrates it exactly voxel by voxel); instead each voxel records whether its
+/// leaf is clear (κ = 0 all through it), where the eikonal render may take the leaf's steps
+/// too, having nothing to gather there. Output, 7 channels on the same grid: the leaf level
+/// (cell side 2^level voxels, aligned to multiples of it), Δs_max in voxels (+∞ for
+/// unbounded), clear (1 or 0), ∇n (central differences one voxel apart, replicated at the
+/// faces: trilinear sampling of these is the central difference of the trilinear index,
+/// what `Volume::gradient` computes, read in one lookup), and `bends` (1 where the voxel or a
+/// neighbour has |∇n| × voxel > 10⁻⁶: where a ray's trilinear gradient can be non-zero). A
+/// straight line that crosses no `bends` voxel is a ray the medium leaves exactly straight:
+/// the photons and the render's shadow rays split the light by it.
 #[derive(Params)]
 pub struct Octree {
     /// ε: an index range below this is uniform (unbounded steps)
@@ -28,6 +36,13 @@ pub struct Octree {
     pub step: f32,
 }
 
+/// Channels of the octree volume: level, Δs_max, clear, ∇n (3), bends.
+pub const CHANNELS: u32 = 7;
+/// The channel of ∇n's x component.
+pub const GRADIENT: usize = 3;
+/// The channel saying a ray may bend in the voxel.
+pub const BENDS: usize = 6;
+
 inputs!(pub OctreeIn { medium: Volume });
 outputs!(pub OctreeOut { octree: Volume });
 
@@ -37,8 +52,10 @@ pub fn build(v: &Volume, o: &Octree, budget: u64) -> Result<(Volume, [u64; 3]), 
     if o.uniform.partial_cmp(&o.flat) == Some(std::cmp::Ordering::Greater) || o.uniform.is_nan() || o.flat.is_nan() {
         return Err(NodeError::param("uniform", format!("ε = {} must not exceed ε′ = {}", o.uniform, o.flat)));
     }
-    let mut out = Volume::try_new(v.dims, 2, v.min, v.max, 0.0, budget)?;
+    let mut out = Volume::try_new(v.dims, CHANNELS, v.min, v.max, 0.0, budget)?;
     let p = MinMaxPyramid::build(v, 0);
+    let kappa = (v.channels > 1).then(|| MinMaxPyramid::build(v, 1));
+    let h = v.voxel();
     let d = v.dims.map(|x| x as usize);
     let mut counts = [0u64; 3];
     for z in 0..d[2] {
@@ -49,29 +66,68 @@ pub fn build(v: &Volume, o: &Octree, budget: u64) -> Result<(Volume, [u64; 3]), 
                     hi - lo
                 };
                 let i = out.index(x, y, z);
+                let at = |dx: isize, dy: isize, dz: isize| {
+                    let c = |q: usize, d: isize, n: usize| (q as isize + d).clamp(0, n as isize - 1) as usize;
+                    v.get(c(x, dx, d[0]), c(y, dy, d[1]), c(z, dz, d[2]), 0)
+                };
+                let g = [
+                    (at(1, 0, 0) - at(-1, 0, 0)) / (2.0 * h.x),
+                    (at(0, 1, 0) - at(0, -1, 0)) / (2.0 * h.y),
+                    (at(0, 0, 1) - at(0, 0, -1)) / (2.0 * h.z),
+                ];
+                let clear = |k: usize| kappa.as_ref().is_none_or(|kp| kp.range_at(k, x, y, z).1 <= 0.0);
                 if span(0).partial_cmp(&o.flat) != Some(std::cmp::Ordering::Less) {
-                    out.data[i..i + 2].copy_from_slice(&[0.0, 0.0]);
+                    out.data[i..i + CHANNELS as usize].copy_from_slice(&[0.0, 0.0, clear(0) as u8 as f32, g[0], g[1], g[2], 0.0]);
                     counts[2] += 1;
                     continue;
                 }
                 // Ranges only grow with the level: the largest level still below ε′.
                 let level = (0..p.levels.len()).take_while(|&k| span(k) < o.flat).last().unwrap_or(0);
                 let (step, class) = if span(level) < o.uniform { (f32::INFINITY, 0) } else { (o.step, 1) };
-                out.data[i..i + 2].copy_from_slice(&[level as f32, step]);
+                out.data[i..i + CHANNELS as usize].copy_from_slice(&[level as f32, step, clear(level) as u8 as f32, g[0], g[1], g[2], 0.0]);
                 counts[class] += 1;
             }
         }
     }
+    mark_bends(&mut out);
     Ok((out, counts))
 }
 
-#[node(category = "volume")]
+/// Sets `BENDS` where the voxel or one of its 26 neighbours has a measurable gradient.
+fn mark_bends(o: &mut Volume) {
+    let d = o.dims.map(|x| x as usize);
+    let h = o.voxel();
+    let ch = CHANNELS as usize;
+    let steep: Vec<bool> =
+        o.data.chunks(ch).map(|c| (Vec3::new(c[GRADIENT], c[GRADIENT + 1], c[GRADIENT + 2]) * h).abs().max_element() > 1e-6).collect();
+    for z in 0..d[2] {
+        for y in 0..d[1] {
+            for x in 0..d[0] {
+                let mut any = false;
+                'n: for zz in z.saturating_sub(1)..=(z + 1).min(d[2] - 1) {
+                    for yy in y.saturating_sub(1)..=(y + 1).min(d[1] - 1) {
+                        for xx in x.saturating_sub(1)..=(x + 1).min(d[0] - 1) {
+                            if steep[(zz * d[1] + yy) * d[0] + xx] {
+                                any = true;
+                                break 'n;
+                            }
+                        }
+                    }
+                }
+                let i = o.index(x, y, z);
+                o.data[i + BENDS] = any as u8 as f32;
+            }
+        }
+    }
+}
+
+#[node(category = "volume", version = 2)]
 impl Octree {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
-        // Two channels per voxel where the index has three, and the pyramid (8 bytes a voxel
-        // at level 0, an eighth more above).
-        let out = inputs[0].map(|s| relume_core::PortSize::bytes(s.bytes / 3 * 2));
-        relume_core::MemoryEstimate { outputs: vec![out], working: inputs[0].map_or(0, |s| s.bytes / 3 * 3) }
+        // Six channels per voxel where the medium has three, and two pyramids (8 bytes a
+        // voxel at level 0, an eighth more above).
+        let out = inputs[0].map(|s| relume_core::PortSize::bytes(s.bytes * 2));
+        relume_core::MemoryEstimate { outputs: vec![out], working: inputs[0].map_or(0, |s| s.bytes / 3 * 6) }
     }
 
     fn run(&self, i: OctreeIn, cx: &RunCtx) -> Result<OctreeOut, NodeError> {
@@ -110,7 +166,10 @@ mod tests {
     fn a_constant_index_is_one_leaf_with_unbounded_steps() {
         let (o, c) = build(&field(16, |_, _, _| 1.5), &defaults(), u64::MAX).unwrap();
         assert_eq!(c, [4096, 0, 0]);
-        assert!(o.data.chunks(2).all(|v| v == [4.0, f32::INFINITY]), "the 16³ cell is level 4");
+        assert!(
+            o.data.chunks(7).all(|v| v == [4.0, f32::INFINITY, 1.0, 0.0, 0.0, 0.0, 0.0]),
+            "the 16³ cell is level 4, clear, flat, straight"
+        );
     }
 
     #[test]
@@ -119,6 +178,10 @@ mod tests {
         let (o, c) = build(&field(16, |x, _, _| if x < 8 { 1.0 } else { 2.4 }), &defaults(), u64::MAX).unwrap();
         let at = |x: usize| [o.get(x, 3, 3, 0), o.get(x, 3, 3, 1)];
         assert_eq!(at(7), [0.0, 0.0], "the cell blending across the jump");
+        // Rays bend in voxels 7 and 8 (their central differences span the jump) and may in
+        // their neighbours 6 and 9 (trilinear sampling reaches them); not beyond.
+        let bends: Vec<f32> = (0..16).map(|x| o.get(x, 3, 3, BENDS)).collect();
+        assert_eq!(bends, [0., 0., 0., 0., 0., 0., 1., 1., 1., 1., 0., 0., 0., 0., 0., 0.]);
         assert_eq!(c[2], 256, "one slab of voxels");
         // Away from it, leaves as large as the aligned cells that stay clear of cell 7: level 3
         // on the high side, and on the low side shrinking toward it (4, 2, 1 voxels).
@@ -134,9 +197,29 @@ mod tests {
         // cells of 8 span 0.016, of 16 span 0.03 (> ε′).
         let (o, c) = build(&field(32, |x, _, _| 1.0 + 0.002 * x as f32), &defaults(), u64::MAX).unwrap();
         assert_eq!(c[2], 0);
-        assert!(o.data.chunks(2).all(|v| v[0] == 3.0 && v[1] == 8.0), "{:?}", &o.data[..8]);
+        assert!(o.data.chunks(7).all(|v| v[0] == 3.0 && v[1] == 8.0 && v[6] == 1.0), "{:?}", &o.data[..8]);
+        // The gradient: 0.002 per voxel of 1/32 (central differences; one-sided halves at the faces).
+        let g = o.get(10, 5, 5, GRADIENT);
+        assert!((g - 0.064).abs() < 1e-4, "{g}");
+        assert!((o.get(0, 5, 5, GRADIENT) - 0.032).abs() < 1e-4);
         let (_, c) = build(&field(32, |x, _, _| 1.0 + 0.0001 * x as f32), &defaults(), u64::MAX).unwrap();
         assert_eq!(c, [32768, 0, 0], "a total range of 0.0032 < ε everywhere");
+    }
+
+    #[test]
+    fn leaves_are_clear_only_where_nothing_absorbs_all_through_them() {
+        let mut v = field(16, |_, _, _| 1.0);
+        for z in 0..16 {
+            for y in 0..16 {
+                let i = v.index(12, y, z);
+                v.data[i + 1] = 0.5;
+            }
+        }
+        let (o, _) = build(&v, &defaults(), u64::MAX).unwrap();
+        assert_eq!(o.get(1, 1, 1, 0), 4.0, "κ does not shape the leaves");
+        assert_eq!(o.get(1, 1, 1, 2), 0.0, "but the 16³ leaf holds absorbing voxels");
+        let (o, _) = build(&field(16, |_, _, _| 1.0), &defaults(), u64::MAX).unwrap();
+        assert_eq!(o.get(1, 1, 1, 2), 1.0);
     }
 
     #[test]

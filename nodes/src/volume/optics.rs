@@ -1,0 +1,324 @@
+//! The optics photon marching and eikonal rendering share ([S] 6.3.3–6.3.5): the lights as
+//! the pipeline sees them, the ray equation's Euler step with |v| = n kept, the distance to
+//! an octree leaf's boundary, voxel traversal of a segment, straight-line transmittance, and
+//! the frame of a planar receiver.
+
+use super::octree::{BENDS, GRADIENT};
+use crate::render::lights::delta_sample;
+use crate::types::{Light, Scene, Volume};
+use glam::Vec3;
+use relume_core::NodeError;
+
+/// A light as pipeline 3 uses it: a delta light, and the radius of the emitter it stands for
+/// (0 for the scene's own delta lights) so that shadow rays stop short of the emitter.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PhotonLight {
+    pub light: Light,
+    pub radius: f32,
+}
+
+/// The scene's delta lights, then each emissive object as a point light at its area centroid
+/// emitting its power Φ = π L A uniformly (intensity Φ / 4π = L A / 4 per channel, L the mean
+/// emitted radiance): exact for a sphere, whose intensity is π r² L in every direction
+/// (SCENES.md lets pipeline 3 treat the `glass` scene's small spherical light so).
+pub fn photon_lights(scene: &Scene) -> Vec<PhotonLight> {
+    let mut out: Vec<PhotonLight> = scene.lights.iter().map(|l| PhotonLight { light: l.clone(), radius: 0.0 }).collect();
+    for (k, o) in scene.objects.iter().enumerate() {
+        if o.emission.max_element() <= 0.0 {
+            continue;
+        }
+        let (mut area, mut centroid) = (0.0f64, glam::DVec3::ZERO);
+        for t in o.triangles.clone() {
+            let (_, a) = scene.normal_area(t as usize);
+            let [p, q, r] = scene.corners(t as usize);
+            area += a as f64;
+            centroid += ((p + q + r) / 3.0).as_dvec3() * a as f64;
+        }
+        if area <= 0.0 {
+            continue;
+        }
+        let c = (centroid / area).as_vec3();
+        let radius = o.triangles.clone().flat_map(|t| scene.corners(t as usize)).map(|p| p.distance(c)).fold(0.0f32, f32::max);
+        debug_assert_eq!(scene.objects[k].name, o.name);
+        out.push(PhotonLight { light: Light::Point { position: c, intensity: o.emission * (area as f32 / 4.0) }, radius });
+    }
+    out
+}
+
+/// Radiant intensity of a point or spot light along unit direction `d` (zero for directional).
+pub fn intensity_along(l: &Light, d: Vec3) -> Vec3 {
+    match l {
+        Light::Point { position, .. } | Light::Spot { position, .. } => delta_sample(l, *position + d).map_or(Vec3::ZERO, |s| s.2),
+        Light::Directional { .. } => Vec3::ZERO,
+    }
+}
+
+/// The parameter interval where `o + t d` lies in the box `lo … hi`, clipped to t ≥ 0.
+pub fn box_interval(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> Option<(f32, f32)> {
+    let inv = d.recip();
+    let (a, b) = ((lo - o) * inv, (hi - o) * inv);
+    // 0 × ∞ (a ray in a face's plane) gives NaN: min/max drop it.
+    let t0 = a.min(b).max_element().max(0.0);
+    let t1 = a.max(b).min_element();
+    (t0 <= t1 && t1.is_finite()).then_some((t0, t1))
+}
+
+/// Distance in voxels from grid point `q` (voxel units) along unit `u` to the boundary of the
+/// aligned cell of side 2^`level` voxels holding voxel `cell` ([S] 6.3.4: the octree leaf).
+pub fn leaf_exit(q: Vec3, u: Vec3, cell: [usize; 3], level: u32) -> f32 {
+    let side = (1usize << level.min(30)) as f32;
+    let mut t = f32::INFINITY;
+    for a in 0..3 {
+        let lo = (cell[a] >> level.min(30)) as f32 * side;
+        let edge = if u[a] > 0.0 {
+            lo + side
+        } else if u[a] < 0.0 {
+            lo
+        } else {
+            continue;
+        };
+        t = t.min(((edge - q[a]) / u[a]).max(0.0));
+    }
+    t
+}
+
+/// The voxel holding grid point `q`, clamped to the grid.
+pub fn voxel_of(v: &Volume, q: Vec3) -> [usize; 3] {
+    let q = if q.is_finite() { q } else { Vec3::ZERO };
+    [0, 1, 2].map(|a| (q[a].max(0.0) as usize).min(v.dims[a] as usize - 1))
+}
+
+/// One Euler step of the ray equation ([S] 6-1 … 6-3) through the index in channel 0 of
+/// `medium` (∇n read from `octree`'s gradient channels, trilinearly):
+/// x′ = x + Δs v / n, v′ = v + Δs ∇n(x), then |v′| = n(x′) restored. Where the
+/// index is locally constant (∇n = 0 and n(x′) = n) v is kept bit for bit: index 1 gives
+/// exactly straight rays.
+pub fn ray_step(medium: &Volume, octree: &Volume, x: Vec3, v: Vec3, ds: f32) -> (Vec3, Vec3) {
+    let n0 = v.length();
+    let x1 = x + v * (ds / n0);
+    let g = Vec3::from(octree.sample_n::<3>(x, GRADIENT));
+    let n1 = medium.sample(x1, 0).max(1e-3);
+    if g == Vec3::ZERO {
+        return (x1, if n1 == n0 { v } else { v * (n1 / n0) });
+    }
+    let v1 = (v + g * ds).try_normalize().unwrap_or(v / n0) * n1;
+    (x1, v1)
+}
+
+/// Whether the straight segment `a + t u`, t ∈ [0, len], crosses a voxel where rays may bend
+/// (`octree`'s `BENDS`): if not, the medium leaves it exactly straight.
+pub fn crosses_bends(octree: &Volume, a: Vec3, u: Vec3, len: f32) -> bool {
+    let Some((t0, t1)) = box_interval(a, u, octree.min, octree.max) else { return false };
+    let t1 = t1.min(len);
+    if t0 >= t1 {
+        return false;
+    }
+    let mut hit = false;
+    let ch = octree.channels as usize;
+    for_each_voxel(octree, a + u * t0, u, t1 - t0, |i, _, _| hit |= octree.data[i * ch + BENDS] > 0.0);
+    hit
+}
+
+/// Calls `f(voxel index, t0, t1)` for each voxel the segment `a + t u`, t ∈ [0, len], crosses
+/// (u a unit vector in world space), in order (Amanatides–Woo in voxel units).
+pub fn for_each_voxel(v: &Volume, a: Vec3, u: Vec3, len: f32, mut f: impl FnMut(usize, f32, f32)) {
+    let h = v.voxel();
+    let q = v.to_grid(a);
+    let du = u / h; // voxel units per world unit
+    let mut cell = voxel_of(v, q).map(|c| c as i64);
+    let dims = v.dims.map(|d| d as i64);
+    let mut t_next = [0f32; 3];
+    let mut t_delta = [0f32; 3];
+    let mut stepv = [0i64; 3];
+    for k in 0..3 {
+        if du[k] > 0.0 {
+            stepv[k] = 1;
+            t_next[k] = ((cell[k] + 1) as f32 - q[k]) / du[k];
+            t_delta[k] = 1.0 / du[k];
+        } else if du[k] < 0.0 {
+            stepv[k] = -1;
+            t_next[k] = (cell[k] as f32 - q[k]) / du[k];
+            t_delta[k] = -1.0 / du[k];
+        } else {
+            t_next[k] = f32::INFINITY;
+            t_delta[k] = f32::INFINITY;
+        }
+        t_next[k] = t_next[k].max(0.0);
+    }
+    let mut t = 0.0f32;
+    let mut guard = (dims[0] + dims[1] + dims[2] + 3) as usize;
+    while t < len && guard > 0 {
+        guard -= 1;
+        let k = if t_next[0] <= t_next[1] && t_next[0] <= t_next[2] {
+            0
+        } else if t_next[1] <= t_next[2] {
+            1
+        } else {
+            2
+        };
+        let t1 = t_next[k].min(len);
+        if t1 > t {
+            f(v.index(cell[0] as usize, cell[1] as usize, cell[2] as usize) / v.channels as usize, t, t1);
+        }
+        t = t1;
+        cell[k] += stepv[k];
+        t_next[k] += t_delta[k];
+        if cell[k] < 0 || cell[k] >= dims[k] {
+            break;
+        }
+    }
+}
+
+/// Optical depth ∫ κ along the straight segment `a + t u`, t ∈ [0, len] (κ in channel 1 of
+/// `medium`), by the midpoint rule on steps of at most one voxel.
+pub fn optical_depth(medium: &Volume, a: Vec3, u: Vec3, len: f32) -> f32 {
+    let h = medium.voxel().min_element();
+    let n = (len / h).ceil().clamp(1.0, 1e6) as usize;
+    let dt = len / n as f32;
+    (0..n).map(|i| medium.sample(a + u * ((i as f32 + 0.5) * dt), 1).max(0.0) * dt).sum()
+}
+
+/// The frame of a planar receiver: `(origin, u, v)` spanning the object's bounding rectangle
+/// in its plane with `u × v` along its front normal. An object off a plane (by more than
+/// 10⁻⁴ of its size) or without area is an error naming it.
+pub fn planar_frame(scene: &Scene, object: usize) -> Result<(Vec3, Vec3, Vec3), NodeError> {
+    let o = &scene.objects[object];
+    let (mut nsum, mut pts) = (Vec3::ZERO, Vec::new());
+    for t in o.triangles.clone() {
+        let (n, a) = scene.normal_area(t as usize);
+        nsum += n * a;
+        pts.extend(scene.corners(t as usize));
+    }
+    let Some(n) = nsum.try_normalize() else {
+        return Err(NodeError::param("receiver", format!("object \"{}\" has no area to receive caustics", o.name)));
+    };
+    let c = pts[0];
+    let size = pts.iter().map(|p| p.distance(c)).fold(0.0f32, f32::max).max(f32::MIN_POSITIVE);
+    if pts.iter().any(|p| (*p - c).dot(n).abs() > 1e-4 * size) {
+        return Err(NodeError::param("receiver", format!("object \"{}\" is not planar: caustic maps need a planar receiver", o.name)));
+    }
+    // u along the world axis most perpendicular to n, v = n × u.
+    let axis = [Vec3::X, Vec3::Y, Vec3::Z].into_iter().min_by(|a, b| a.dot(n).abs().total_cmp(&b.dot(n).abs())).unwrap_or(Vec3::X);
+    let eu = (axis - n * axis.dot(n)).normalize();
+    let ev = n.cross(eu);
+    let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+    for p in &pts {
+        let s = [(*p - c).dot(eu), (*p - c).dot(ev)];
+        for k in 0..2 {
+            lo[k] = lo[k].min(s[k]);
+            hi[k] = hi[k].max(s[k]);
+        }
+    }
+    let origin = c + eu * lo[0] + ev * lo[1];
+    Ok((origin, eu * (hi[0] - lo[0]).max(size * 1e-6), ev * (hi[1] - lo[1]).max(size * 1e-6)))
+}
+
+/// The luminance weights of linear RGB (Rec. 709).
+pub fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::test_scene;
+
+    fn grid(d: u32, value: [f32; 3]) -> Volume {
+        let mut v = Volume::try_new([d; 3], 3, Vec3::ZERO, Vec3::ONE, 0.0, u64::MAX).unwrap();
+        for c in v.data.chunks_mut(3) {
+            c.copy_from_slice(&value);
+        }
+        v
+    }
+
+    fn octree(v: &Volume) -> Volume {
+        let p = super::super::octree::Octree { uniform: 0.005, flat: 0.02, step: 8.0 };
+        super::super::octree::build(v, &p, u64::MAX).unwrap().0
+    }
+
+    #[test]
+    fn index_one_keeps_the_ray_exactly_straight_and_a_gradient_bends_it_toward_higher_index() {
+        let v = grid(16, [1.0, 0.0, 0.0]);
+        let o = octree(&v);
+        let d = Vec3::new(0.3, 0.5, 0.2).normalize();
+        let (mut x, mut w) = (Vec3::splat(0.2), d);
+        for _ in 0..10 {
+            (x, w) = ray_step(&v, &o, x, w, 0.03);
+        }
+        assert_eq!(w, d, "the direction bit for bit");
+        assert!((x - (Vec3::splat(0.2) + d * 0.3)).length() < 1e-6);
+        // n = 1 + x: a ray along z bends toward +x and keeps |v| = n.
+        let mut g = grid(16, [1.0, 0.0, 0.0]);
+        for z in 0..16 {
+            for y in 0..16 {
+                for xx in 0..16 {
+                    let i = g.index(xx, y, z);
+                    g.data[i] = 1.0 + g.centre(xx, y, z).x;
+                }
+            }
+        }
+        let (x1, v1) = ray_step(&g, &octree(&g), Vec3::new(0.5, 0.5, 0.2), Vec3::Z * 1.5, 0.05);
+        assert!(v1.x > 0.0 && (v1.length() - g.sample(x1, 0)).abs() < 1e-5, "{v1} {x1}");
+    }
+
+    #[test]
+    fn leaf_exits_and_box_intervals() {
+        // A level-2 cell (4 voxels) holding voxel (5, 1, 2) spans [4, 8) × [0, 4) × [0, 4).
+        let t = leaf_exit(Vec3::new(5.5, 1.5, 2.5), Vec3::X, [5, 1, 2], 2);
+        assert_eq!(t, 2.5);
+        let t = leaf_exit(Vec3::new(5.5, 1.5, 2.5), -Vec3::Y, [5, 1, 2], 2);
+        assert_eq!(t, 1.5);
+        assert_eq!(leaf_exit(Vec3::new(5.5, 1.5, 2.5), Vec3::Z, [5, 1, 2], 0), 0.5);
+        assert_eq!(box_interval(Vec3::new(-1.0, 0.5, 0.5), Vec3::X, Vec3::ZERO, Vec3::ONE), Some((1.0, 2.0)));
+        assert_eq!(box_interval(Vec3::new(0.5, 0.5, 0.5), Vec3::X, Vec3::ZERO, Vec3::ONE), Some((0.0, 0.5)));
+        assert_eq!(box_interval(Vec3::new(-1.0, 2.0, 0.5), Vec3::X, Vec3::ZERO, Vec3::ONE), None);
+        assert_eq!(box_interval(Vec3::new(2.0, 0.5, 0.5), Vec3::X, Vec3::ZERO, Vec3::ONE), None, "behind");
+    }
+
+    #[test]
+    fn voxel_traversal_covers_the_segment_once_in_order() {
+        let v = grid(8, [1.0, 0.0, 0.0]);
+        for (a, u, len) in [
+            (Vec3::new(0.01, 0.02, 0.03), Vec3::new(1.0, 1.0, 1.0).normalize(), 1.6),
+            (Vec3::new(0.9, 0.5, 0.5), -Vec3::X, 0.7),
+            (Vec3::new(0.3, 0.3, 0.3), Vec3::new(0.2, -0.5, 0.9).normalize(), 0.25),
+        ] {
+            let mut segs = Vec::new();
+            for_each_voxel(&v, a, u, len, |i, t0, t1| segs.push((i, t0, t1)));
+            let covered: f32 = segs.iter().map(|s| s.2 - s.1).sum();
+            let inside = box_interval(a, u, Vec3::ZERO, Vec3::ONE).map_or(0.0, |(_, t1)| t1.min(len));
+            assert!((covered - inside).abs() < 1e-5, "{covered} vs {inside}");
+            assert!(segs.windows(2).all(|w| w[0].2 == w[1].1 && w[0].0 != w[1].0));
+            // Each piece's midpoint lies in its voxel.
+            for &(i, t0, t1) in &segs {
+                let q = v.to_grid(a + u * ((t0 + t1) / 2.0));
+                let c = voxel_of(&v, q);
+                assert_eq!(v.index(c[0], c[1], c[2]) / 3, i);
+            }
+        }
+        let mut segs = 0;
+        for_each_voxel(&v, Vec3::splat(0.5), Vec3::X, 0.01, |_, _, _| segs += 1);
+        assert_eq!(segs, 1);
+        let k = grid(8, [1.0, 2.0, 0.0]);
+        assert!((optical_depth(&k, Vec3::splat(0.1), Vec3::Y, 0.5) - 1.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn emitters_become_point_lights_of_the_same_power_and_receivers_need_a_plane() {
+        let mut s = test_scene::spheres();
+        s.objects[0].emission = Vec3::splat(2.0);
+        let lights = photon_lights(&s);
+        let area: f32 = s.objects[0].triangles.clone().map(|t| s.normal_area(t as usize).1).sum();
+        let l = lights.last().unwrap();
+        let Light::Point { intensity, .. } = l.light else { panic!("{l:?}") };
+        assert!((intensity.x * 4.0 * std::f32::consts::PI - std::f32::consts::PI * 2.0 * area).abs() < 1e-3 * area, "Φ = π L A");
+        assert!(l.radius > 0.0);
+        let floor = s.objects.iter().position(|o| o.name == "floor").unwrap();
+        let (o, u, v) = planar_frame(&s, floor).unwrap();
+        assert!(u.cross(v).normalize().dot(s.normal_area(s.objects[floor].triangles.start as usize).0) > 0.999);
+        assert!(o.is_finite());
+        let e = planar_frame(&s, 1).unwrap_err().to_string();
+        assert!(e.contains("not planar"), "{e}");
+        assert_eq!(intensity_along(&l.light, Vec3::X), intensity);
+    }
+}
