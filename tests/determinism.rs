@@ -18,6 +18,8 @@ fn test_size(path: &std::path::Path) -> Graph {
             "PathTrace" => set(&mut g, "spp", "4"),
             "SampleSurface" => set(&mut g, "count", "3000"),
             "DirectLight" => set(&mut g, "pixel_samples", "4"),
+            "Voxelize" | "VolumeSource" => set(&mut g, "resolution", "32"),
+            "EmitPhotons" => set(&mut g, "resolution", "64"),
             _ => {}
         }
     }

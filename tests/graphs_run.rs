@@ -28,7 +28,7 @@ fn every_graph_in_graphs_runs_and_its_outputs_are_finite() {
                     g.set_param_text(&reg, &format!("{}.sub_regions", n.id), "4").unwrap();
                 }
                 "SampleSurface" => g.set_param_text(&reg, &format!("{}.count", n.id), "2000").unwrap(),
-                "Voxelize" => g.set_param_text(&reg, &format!("{}.resolution", n.id), "32").unwrap(),
+                "Voxelize" | "VolumeSource" => g.set_param_text(&reg, &format!("{}.resolution", n.id), "32").unwrap(),
                 "EmitPhotons" => g.set_param_text(&reg, &format!("{}.resolution", n.id), "64").unwrap(),
                 _ => {}
             }

@@ -66,7 +66,7 @@ fn each_edit_of_the_refraction_graph_reruns_only_what_it_reaches() {
     // sphere in the BVH), and the reference.
     assert_eq!(
         rerun("light.translation", "(0.2, 0.0, 0.0)"),
-        ["bvh", "emit", "error", "full_bvh", "light", "march", "reference", "render"]
+        ["bvh", "emit", "error", "full_bvh", "light", "march", "pt", "pt_error", "reference", "render"]
     );
     // A paint stroke: the octree onward, never the voxelisation.
     assert_eq!(rerun("paint.weight", "0.2"), ["emit", "error", "march", "octree", "paint", "render"]);

@@ -22,7 +22,7 @@ pub struct BuildBvh {
 inputs!(pub BuildBvhIn { scene: Scene });
 outputs!(pub BuildBvhOut { accel: Accel });
 
-#[node(category = "geometry")]
+#[node(category = "geometry", version = 2)]
 impl BuildBvh {
     fn run(&self, i: BuildBvhIn, cx: &RunCtx) -> Result<BuildBvhOut, NodeError> {
         // One obvhs call: not cancellable inside.
@@ -136,7 +136,8 @@ mod tests {
 
     #[test]
     fn rays_straight_down_onto_a_floor_hit_it() {
-        // −n is (−0, −1, −0): obvhs took the −0 components' signs two ways and missed.
+        // −n is (−0, −1, −0): obvhs took the −0 components' signs two ways and missed; and it
+        // skipped boxes ending within 10⁻⁴ of a ray's origin, in any units.
         let scene = test_scene::spheres();
         let accel = Accel::build(&scene, BuildQuality::Fast);
         let floor = scene.objects.iter().position(|o| o.name == "floor").unwrap() as u32;
@@ -144,11 +145,33 @@ mod tests {
         let [a, b, c] = scene.corners(t0);
         let (n, _) = scene.normal_area(t0);
         let p = (a + b + c) / 3.0;
-        for h in [1e-3f32, 1e-2, 1.0] {
+        for h in [1e-6f32, 3e-5, 1e-3, 1.0] {
             for d in [-n, (-n + Vec3::new(0.3, 0.0, 0.2)).normalize()] {
                 let hit = accel.intersect(p + n * h, d, 0.0, f32::INFINITY);
                 assert_eq!(hit.map(|h| scene.tri_object[h.tri as usize]), Some(floor), "h {h} d {d}");
             }
         }
+    }
+
+    #[test]
+    fn a_scene_a_thousandth_across_gets_the_same_hits_scaled() {
+        // Every coordinate × 2⁻¹⁰: hits at distances × 2⁻¹⁰, bit for bit (a power of two scales
+        // every rounding exactly), including those closer than obvhs' 10⁻⁴.
+        let scene = test_scene::spheres();
+        let mut small = scene.clone();
+        small.positions.iter_mut().for_each(|p| *p *= 1.0 / 1024.0);
+        let (a, b) = (Accel::build(&scene, BuildQuality::Fast), Accel::build(&small, BuildQuality::Fast));
+        let mut hits = 0;
+        for i in 0..200u64 {
+            let u = |d| crate::math::rng::uniform(9, i, d);
+            let o = Vec3::new(u(0) * 4.0 - 2.0, u(1) * 4.0 - 2.0, 3.0);
+            let d = (Vec3::new(u(2) - 0.5, u(3) - 0.5, -1.0)).normalize();
+            let (h, hs) = (a.intersect(o, d, 0.0, f32::INFINITY), b.intersect(o / 1024.0, d, 0.0, f32::INFINITY));
+            assert_eq!(h.map(|h| (h.tri, h.t / 1024.0, h.b1, h.b2)), hs.map(|h| (h.tri, h.t, h.b1, h.b2)), "ray {i}");
+            hits += h.is_some() as u32;
+        }
+        assert!(hits > 50);
+        use relume_core::PortValue;
+        assert_eq!(Accel::decode(&b.encode()).unwrap().encode(), b.encode());
     }
 }

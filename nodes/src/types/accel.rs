@@ -1,10 +1,14 @@
 //! `Accel`: a compressed-wide BVH (obvhs CwBvh) over a scene's triangles, with closest-hit
 //! queries that return barycentrics and shadow queries that stop at the first hit
-//! (`ray_traverse_miss`; obvhs' `ray_traverse_anyhit` visits every hit). Directions reach
+//! (`ray_traverse_miss`; obvhs' `ray_traverse_anyhit` visits every hit). Coordinates are
+//! stored multiplied by a power of two that brings the scene's size near 1024: obvhs skips
+//! boxes that end closer than 10⁻⁴ along a ray (whatever the scene's units), which lost the
+//! floor under rays starting a hair above it and, in a scene 10⁻³ across, every hit within a
+//! few voxels; a power of two scales every rounding exactly, so hits are bit for bit those of
+//! the unscaled triangles. Directions reach
 //! obvhs with −0 components made +0: its traversal takes a component's sign from `< 0` but
 //! its inverse from the sign bit, so a ray straight down the y axis written as −n, (−0, −1,
-//! −0), missed a floor it stood on. Measured, not fixed here: rays starting within about 10⁻⁴
-//! of a surface may miss it (obvhs' quantised boxes); callers start such rays farther back.
+//! −0), missed a floor it stood on.
 
 use crate::types::Scene;
 use glam::{Vec3, Vec3A};
@@ -73,6 +77,16 @@ pub struct Accel {
     tris: Vec<Tri>,
     /// BVH leaf order → scene triangle index.
     prim: Vec<u32>,
+    /// The power of two the stored coordinates are multiplied by (see the module doc).
+    scale: f32,
+}
+
+/// The power of two that brings a scene of size `size` near 1024 (1 for no size).
+fn scale_for(size: f32) -> f32 {
+    if !(size.is_finite() && size > 0.0) {
+        return 1.0;
+    }
+    2f32.powi((10 - size.log2().ceil() as i32).clamp(-60, 60))
 }
 
 impl Accel {
@@ -83,12 +97,13 @@ impl Accel {
     /// A BVH over the scene triangles `keep` accepts; hits still name scene triangle indices.
     pub fn build_filtered(scene: &Scene, quality: BuildQuality, keep: impl Fn(usize) -> bool) -> Accel {
         let kept: Vec<u32> = (0..scene.triangles.len() as u32).filter(|&t| keep(t as usize)).collect();
+        let size = kept.iter().flat_map(|&t| scene.corners(t as usize)).fold(0.0f32, |m, p| m.max(p.abs().max_element()));
+        let scale = scale_for(size);
         let obv: Vec<Triangle> = kept
             .iter()
             .map(|&t| {
-                let t = t as usize;
-                let [a, b, c] = scene.corners(t);
-                Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
+                let [a, b, c] = scene.corners(t as usize).map(|p| Vec3A::from(p * scale));
+                Triangle { v0: a, v1: b, v2: c }
             })
             .collect();
         let params = match quality {
@@ -106,7 +121,7 @@ impl Accel {
             })
             .collect();
         let prim = bvh.primitive_indices.iter().map(|&i| kept[i as usize]).collect();
-        Accel { bvh, tris, prim }
+        Accel { bvh, tris, prim, scale }
     }
 
     /// The bounding box of its triangles (an inverted box when it has none).
@@ -118,8 +133,9 @@ impl Accel {
     /// The bounding box of the triangles whose own boxes meet `lo … hi`, clipped to it: where
     /// a ray inside that box may hit something (`None` when nothing is there).
     pub fn bounds_within(&self, lo: Vec3, hi: Vec3) -> Option<(Vec3, Vec3)> {
+        let k = 1.0 / self.scale;
         let (a, b) = self.tris.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(a, b), t| {
-            let (p, q, r) = (Vec3::from(t.v0), Vec3::from(t.v0 + t.e1), Vec3::from(t.v0 + t.e2));
+            let (p, q, r) = (Vec3::from(t.v0) * k, Vec3::from(t.v0 + t.e1) * k, Vec3::from(t.v0 + t.e2) * k);
             let (tl, th) = (p.min(q).min(r), p.max(q).max(r));
             if tl.cmple(hi).all() && th.cmpge(lo).all() {
                 (a.min(tl), b.max(th))
@@ -133,7 +149,8 @@ impl Accel {
 
     /// Closest hit along `o + t d` for t in (tmin, tmax).
     pub fn intersect(&self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
-        let (o, d) = (Vec3A::from(o), Vec3A::from(d) + Vec3A::ZERO);
+        let (o, d) = (Vec3A::from(o) * self.scale, Vec3A::from(d) + Vec3A::ZERO);
+        let (tmin, tmax) = (tmin * self.scale, tmax * self.scale);
         let ray = Ray::new(o, d, tmin, tmax);
         let mut hit = RayHit::none();
         let mut best = (f32::INFINITY, 0.0, 0.0);
@@ -144,13 +161,13 @@ impl Accel {
             }
             None => f32::INFINITY,
         });
-        (found && hit.t < tmax).then(|| Hit { t: hit.t, tri: self.prim[hit.primitive_id as usize], b1: best.1, b2: best.2 })
+        (found && hit.t < tmax).then(|| Hit { t: hit.t / self.scale, tri: self.prim[hit.primitive_id as usize], b1: best.1, b2: best.2 })
     }
 
     /// Whether anything blocks `o + t d` for t in (tmin, tmax); stops at the first blocker.
     pub fn occluded(&self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool {
-        let (o, d) = (Vec3A::from(o), Vec3A::from(d) + Vec3A::ZERO);
-        let ray = Ray::new(o, d, tmin, tmax);
+        let (o, d) = (Vec3A::from(o) * self.scale, Vec3A::from(d) + Vec3A::ZERO);
+        let ray = Ray::new(o, d, tmin * self.scale, tmax * self.scale);
         !self.bvh.ray_traverse_miss(ray, |r, id| self.tris[id].intersect(o, d, r.tmin, r.tmax).map_or(f32::INFINITY, |h| h.0))
     }
 
@@ -278,6 +295,7 @@ impl PortValue for Accel {
             out.extend_from_slice(&n.to_le_bytes());
         }
         out.push(b.uses_spatial_splits as u8);
+        put_le(&mut out, &[self.scale], &[0]);
         put_le(&mut out, &[aabb_floats(&b.total_aabb)], &FLOATS6);
         put_le(&mut out, &b.nodes, &NODE_WORDS);
         put_le(&mut out, &self.prim, &[0]);
@@ -303,6 +321,10 @@ impl PortValue for Accel {
             1 => true,
             _ => return None,
         };
+        let scale = get_le::<f32>(&mut r, 1, &[0])?[0];
+        if !(scale.is_finite() && scale > 0.0) {
+            return None;
+        }
         let total_aabb = aabb_of(get_le::<[f32; 6]>(&mut r, 1, &FLOATS6)?[0]);
         let nodes = get_le::<CwBvhNode>(&mut r, n_nodes, &NODE_WORDS)?;
         let prim = get_le::<u32>(&mut r, n_prims, &[0])?;
@@ -318,7 +340,7 @@ impl PortValue for Accel {
             return None;
         }
         let bvh = CwBvh { nodes, primitive_indices: prim.clone(), total_aabb, exact_node_aabbs, uses_spatial_splits };
-        let accel = Accel { bvh, tris, prim };
+        let accel = Accel { bvh, tris, prim, scale };
         accel.indices_in_range().then_some(accel)
     }
 }

@@ -1,7 +1,7 @@
 //! MarchPhotons node.
 
 use super::blur::{blur, kernel};
-use super::optics::{box_interval, crosses_bends, for_each_voxel, leaf_exit, luminance, planar_frame, ray_step, voxel_of};
+use super::optics::{box_interval, crosses_bends, for_each_voxel, leaf_exit, luminance, planar_frame, ray_step, voxel_of, Integrator};
 use crate::types::{Accel, CausticMap, PhotonDeposits, Photons, Scene, Volume};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -11,8 +11,10 @@ use std::ops::Range;
 use std::sync::atomic::{AtomicI64, Ordering};
 
 /// Photons through a refractive, absorbing and scattering medium ([S] 6.3.4, 6-1 … 6-6):
-/// each photon follows the ray equation v = n dx/ds by Euler steps, x += Δs v / n,
-/// v += Δs ∇n, with |v| = n restored every step; its power falls as e^{−κΔs}. The step
+/// each photon follows the ray equation v = n dx/ds, dv/ds = ∇n, with |v| = n restored every
+/// step — by Störmer–Verlet steps (`integrator`; the thesis' Euler step x += Δs v / n,
+/// v += Δs ∇n is the other choice: it lets totally reflected light leak, see
+/// `optics::Integrator`); its power falls as e^{−κΔs}. The step
 /// Δs is the distance to the boundary of the photon's octree leaf along its direction,
 /// at least `min_step` (Δs_min) and at most the leaf's Δs_max (`Octree`). Along every step the
 /// photon deposits its power × the length it travels in each voxel it crosses (where σ > 0)
@@ -37,6 +39,9 @@ pub struct MarchPhotons {
     /// Δs_min, the smallest step
     #[param(default = 1.0, range = 0.05..=16.0, unit = "voxels")]
     pub min_step: f32,
+    /// how the ray equation is stepped
+    #[param(default = Verlet)]
+    pub integrator: Integrator,
     /// a photon is dropped below this fraction of its initial power
     #[param(default = 0.001, range = 0.0..=1.0)]
     pub cutoff: f32,
@@ -166,7 +171,9 @@ impl<'a> Setup<'a> {
         let obstacles = i.accel.bounds_within(m.min, m.max);
         let pmax = i.photons.power.iter().fold(0.0f32, |a, p| a.max(p.max_element())).max(f32::MIN_POSITIVE) as f64;
         let diag = m.voxel().length() as f64;
-        let eps = 1e-5 * (1.0 + (m.max - m.min).length() + m.max.abs().max(m.min.abs()).max_element());
+        // Relative to the box and to the coordinates' magnitude, never absolute: the same
+        // picture for a scene 10⁻³ or 10³ across.
+        let eps = 1e-5 * (m.max - m.min).length() + 1e-6 * m.max.abs().max(m.min.abs()).max_element();
         Ok(Setup {
             scene: i.scene,
             accel: i.accel,
@@ -277,6 +284,7 @@ impl<'a> Setup<'a> {
                     }
                 }
                 power *= att;
+                true
             });
             ph.power = power;
         }
@@ -293,7 +301,7 @@ impl<'a> Setup<'a> {
         if ph.power.max_element() < ph.floor {
             return Fate::Absorbed;
         }
-        (ph.x, ph.v) = ray_step(m, oct, ph.x, ph.v, ds);
+        (ph.x, ph.v) = ray_step(m, oct, ph.x, ph.v, ds, self.p.integrator);
         Fate::Alive
     }
 
@@ -443,11 +451,10 @@ impl MarchPhotons {
 mod tests {
     use super::*;
     use crate::scene::builder::SceneBuilder;
-    use crate::testing::{f, i, id, run_on};
+    use crate::testing::f;
     use crate::types::{Light, Material};
     use crate::volume::emit_photons::Proxy;
     use crate::volume::test_support::*;
-    use crate::volume::volume_source::VolumeSource;
     use relume_core::Value;
 
     /// A floor at height `y` (4 × 4, facing up) under `light`.
@@ -457,18 +464,6 @@ mod tests {
             .quad("floor", Vec3::new(-2.0, y, 2.0), Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -4.0), grey, Vec3::ZERO)
             .light(light)
             .build()
-    }
-
-    /// A procedural medium (VolumeSource) of `kind` over the cube of side `size` at `centre`.
-    fn source(kind: &str, res: i64, centre: Vec3, size: f64, extra: &[(&str, relume_core::ParamValue)]) -> Volume {
-        let mut p = vec![
-            ("kind", id(kind)),
-            ("resolution", i(res)),
-            ("centre", relume_core::ParamValue::Tuple(centre.to_array().iter().map(|c| f(*c as f64)).collect())),
-            ("size", f(size)),
-        ];
-        p.extend(extra.iter().cloned());
-        run_on::<VolumeSource>(&p, vec![]).unwrap()[0].get::<Volume>().unwrap().clone()
     }
 
     fn down(e: f32) -> Light {

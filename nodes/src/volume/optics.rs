@@ -7,7 +7,7 @@ use super::octree::{BENDS, GRADIENT};
 use crate::render::lights::delta_sample;
 use crate::types::{Light, Scene, Volume};
 use glam::Vec3;
-use relume_core::NodeError;
+use relume_core::{NodeError, ParamEnum};
 
 /// A light as pipeline 3 uses it: a delta light, and the radius of the emitter it stands for
 /// (0 for the scene's own delta lights) so that shadow rays stop short of the emitter.
@@ -88,21 +88,46 @@ pub fn voxel_of(v: &Volume, q: Vec3) -> [usize; 3] {
     [0, 1, 2].map(|a| (q[a].max(0.0) as usize).min(v.dims[a] as usize - 1))
 }
 
-/// One Euler step of the ray equation ([S] 6-1 … 6-3) through the index in channel 0 of
-/// `medium` (∇n read from `octree`'s gradient channels, trilinearly):
-/// x′ = x + Δs v / n, v′ = v + Δs ∇n(x), then |v′| = n(x′) restored. Where the
-/// index is locally constant (∇n = 0 and n(x′) = n) v is kept bit for bit: index 1 gives
-/// exactly straight rays.
-pub fn ray_step(medium: &Volume, octree: &Volume, x: Vec3, v: Vec3, ds: f32) -> (Vec3, Vec3) {
+/// How the ray equation ([S] 6-1 … 6-3: v = n dx/ds, dv/ds = ∇n) is stepped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ParamEnum)]
+pub enum Integrator {
+    /// Störmer–Verlet in the optical length τ (dx/dτ = v, dv/dτ = n∇n): half a kick, a drift,
+    /// half a kick; it keeps a ray's angular momentum about a spherical index's centre, so
+    /// total internal reflection holds at one-voxel steps
+    Verlet,
+    /// the thesis' explicit step x += Δs v / n, v += Δs ∇n(x): with |v| = n restored it drains
+    /// angular momentum at each bounce (measured: a ray at 70° inside an n = 2.4 sphere
+    /// escapes after 110 one-voxel steps)
+    Euler,
+}
+
+/// One step of arc length `ds` of the ray equation through the index in channel 0 of `medium`
+/// (∇n read from `octree`'s gradient channels, trilinearly), by `integrator`, then |v′| = n(x′)
+/// restored. Where the index is locally constant (∇n = 0 at both ends) the step is
+/// x′ = x + Δs v / n with v kept bit for bit: index 1 gives exactly straight rays.
+pub fn ray_step(medium: &Volume, octree: &Volume, x: Vec3, v: Vec3, ds: f32, integrator: Integrator) -> (Vec3, Vec3) {
     let n0 = v.length();
-    let x1 = x + v * (ds / n0);
-    let g = Vec3::from(octree.sample_n::<3>(x, GRADIENT));
+    let grad = |p: Vec3| Vec3::from(octree.sample_n::<3>(p, GRADIENT));
+    let g0 = grad(x);
+    let straight = x + v * (ds / n0);
+    let (x1, v1) = match integrator {
+        Integrator::Euler => (straight, v + g0 * ds),
+        Integrator::Verlet => {
+            if g0 == Vec3::ZERO && grad(straight) == Vec3::ZERO {
+                (straight, v)
+            } else {
+                let dt = ds / n0;
+                let half = v + g0 * (0.5 * dt * medium.sample(x, 0));
+                let x1 = x + half * dt;
+                (x1, half + grad(x1) * (0.5 * dt * medium.sample(x1, 0)))
+            }
+        }
+    };
     let n1 = medium.sample(x1, 0).max(1e-3);
-    if g == Vec3::ZERO {
+    if v1 == v {
         return (x1, if n1 == n0 { v } else { v * (n1 / n0) });
     }
-    let v1 = (v + g * ds).try_normalize().unwrap_or(v / n0) * n1;
-    (x1, v1)
+    (x1, v1.try_normalize().unwrap_or(v / n0) * n1)
 }
 
 /// Whether the straight segment `a + t u`, t ∈ [0, len], crosses a voxel where rays may bend
@@ -115,13 +140,17 @@ pub fn crosses_bends(octree: &Volume, a: Vec3, u: Vec3, len: f32) -> bool {
     }
     let mut hit = false;
     let ch = octree.channels as usize;
-    for_each_voxel(octree, a + u * t0, u, t1 - t0, |i, _, _| hit |= octree.data[i * ch + BENDS] > 0.0);
+    for_each_voxel(octree, a + u * t0, u, t1 - t0, |i, _, _| {
+        hit = octree.data[i * ch + BENDS] > 0.0;
+        !hit
+    });
     hit
 }
 
 /// Calls `f(voxel index, t0, t1)` for each voxel the segment `a + t u`, t ∈ [0, len], crosses
-/// (u a unit vector in world space), in order (Amanatides–Woo in voxel units).
-pub fn for_each_voxel(v: &Volume, a: Vec3, u: Vec3, len: f32, mut f: impl FnMut(usize, f32, f32)) {
+/// (u a unit vector in world space), in order (Amanatides–Woo in voxel units), until `f`
+/// returns false.
+pub fn for_each_voxel(v: &Volume, a: Vec3, u: Vec3, len: f32, mut f: impl FnMut(usize, f32, f32) -> bool) {
     let h = v.voxel();
     let q = v.to_grid(a);
     let du = u / h; // voxel units per world unit
@@ -157,8 +186,8 @@ pub fn for_each_voxel(v: &Volume, a: Vec3, u: Vec3, len: f32, mut f: impl FnMut(
             2
         };
         let t1 = t_next[k].min(len);
-        if t1 > t {
-            f(v.index(cell[0] as usize, cell[1] as usize, cell[2] as usize) / v.channels as usize, t, t1);
+        if t1 > t && !f(v.index(cell[0] as usize, cell[1] as usize, cell[2] as usize) / v.channels as usize, t, t1) {
+            return;
         }
         t = t1;
         cell[k] += stepv[k];
@@ -243,7 +272,7 @@ mod tests {
         let d = Vec3::new(0.3, 0.5, 0.2).normalize();
         let (mut x, mut w) = (Vec3::splat(0.2), d);
         for _ in 0..10 {
-            (x, w) = ray_step(&v, &o, x, w, 0.03);
+            (x, w) = ray_step(&v, &o, x, w, 0.03, Integrator::Verlet);
         }
         assert_eq!(w, d, "the direction bit for bit");
         assert!((x - (Vec3::splat(0.2) + d * 0.3)).length() < 1e-6);
@@ -257,7 +286,7 @@ mod tests {
                 }
             }
         }
-        let (x1, v1) = ray_step(&g, &octree(&g), Vec3::new(0.5, 0.5, 0.2), Vec3::Z * 1.5, 0.05);
+        let (x1, v1) = ray_step(&g, &octree(&g), Vec3::new(0.5, 0.5, 0.2), Vec3::Z * 1.5, 0.05, Integrator::Euler);
         assert!(v1.x > 0.0 && (v1.length() - g.sample(x1, 0)).abs() < 1e-5, "{v1} {x1}");
     }
 
@@ -284,7 +313,10 @@ mod tests {
             (Vec3::new(0.3, 0.3, 0.3), Vec3::new(0.2, -0.5, 0.9).normalize(), 0.25),
         ] {
             let mut segs = Vec::new();
-            for_each_voxel(&v, a, u, len, |i, t0, t1| segs.push((i, t0, t1)));
+            for_each_voxel(&v, a, u, len, |i, t0, t1| {
+                segs.push((i, t0, t1));
+                true
+            });
             let covered: f32 = segs.iter().map(|s| s.2 - s.1).sum();
             let inside = box_interval(a, u, Vec3::ZERO, Vec3::ONE).map_or(0.0, |(_, t1)| t1.min(len));
             assert!((covered - inside).abs() < 1e-5, "{covered} vs {inside}");
@@ -297,7 +329,10 @@ mod tests {
             }
         }
         let mut segs = 0;
-        for_each_voxel(&v, Vec3::splat(0.5), Vec3::X, 0.01, |_, _, _| segs += 1);
+        for_each_voxel(&v, Vec3::splat(0.5), Vec3::X, 0.01, |_, _, _| {
+            segs += 1;
+            true
+        });
         assert_eq!(segs, 1);
         let k = grid(8, [1.0, 2.0, 0.0]);
         assert!((optical_depth(&k, Vec3::splat(0.1), Vec3::Y, 0.5) - 1.0).abs() < 1e-5);

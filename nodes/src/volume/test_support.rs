@@ -60,6 +60,7 @@ pub fn glass_stages(resolution: i64, photon_resolution: u32) -> (Scene, Volume, 
 pub fn march_params(map: u32) -> MarchPhotons {
     MarchPhotons {
         min_step: 1.0,
+        integrator: super::optics::Integrator::Verlet,
         cutoff: 0.001,
         stop_fraction: 0.001,
         max_steps: 20000,
@@ -95,5 +96,18 @@ pub fn render_image(
 
 /// EikonalRender's defaults.
 pub fn render_params() -> EikonalRender {
-    EikonalRender { g: 0.0, samples: 1, step: 1.0, adaptive: true }
+    EikonalRender { g: 0.0, samples: 1, step: 1.0, adaptive: true, integrator: super::optics::Integrator::Verlet }
+}
+
+/// A procedural medium (VolumeSource) of `kind` over the cube of side `size` at `centre`.
+pub fn source(kind: &str, res: i64, centre: glam::Vec3, size: f64, extra: &[(&str, relume_core::ParamValue)]) -> Volume {
+    use crate::testing::{f, id};
+    let mut p = vec![
+        ("kind", id(kind)),
+        ("resolution", i(res)),
+        ("centre", relume_core::ParamValue::Tuple(centre.to_array().iter().map(|c| f(*c as f64)).collect())),
+        ("size", f(size)),
+    ];
+    p.extend(extra.iter().cloned());
+    run_on::<super::volume_source::VolumeSource>(&p, vec![]).unwrap()[0].get::<Volume>().unwrap().clone()
 }
