@@ -428,7 +428,7 @@ fn glass_scene(s: f32) -> Scene {
         .build()
 }
 
-/// The glass scene at scale `s` through voxelisation (32), the octree, photons (128²),
+/// The glass scene at scale `s` through voxelisation (32), the octree, photons (512²),
 /// marching and the render (24²): the image and MarchPhotons' metrics.
 fn glass_at_scale(s: f32) -> (Image, Vec<(String, f64)>) {
     let scene = glass_scene(s);
@@ -437,7 +437,7 @@ fn glass_at_scale(s: f32) -> (Image, Vec<(String, f64)>) {
     let m = out.outputs[0].get::<Volume>().unwrap().clone();
     let oct = octree_of(&m);
     let a = accel_without(&scene, "glass");
-    let ph = photons(&scene, &a, &m, 128);
+    let ph = photons(&scene, &a, &m, 512);
     let (r, map, metrics) = march(&scene, "glass", &m, &oct, &ph, 64);
     let img = render(&scene, &a, &m, &oct, &r, &map, 24);
     (img, metrics)
@@ -486,8 +486,10 @@ fn the_glass_scene_a_thousandth_and_a_thousand_units_across_gives_the_same_pictu
         };
         let dark_gone_bright = reference.pixels.iter().zip(&img.pixels).filter(|(a, b)| lum(a) < 0.01 * top && lum(b) > 0.02 * top).count();
         let other = metric(&metrics, "landed_pct");
+        let sum = |im: &Image| im.pixels.iter().map(lum).sum::<f32>();
+        let (total, ref_total) = (sum(&img), sum(&reference));
         let line = format!(
-            "scale {s}: {compared} pixels compared, max relative difference {worst:.4} at pixel {at} ({:?} vs {:?}), {} pixels off by > 3 %, {} by > 30 %; landed {other:.3} % vs {landed:.3} %; dark pixels gone bright {dark_gone_bright}; metrics {metrics:?}",
+            "scale {s}: sum {total} vs {ref_total}; {compared} pixels compared, max relative difference {worst:.4} at pixel {at} ({:?} vs {:?}), {} pixels off by > 3 %, {} by > 30 %; landed {other:.3} % vs {landed:.3} %; dark pixels gone bright {dark_gone_bright}; metrics {metrics:?}",
             reference.pixels[at],
             img.pixels[at],
             over(0.03),
@@ -496,9 +498,16 @@ fn the_glass_scene_a_thousandth_and_a_thousand_units_across_gives_the_same_pictu
         eprintln!("{line}");
         assert!(compared > 200, "{compared}");
         // The scene is the same up to f32 rounding of positions × s, which can move a photon's
-        // steps by an ulp and so, rarely, a photon into the next caustic texel: a statistic,
-        // not every pixel — at most 1 % of the pixels off by more than 3 %, none by 30 %.
-        let mut ok = over(0.03) * 100 <= compared && over(0.3) == 0 && dark_gone_bright == 0 && (other - landed).abs() < 0.5;
+        // steps by an ulp and so, rarely, a photon into the next caustic texel; and a camera
+        // ray caught by total internal reflection near the sphere's rim (pixel 149 here runs
+        // 150 steps round the inside) is chaotic: an ulp at the start sends it out anywhere.
+        // So a statistic, not every pixel — at most 2 % of the pixels off by more than 3 %, at
+        // most one by 30 %, and the picture's sum within 1 %.
+        let mut ok = over(0.03) * 50 <= compared
+            && over(0.3) <= 1
+            && dark_gone_bright == 0
+            && (other - landed).abs() < 0.5
+            && (total - ref_total).abs() <= 0.01 * ref_total;
         for name in ["photons", "left_pct", "absorbed_pct", "straight_pct"] {
             let (x, y) = (metric(&metrics, name), metric(&ref_metrics, name));
             ok &= (x - y).abs() <= 0.01 * y.abs().max(1.0);

@@ -188,7 +188,7 @@ impl Render<'_> {
                     }
                 }
             }
-            if ch > 2 {
+            if ch > 2 && self.has_kappa {
                 let mid = x + u * (ds / 2.0);
                 let [_, kappa, sigma] = m.sample_n::<3>(mid, 0);
                 let (kappa, sigma) = (kappa.max(0.0), sigma.max(0.0));
@@ -214,7 +214,9 @@ impl Render<'_> {
                 // Traced from the step's start: the exit point may lie in a floor's plane.
                 return l + tr * self.hit(x, u, f32::INFINITY).map_or_else(|| self.environment(u), |s| self.shade(&s, -u, counts));
             }
-            (x, v) = ray_step(m, self.oct, x, v, ds, self.p.integrator);
+            // Longer steps (through clear leaves) are explicit, as in MarchPhotons.
+            let integrator = if ds > ds0 * 1.0001 { Integrator::Euler } else { self.p.integrator };
+            (x, v) = ray_step(m, self.oct, x, v, ds, integrator);
         }
         l
     }
@@ -263,7 +265,7 @@ pub fn render(i: &EikonalRenderIn, p: &EikonalRender, cx: &RunCtx) -> Result<(Im
     })
 }
 
-#[node(category = "volume")]
+#[node(category = "volume", version = 2)]
 impl EikonalRender {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let image = inputs[6].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));

@@ -121,7 +121,7 @@ fn mark_bends(o: &mut Volume) {
     }
 }
 
-#[node(category = "volume", version = 2)]
+#[node(category = "volume", version = 3)]
 impl Octree {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // Six channels per voxel where the medium has three, and two pyramids (8 bytes a

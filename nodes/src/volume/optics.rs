@@ -110,20 +110,22 @@ pub fn ray_step(medium: &Volume, octree: &Volume, x: Vec3, v: Vec3, ds: f32, int
     let grad = |p: Vec3| Vec3::from(octree.sample_n::<3>(p, GRADIENT));
     let g0 = grad(x);
     let straight = x + v * (ds / n0);
-    let (x1, v1) = match integrator {
-        Integrator::Euler => (straight, v + g0 * ds),
+    let (x1, v1, n1) = match integrator {
+        Integrator::Euler => (straight, v + g0 * ds, medium.sample(straight, 0)),
         Integrator::Verlet => {
             if g0 == Vec3::ZERO && grad(straight) == Vec3::ZERO {
-                (straight, v)
+                (straight, v, medium.sample(straight, 0))
             } else {
+                // |v| = n at x (kept every step): n∇n = |v| ∇n there.
                 let dt = ds / n0;
-                let half = v + g0 * (0.5 * dt * medium.sample(x, 0));
+                let half = v + g0 * (0.5 * dt * n0);
                 let x1 = x + half * dt;
-                (x1, half + grad(x1) * (0.5 * dt * medium.sample(x1, 0)))
+                let n1 = medium.sample(x1, 0);
+                (x1, half + grad(x1) * (0.5 * dt * n1), n1)
             }
         }
     };
-    let n1 = medium.sample(x1, 0).max(1e-3);
+    let n1 = n1.max(1e-3);
     if v1 == v {
         return (x1, if n1 == n0 { v } else { v * (n1 / n0) });
     }
