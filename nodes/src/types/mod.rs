@@ -32,7 +32,7 @@ pub use scene::{Camera, EnvMap, Environment, Light, Object, Scene};
 pub use sv_transfer::{SparsePlane, SvBlock, SvTransfer};
 pub use texture::{MaterialMaps, Texture};
 pub use transfer::{floats_and_stride, ObjectMaterial, ObjectMaterials, PathCounts, Transfer, TransferRows, MAX_TRANSFER_BYTES};
-pub use volume::{Volume, MAX_VOLUME_BYTES};
+pub use volume::{Sampler, Volume, MAX_VOLUME_BYTES};
 
 /// Serde of a `Vec` of plain 4-byte words (`f32`, `u32`, `Vec3`, `[u32; 3]`, …) as one byte
 /// string, little-endian: `#[serde(with = "super::pod_vec")]`. Through postcard that is the

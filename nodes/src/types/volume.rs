@@ -12,6 +12,36 @@ use serde::{Deserialize, Serialize};
 /// Largest volume any node may hold (a 1024³ scalar grid is 4 GiB).
 pub const MAX_VOLUME_BYTES: u64 = 8 << 30;
 
+/// Trilinear lookups into a volume with the world-to-grid map worked out once: a lookup
+/// multiplies where `Volume::to_grid` divides (the marchers' inner loops; results may differ
+/// from `Volume::sample_n` in the last bit).
+#[derive(Clone, Copy, Debug)]
+pub struct Sampler<'a> {
+    pub volume: &'a Volume,
+    /// Voxels per world unit along each axis.
+    pub scale: Vec3,
+    top: Vec3,
+}
+
+impl<'a> Sampler<'a> {
+    pub fn new(volume: &'a Volume) -> Self {
+        let dims = UVec3::from(volume.dims).as_vec3();
+        Sampler { volume, scale: dims / (volume.max - volume.min), top: (dims - 1.0).max(Vec3::ZERO) }
+    }
+
+    /// `p` in voxel units (voxel (x, y, z) spans [x, x + 1] × …).
+    #[inline]
+    pub fn to_grid(&self, p: Vec3) -> Vec3 {
+        (p - self.volume.min) * self.scale
+    }
+
+    /// Channels `c .. c + N` at `p`, trilinear between voxel centres, clamped at the faces.
+    #[inline]
+    pub fn sample_n<const N: usize>(&self, p: Vec3, c: usize) -> [f32; N] {
+        self.volume.trilinear(self.to_grid(p) - 0.5, self.top, c)
+    }
+}
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Volume {
     pub dims: [u32; 3],
@@ -98,9 +128,15 @@ impl Volume {
 
     /// Channels `c .. c + N` at `p`, trilinear as `sample` (one index computation for all).
     pub fn sample_n<const N: usize>(&self, p: Vec3, c: usize) -> [f32; N] {
-        let g = self.to_grid(p) - 0.5;
         let d = UVec3::from(self.dims).as_vec3() - 1.0;
-        let g = g.clamp(Vec3::ZERO, d.max(Vec3::ZERO));
+        self.trilinear(self.to_grid(p) - 0.5, d.max(Vec3::ZERO), c)
+    }
+
+    /// Channels `c .. c + N` at grid point `g` (voxel centres at integers), clamped to
+    /// [0, `top`] (the largest voxel index per axis).
+    #[inline]
+    fn trilinear<const N: usize>(&self, g: Vec3, top: Vec3, c: usize) -> [f32; N] {
+        let g = g.clamp(Vec3::ZERO, top);
         let g = if g.is_finite() { g } else { Vec3::ZERO };
         let i = g.floor();
         let f = g - i;
@@ -194,6 +230,13 @@ mod tests {
         // Outside the outermost centres the value is held (clamped), never extrapolated.
         assert_eq!(v.sample(Vec3::new(-5.0, 0.5, 2.0), 0), v.sample(Vec3::new(-0.75, 0.5, 2.0), 0));
         assert!(v.sample(Vec3::splat(f32::NAN), 0).is_finite());
+        // The sampler agrees to rounding, clamps the same way and survives NaN.
+        let s = Sampler::new(&v);
+        for p in [Vec3::new(-0.7, 0.15, 0.55), Vec3::new(1.9, 0.99, 3.9), Vec3::splat(-9.0), Vec3::splat(9.0)] {
+            let (a, b) = (s.sample_n::<1>(p, 0)[0], v.sample(p, 0));
+            assert!((a - b).abs() <= 1e-5 * b.abs().max(1.0), "{p}: {a} vs {b}");
+        }
+        assert!(s.sample_n::<1>(Vec3::splat(f32::NAN), 0)[0].is_finite());
     }
 
     #[test]

@@ -1,7 +1,8 @@
 //! EikonalRender node.
 
+use super::octree::{CLEAR, LEVEL, MAX_STEP};
 use super::optics::{
-    box_interval, crosses_bends, leaf_exit, luminance, optical_depth, photon_lights, ray_step, voxel_of, Integrator, PhotonLight,
+    box_interval, crosses_bends, leaf_exit, luminance, optical_depth, photon_lights, ray_step, voxel_of, Integrator, PhotonLight, Ray,
 };
 use crate::brdf;
 use crate::math::frame::Frame;
@@ -10,7 +11,7 @@ use crate::render::film::per_pixel;
 use crate::render::integrator::Counts;
 use crate::render::lights::delta_sample;
 use crate::render::surface::Surface;
-use crate::types::{Accel, Camera, CausticMap, Environment, Image, Material, Scene, Volume};
+use crate::types::{Accel, Camera, CausticMap, Environment, Image, Material, Sampler, Scene, Volume};
 use glam::Vec3;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 use std::f32::consts::PI;
@@ -66,6 +67,8 @@ struct Render<'a> {
     accel: &'a Accel,
     m: &'a Volume,
     oct: &'a Volume,
+    /// Lookups of n and ∇n in `oct`.
+    oct_s: Sampler<'a>,
     radiance: &'a Volume,
     caustics: &'a CausticMap,
     lights: Vec<PhotonLight>,
@@ -152,22 +155,21 @@ impl Render<'_> {
             };
         };
         let (mut l, mut tr) = (Vec3::ZERO, 1.0f32);
-        let mut x = o + d * t0;
-        let mut v = d * m.sample(x, 0).max(1e-3);
+        let mut ray = Ray::new(&self.oct_s, o + d * t0, d);
         let ds0 = self.p.step * m.voxel().min_element();
         let ch = m.channels as usize;
         let max_steps = 64 * m.dims.iter().sum::<u32>() as usize * (1.0 / self.p.step).ceil().max(1.0) as usize;
         let h = m.voxel();
         for _ in 0..max_steps {
-            let u = v / v.length();
+            let (x, u) = (ray.x, ray.dir());
             let mut ds = ds0;
             if self.p.adaptive {
                 let q = m.to_grid(x);
                 let c = voxel_of(m, q);
                 let oi = self.oct.index(c[0], c[1], c[2]);
-                if self.oct.data[oi + 2] > 0.0 {
-                    let hi = self.oct.data[oi + 1].max(self.p.step) * h.min_element();
-                    ds = leaf_exit(q, u / h, c, self.oct.data[oi].max(0.0) as u32).max(ds0).min(hi);
+                if self.oct.data[oi + CLEAR] > 0.0 {
+                    let hi = self.oct.data[oi + MAX_STEP].max(self.p.step) * h.min_element();
+                    ds = leaf_exit(q, u / h, c, self.oct.data[oi + LEVEL].max(0.0) as u32).max(ds0).min(hi);
                 }
             }
             let t_box = box_interval(x, u, m.min, m.max).map_or(0.0, |(_, t1)| t1);
@@ -214,9 +216,9 @@ impl Render<'_> {
                 // Traced from the step's start: the exit point may lie in a floor's plane.
                 return l + tr * self.hit(x, u, f32::INFINITY).map_or_else(|| self.environment(u), |s| self.shade(&s, -u, counts));
             }
-            // Longer steps (through clear leaves) are explicit, as in MarchPhotons.
-            let integrator = if ds > ds0 * 1.0001 { Integrator::Euler } else { self.p.integrator };
-            (x, v) = ray_step(m, self.oct, x, v, ds, integrator);
+            // Longer steps (through clear leaves) are midpoint steps, as in MarchPhotons.
+            let integrator = if ds > ds0 * 1.0001 { Integrator::Midpoint } else { self.p.integrator };
+            ray = ray_step(&self.oct_s, &ray, ds, integrator);
         }
         l
     }
@@ -243,6 +245,7 @@ pub fn render(i: &EikonalRenderIn, p: &EikonalRender, cx: &RunCtx) -> Result<(Im
         accel: i.accel,
         m,
         oct: i.octree,
+        oct_s: Sampler::new(i.octree),
         radiance: i.radiance,
         caustics: i.caustics,
         lights: photon_lights(i.scene),
@@ -265,7 +268,7 @@ pub fn render(i: &EikonalRenderIn, p: &EikonalRender, cx: &RunCtx) -> Result<(Im
     })
 }
 
-#[node(category = "volume", version = 2)]
+#[node(category = "volume", version = 3)]
 impl EikonalRender {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let image = inputs[6].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));

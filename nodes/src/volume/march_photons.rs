@@ -1,8 +1,9 @@
 //! MarchPhotons node.
 
 use super::blur::{blur, kernel};
-use super::optics::{box_interval, crosses_bends, for_each_voxel, leaf_exit, luminance, planar_frame, ray_step, voxel_of, Integrator};
-use crate::types::{Accel, CausticMap, PhotonDeposits, Photons, Scene, Volume};
+use super::octree::{LEVEL, MAX_STEP};
+use super::optics::{box_interval, crosses_bends, for_each_voxel, leaf_exit, luminance, planar_frame, ray_step, voxel_of, Integrator, Ray};
+use crate::types::{Accel, CausticMap, PhotonDeposits, Photons, Sampler, Scene, Volume};
 use glam::Vec3;
 use rayon::prelude::*;
 use relume_core::memory::fmt_bytes;
@@ -14,8 +15,8 @@ use std::sync::atomic::{AtomicI64, Ordering};
 /// each photon follows the ray equation v = n dx/ds, dv/ds = ∇n, with |v| = n restored every
 /// step — by Störmer–Verlet steps (`integrator`; the thesis' Euler step x += Δs v / n,
 /// v += Δs ∇n is the other choice: it lets totally reflected light leak, see
-/// `optics::Integrator`; steps longer than Δs_min, through leaves flat within ε′, are Euler
-/// steps either way); its power falls as e^{−κΔs}. The step
+/// `optics::Integrator`; steps longer than Δs_min, through leaves flat within ε′, are
+/// explicit midpoint steps either way); its power falls as e^{−κΔs}. The step
 /// Δs is the distance to the boundary of the photon's octree leaf along its direction,
 /// at least `min_step` (Δs_min) and at most the leaf's Δs_max (`Octree`). Along every step the
 /// photon deposits its power × the length it travels in each voxel it crosses (where σ > 0)
@@ -95,8 +96,7 @@ enum Fate {
 
 #[derive(Clone, Copy)]
 struct Photon {
-    x: Vec3,
-    v: Vec3,
+    ray: Ray,
     power: Vec3,
     floor: f32,
     bent: bool,
@@ -109,6 +109,8 @@ struct Setup<'a> {
     accel: &'a Accel,
     m: &'a Volume,
     oct: &'a Volume,
+    /// Lookups of n and ∇n in `oct`.
+    oct_s: Sampler<'a>,
     photons: &'a Photons,
     p: &'a MarchPhotons,
     slots: Vec<u32>,
@@ -180,6 +182,7 @@ impl<'a> Setup<'a> {
             accel: i.accel,
             m,
             oct,
+            oct_s: Sampler::new(oct),
             photons: i.photons,
             p,
             slots,
@@ -230,16 +233,16 @@ impl<'a> Setup<'a> {
         let (m, oct) = (self.m, self.oct);
         let h = m.voxel();
         let hmin = h.min_element();
-        let q = m.to_grid(ph.x);
+        let x = ph.ray.x;
+        let q = m.to_grid(x);
         let c = voxel_of(m, q);
         let oi = oct.index(c[0], c[1], c[2]);
-        let (level, smax) = (oct.data[oi].max(0.0) as u32, oct.data[oi + 1]);
-        let n0 = ph.v.length();
-        let u = ph.v / n0;
+        let (level, smax) = (oct.data[oi + LEVEL].max(0.0) as u32, oct.data[oi + MAX_STEP]);
+        let u = ph.ray.dir();
         let lo = self.p.min_step * hmin;
         let hi = smax.max(self.p.min_step) * hmin;
         let mut ds = leaf_exit(q, u / h, c, level).max(lo).min(hi);
-        let t_box = box_interval(ph.x, u, m.min, m.max).map_or(0.0, |(_, t1)| t1);
+        let t_box = box_interval(x, u, m.min, m.max).map_or(0.0, |(_, t1)| t1);
         let leaving = ds >= t_box;
         if leaving {
             ds = t_box;
@@ -251,12 +254,12 @@ impl<'a> Setup<'a> {
         // start too close to it to be found.
         let reach = ds + 0.5 * hmin;
         let near = self.obstacles.is_some_and(|(olo, ohi)| {
-            let end = ph.x + u * reach;
-            ph.x.min(end).cmple(ohi + self.eps).all() && ph.x.max(end).cmpge(olo - self.eps).all()
+            let end = x + u * reach;
+            x.min(end).cmple(ohi + self.eps).all() && x.max(end).cmpge(olo - self.eps).all()
         });
         let mut end = None;
         if leaving || near {
-            let (t, texel) = self.land(ph.x, u, if leaving { f32::INFINITY } else { reach });
+            let (t, texel) = self.land(x, u, if leaving { f32::INFINITY } else { reach });
             match t {
                 Some(t) if t < reach => {
                     ds = t;
@@ -269,7 +272,7 @@ impl<'a> Setup<'a> {
         if self.has_kappa || self.n_slots > 0 {
             let ch = m.channels as usize;
             let mut power = ph.power;
-            for_each_voxel(m, ph.x, u, ds, |vi, t0, t1| {
+            for_each_voxel(m, x, u, ds, |vi, t0, t1| {
                 let l = t1 - t0;
                 let kappa = if ch > 1 { m.data[vi * ch + 1].max(0.0) } else { 0.0 };
                 let att = (-kappa * l).exp();
@@ -303,10 +306,12 @@ impl<'a> Setup<'a> {
             return Fate::Absorbed;
         }
         // Steps longer than Δs_min cross leaves flat within ε′: Verlet's closing kick would apply
-        // the gradient at the far end (the next region's) over the whole step, so they take
-        // the explicit step, whose kick is the (negligible) gradient where they start.
-        let integrator = if ds > lo * 1.0001 { Integrator::Euler } else { self.p.integrator };
-        (ph.x, ph.v) = ray_step(m, oct, ph.x, ph.v, ds, integrator);
+        // the gradient at the far end (the next region's) over the whole step, and Euler's
+        // the start's; the midpoint's lies inside the leaf. Measured on the glass scene: the
+        // caustic map 3.9 % from a quarter-voxel march with midpoint long steps, 5.6 % with
+        // Euler ones (one-voxel steps everywhere: 4.1 %).
+        let integrator = if ds > lo * 1.0001 { Integrator::Midpoint } else { self.p.integrator };
+        ph.ray = ray_step(&self.oct_s, &ph.ray, ds, integrator);
         Fate::Alive
     }
 
@@ -326,8 +331,7 @@ impl<'a> Setup<'a> {
                 }
                 let bent = crosses_bends(self.oct, x, d, f32::INFINITY);
                 (bent || keep_straight).then(|| Photon {
-                    x,
-                    v: d * self.m.sample(x, 0).max(1e-3),
+                    ray: Ray::new(&self.oct_s, x, d),
                     power,
                     floor: power.max_element() * self.p.cutoff,
                     bent,
@@ -413,7 +417,7 @@ impl<'a> Setup<'a> {
     }
 }
 
-#[node(category = "volume", version = 2, sharded)]
+#[node(category = "volume", version = 3, sharded)]
 impl MarchPhotons {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The radiance on the medium's grid (6 channels where it has 3) and its blur.

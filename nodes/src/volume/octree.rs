@@ -3,6 +3,7 @@
 use super::pyramid::MinMaxPyramid;
 use crate::types::Volume;
 use glam::Vec3;
+use rayon::prelude::*;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
 /// The adaptive step of photon marching ([S] 6.3.2, 6.4.3, figure 6-4), per voxel of the
@@ -15,12 +16,13 @@ use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 /// ε, then "8 voxels below ε′") the ε′ rule never fires. Extinction does not shape the leaves ([S] 6.3.2 found it mattered little: the
 /// marcher integrates it exactly voxel by voxel); instead each voxel records whether its
 /// leaf is clear (κ = 0 all through it), where the eikonal render may take the leaf's steps
-/// too, having nothing to gather there. Output, 7 channels on the same grid: the leaf level
+/// too, having nothing to gather there. Output, 8 channels on the same grid: the leaf level
 /// (cell side 2^level voxels, aligned to multiples of it), Δs_max in voxels (+∞ for
-/// unbounded), clear (1 or 0), ∇n (central differences one voxel apart, replicated at the
-/// faces: trilinear sampling of these is the central difference of the trilinear index,
-/// what `Volume::gradient` computes, read in one lookup), and `bends` (1 where the voxel or a
-/// neighbour has |∇n| × voxel > 10⁻⁶: where a ray's trilinear gradient can be non-zero). A
+/// unbounded), clear (1 or 0), `bends` (1 where the voxel or a neighbour has
+/// |∇n| × voxel > 10⁻⁶: where a ray's trilinear gradient can be non-zero), then n (the
+/// medium's own) and ∇n (central differences one voxel apart, replicated at the faces:
+/// trilinear sampling of these is the central difference of the trilinear index, what
+/// `Volume::gradient` computes) side by side, so that a ray step reads both in one lookup. A
 /// straight line that crosses no `bends` voxel is a ray the medium leaves exactly straight:
 /// the photons and the render's shadow rays split the light by it.
 #[derive(Params)]
@@ -36,12 +38,20 @@ pub struct Octree {
     pub step: f32,
 }
 
-/// Channels of the octree volume: level, Δs_max, clear, ∇n (3), bends.
-pub const CHANNELS: u32 = 7;
-/// The channel of ∇n's x component.
-pub const GRADIENT: usize = 3;
+/// Channels of the octree volume: level, Δs_max, clear, bends, n, ∇n (3).
+pub const CHANNELS: u32 = 8;
+/// The channel of the leaf level.
+pub const LEVEL: usize = 0;
+/// The channel of Δs_max (voxels).
+pub const MAX_STEP: usize = 1;
+/// The channel saying the voxel's leaf is clear (κ = 0 all through it).
+pub const CLEAR: usize = 2;
 /// The channel saying a ray may bend in the voxel.
-pub const BENDS: usize = 6;
+pub const BENDS: usize = 3;
+/// The channel of the index n, followed by ∇n's three components.
+pub const INDEX: usize = 4;
+/// The channel of ∇n's x component.
+pub const GRADIENT: usize = 5;
 
 inputs!(pub OctreeIn { medium: Volume });
 outputs!(pub OctreeOut { octree: Volume });
@@ -54,41 +64,55 @@ pub fn build(v: &Volume, o: &Octree, budget: u64) -> Result<(Volume, [u64; 3]), 
     }
     let mut out = Volume::try_new(v.dims, CHANNELS, v.min, v.max, 0.0, budget)?;
     let p = MinMaxPyramid::build(v, 0);
-    let kappa = (v.channels > 1).then(|| MinMaxPyramid::build(v, 1));
+    // Where nothing absorbs anywhere every leaf is clear: no pyramid of κ needed.
+    let absorbs = v.channels > 1 && v.data.iter().skip(1).step_by(v.channels as usize).any(|&k| k > 0.0);
+    let kappa = absorbs.then(|| MinMaxPyramid::build(v, 1));
     let h = v.voxel();
     let d = v.dims.map(|x| x as usize);
-    let mut counts = [0u64; 3];
-    for z in 0..d[2] {
-        for y in 0..d[1] {
-            for x in 0..d[0] {
-                let span = |k: usize| {
-                    let (lo, hi) = p.range_at(k, x, y, z);
-                    hi - lo
-                };
-                let i = out.index(x, y, z);
-                let at = |dx: isize, dy: isize, dz: isize| {
-                    let c = |q: usize, d: isize, n: usize| (q as isize + d).clamp(0, n as isize - 1) as usize;
-                    v.get(c(x, dx, d[0]), c(y, dy, d[1]), c(z, dz, d[2]), 0)
-                };
-                let g = [
-                    (at(1, 0, 0) - at(-1, 0, 0)) / (2.0 * h.x),
-                    (at(0, 1, 0) - at(0, -1, 0)) / (2.0 * h.y),
-                    (at(0, 0, 1) - at(0, 0, -1)) / (2.0 * h.z),
-                ];
-                let clear = |k: usize| kappa.as_ref().is_none_or(|kp| kp.range_at(k, x, y, z).1 <= 0.0);
-                if span(0).partial_cmp(&o.flat) != Some(std::cmp::Ordering::Less) {
-                    out.data[i..i + CHANNELS as usize].copy_from_slice(&[0.0, 0.0, clear(0) as u8 as f32, g[0], g[1], g[2], 0.0]);
-                    counts[2] += 1;
-                    continue;
+    let ch = CHANNELS as usize;
+    let slab = d[0] * d[1] * ch;
+    // One z slab a task; each voxel is computed alone, so any thread count gives the same bytes.
+    let counts = out
+        .data
+        .par_chunks_mut(slab)
+        .enumerate()
+        .map(|(z, slab)| {
+            let mut counts = [0u64; 3];
+            for y in 0..d[1] {
+                for x in 0..d[0] {
+                    let span = |k: usize| {
+                        let (lo, hi) = p.range_at(k, x, y, z);
+                        hi - lo
+                    };
+                    let at = |dx: isize, dy: isize, dz: isize| {
+                        let c = |q: usize, d: isize, n: usize| (q as isize + d).clamp(0, n as isize - 1) as usize;
+                        v.get(c(x, dx, d[0]), c(y, dy, d[1]), c(z, dz, d[2]), 0)
+                    };
+                    let g = [
+                        (at(1, 0, 0) - at(-1, 0, 0)) / (2.0 * h.x),
+                        (at(0, 1, 0) - at(0, -1, 0)) / (2.0 * h.y),
+                        (at(0, 0, 1) - at(0, 0, -1)) / (2.0 * h.z),
+                    ];
+                    let clear = |k: usize| kappa.as_ref().is_none_or(|kp| kp.range_at(k, x, y, z).1 <= 0.0);
+                    let (level, step, class) = if span(0).partial_cmp(&o.flat) != Some(std::cmp::Ordering::Less) {
+                        (0, 0.0, 2)
+                    } else {
+                        // Ranges only grow with the level: the largest level still below ε′.
+                        let level = (0..p.levels.len()).take_while(|&k| span(k) < o.flat).last().unwrap_or(0);
+                        if span(level) < o.uniform {
+                            (level, f32::INFINITY, 0)
+                        } else {
+                            (level, o.step, 1)
+                        }
+                    };
+                    let i = (y * d[0] + x) * ch;
+                    slab[i..i + ch].copy_from_slice(&[level as f32, step, clear(level) as u8 as f32, 0.0, at(0, 0, 0), g[0], g[1], g[2]]);
+                    counts[class] += 1;
                 }
-                // Ranges only grow with the level: the largest level still below ε′.
-                let level = (0..p.levels.len()).take_while(|&k| span(k) < o.flat).last().unwrap_or(0);
-                let (step, class) = if span(level) < o.uniform { (f32::INFINITY, 0) } else { (o.step, 1) };
-                out.data[i..i + CHANNELS as usize].copy_from_slice(&[level as f32, step, clear(level) as u8 as f32, g[0], g[1], g[2], 0.0]);
-                counts[class] += 1;
             }
-        }
-    }
+            counts
+        })
+        .reduce(|| [0u64; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]);
     mark_bends(&mut out);
     Ok((out, counts))
 }
@@ -100,7 +124,7 @@ fn mark_bends(o: &mut Volume) {
     let ch = CHANNELS as usize;
     let steep: Vec<bool> =
         o.data.chunks(ch).map(|c| (Vec3::new(c[GRADIENT], c[GRADIENT + 1], c[GRADIENT + 2]) * h).abs().max_element() > 1e-6).collect();
-    for z in 0..d[2] {
+    o.data.par_chunks_mut(d[0] * d[1] * ch).enumerate().for_each(|(z, slab)| {
         for y in 0..d[1] {
             for x in 0..d[0] {
                 let mut any = false;
@@ -114,19 +138,18 @@ fn mark_bends(o: &mut Volume) {
                         }
                     }
                 }
-                let i = o.index(x, y, z);
-                o.data[i + BENDS] = any as u8 as f32;
+                slab[(y * d[0] + x) * ch + BENDS] = any as u8 as f32;
             }
         }
-    }
+    });
 }
 
-#[node(category = "volume", version = 3)]
+#[node(category = "volume", version = 5)]
 impl Octree {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
-        // Six channels per voxel where the medium has three, and two pyramids (8 bytes a
+        // Eight channels per voxel where the medium has three (its usual layout), and two pyramids (8 bytes a
         // voxel at level 0, an eighth more above).
-        let out = inputs[0].map(|s| relume_core::PortSize::bytes(s.bytes * 2));
+        let out = inputs[0].map(|s| relume_core::PortSize::bytes(s.bytes / 3 * 8));
         relume_core::MemoryEstimate { outputs: vec![out], working: inputs[0].map_or(0, |s| s.bytes / 3 * 6) }
     }
 
@@ -167,7 +190,7 @@ mod tests {
         let (o, c) = build(&field(16, |_, _, _| 1.5), &defaults(), u64::MAX).unwrap();
         assert_eq!(c, [4096, 0, 0]);
         assert!(
-            o.data.chunks(7).all(|v| v == [4.0, f32::INFINITY, 1.0, 0.0, 0.0, 0.0, 0.0]),
+            o.data.chunks(8).all(|v| v == [4.0, f32::INFINITY, 1.0, 0.0, 1.5, 0.0, 0.0, 0.0]),
             "the 16³ cell is level 4, clear, flat, straight"
         );
     }
@@ -177,15 +200,18 @@ mod tests {
         // x < 8: n = 1; x ≥ 8: n = 2.4 (one voxel apart).
         let (o, c) = build(&field(16, |x, _, _| if x < 8 { 1.0 } else { 2.4 }), &defaults(), u64::MAX).unwrap();
         let at = |x: usize| [o.get(x, 3, 3, 0), o.get(x, 3, 3, 1)];
-        assert_eq!(at(7), [0.0, 0.0], "the cell blending across the jump");
+        assert_eq!(at(7), [0.0, 0.0], "the voxels whose trilinear index blends across the jump");
+        assert_eq!(at(8), [0.0, 0.0]);
         // Rays bend in voxels 7 and 8 (their central differences span the jump) and may in
         // their neighbours 6 and 9 (trilinear sampling reaches them); not beyond.
         let bends: Vec<f32> = (0..16).map(|x| o.get(x, 3, 3, BENDS)).collect();
         assert_eq!(bends, [0., 0., 0., 0., 0., 0., 1., 1., 1., 1., 0., 0., 0., 0., 0., 0.]);
-        assert_eq!(c[2], 256, "one slab of voxels");
-        // Away from it, leaves as large as the aligned cells that stay clear of cell 7: level 3
-        // on the high side, and on the low side shrinking toward it (4, 2, 1 voxels).
-        assert_eq!(at(12), [3.0, f32::INFINITY]);
+        assert_eq!(c[2], 2 * 256, "two slabs of voxels");
+        // Away from it, leaves as large as the aligned cells that stay clear of voxels 7 and 8:
+        // shrinking toward them on both sides (4, 2, 1 voxels).
+        assert_eq!(at(12), [2.0, f32::INFINITY]);
+        assert_eq!(at(10), [1.0, f32::INFINITY]);
+        assert_eq!(at(9), [0.0, f32::INFINITY]);
         assert_eq!(at(2), [2.0, f32::INFINITY]);
         assert_eq!(at(5), [1.0, f32::INFINITY]);
         assert_eq!(at(6), [0.0, f32::INFINITY]);
@@ -197,7 +223,8 @@ mod tests {
         // cells of 8 span 0.016, of 16 span 0.03 (> ε′).
         let (o, c) = build(&field(32, |x, _, _| 1.0 + 0.002 * x as f32), &defaults(), u64::MAX).unwrap();
         assert_eq!(c[2], 0);
-        assert!(o.data.chunks(7).all(|v| v[0] == 3.0 && v[1] == 8.0 && v[6] == 1.0), "{:?}", &o.data[..8]);
+        assert!(o.data.chunks(8).all(|v| v[LEVEL] == 3.0 && v[MAX_STEP] == 8.0 && v[BENDS] == 1.0), "{:?}", &o.data[..8]);
+        assert_eq!(o.get(10, 5, 5, INDEX), 1.0 + 0.002 * 10.0, "the medium's own index, copied beside its gradient");
         // The gradient: 0.002 per voxel of 1/32 (central differences; one-sided halves at the faces).
         let g = o.get(10, 5, 5, GRADIENT);
         assert!((g - 0.064).abs() < 1e-4, "{g}");
@@ -217,9 +244,9 @@ mod tests {
         }
         let (o, _) = build(&v, &defaults(), u64::MAX).unwrap();
         assert_eq!(o.get(1, 1, 1, 0), 4.0, "κ does not shape the leaves");
-        assert_eq!(o.get(1, 1, 1, 2), 0.0, "but the 16³ leaf holds absorbing voxels");
+        assert_eq!(o.get(1, 1, 1, CLEAR), 0.0, "but the 16³ leaf holds absorbing voxels");
         let (o, _) = build(&field(16, |_, _, _| 1.0), &defaults(), u64::MAX).unwrap();
-        assert_eq!(o.get(1, 1, 1, 2), 1.0);
+        assert_eq!(o.get(1, 1, 1, CLEAR), 1.0);
     }
 
     #[test]
