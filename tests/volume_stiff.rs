@@ -204,9 +204,9 @@ fn a_jump_from_one_to_two_point_four_across_one_voxel_keeps_v_equal_to_n_and_ref
                 // Snell: sin θt = sin 30° / 2.4 = 0.2083. The ray sees ∇n (central
                 // differences, trilinear) over three voxels while n itself ramps over one,
                 // and |v| is reset to n(x) at every step: where ∇n is non-zero but n is still
-                // 1 the reset takes tangential momentum away. That bias and the Euler step's
-                // O(Δs) error (measured: 0.214 at one-voxel steps, 0.204 at quarter-voxel;
-                // −0.03 … −0.05 at 60° and −0.04 … −0.09 at 85°, not asserted) stay well under 0.05
+                // 1 the reset takes tangential momentum away. That bias and the step's error
+                // (measured with Verlet steps: 0.187 at one-voxel steps, 0.195 at quarter-voxel;
+                // −0.03 … −0.02 at 60° and −0.08 … −0.03 at 85°, not asserted) stay under 0.05
                 // in sin at 30°, which still tells Snell (0.208) from no refraction (0.5) or
                 // a wrong ratio such as 1/1.5 (0.333).
                 let snell = sin_i / 2.4;
