@@ -1,8 +1,8 @@
 //! EikonalRender node.
 
-use super::octree::{CLEAR, LEVEL, MAX_STEP};
+use super::octree::{CLEAR, CLEARANCE, LEVEL, MAX_STEP};
 use super::optics::{
-    box_interval, crosses_bends, leaf_exit, luminance, optical_depth, photon_lights, ray_step, voxel_of, Integrator, PhotonLight, Ray,
+    box_interval, leaf_exit, luminance, optical_depth, photon_lights, ray_step, voxel_of, Clearance, Integrator, PhotonLight, Ray,
 };
 use crate::brdf;
 use crate::math::frame::Frame;
@@ -21,7 +21,9 @@ use std::f32::consts::PI;
 /// through it with a fixed step (`step`, 1 voxel) — Störmer–Verlet or the thesis' Euler step
 /// x += Δs v / n, v += Δs ∇n (`integrator`, as `MarchPhotons`), |v| = n kept — or,
 /// with `adaptive`, the octree's step (as `MarchPhotons` takes it, `step` the least) inside
-/// clear leaves (κ = 0 all through: nothing to gather, the index flat within ε′), and
+/// clear leaves (κ = 0 all through: nothing to gather, the index flat within ε′) — where
+/// nothing absorbs anywhere, straight on across uniform leaves to the first voxel that may bend
+/// the ray, as `MarchPhotons` — and
 /// gathers the in-scattered light σ × fluence × phase × transmittance (the fluence and mean
 /// light direction `MarchPhotons` stored; phase Henyey–Greenstein of `g` about that direction,
 /// blended toward isotropic as the stored light is less directed; `g` = 0 is isotropic), the
@@ -69,6 +71,8 @@ struct Render<'a> {
     oct: &'a Volume,
     /// Lookups of n and ∇n in `oct`.
     oct_s: Sampler<'a>,
+    /// Its clearance, for straight runs and shadow rays.
+    clearance: Clearance,
     radiance: &'a Volume,
     caustics: &'a CausticMap,
     lights: Vec<PhotonLight>,
@@ -129,7 +133,7 @@ impl Render<'_> {
             let tmax = if dist.is_finite() { (dist - l.radius * 1.001) * (1.0 - 1e-4) } else { f32::INFINITY };
             // Light whose straight line crosses voxels where rays bend arrives as photons
             // (the caustic map), never here.
-            if tmax > 0.0 && !self.accel.occluded(origin, wi, 0.0, tmax) && !crosses_bends(self.oct, origin, wi, tmax) {
+            if tmax > 0.0 && !self.accel.occluded(origin, wi, 0.0, tmax) && !self.clearance.crosses_bends(origin, wi, tmax) {
                 out += f * li * self.transmittance(origin, wi, tmax);
             }
         }
@@ -163,13 +167,23 @@ impl Render<'_> {
         for _ in 0..max_steps {
             let (x, u) = (ray.x, ray.dir());
             let mut ds = ds0;
+            let mut straight = false;
             if self.p.adaptive {
-                let q = m.to_grid(x);
+                let q = self.oct_s.to_grid(x);
                 let c = voxel_of(m, q);
                 let oi = self.oct.index(c[0], c[1], c[2]);
-                if self.oct.data[oi + CLEAR] > 0.0 {
-                    let hi = self.oct.data[oi + MAX_STEP].max(self.p.step) * h.min_element();
+                let smax = self.oct.data[oi + MAX_STEP];
+                if !self.has_kappa && smax == f32::INFINITY && self.oct.data[oi + CLEARANCE] > 0.0 {
+                    // Nothing to gather anywhere, and no ray bends here: straight on to the
+                    // first voxel that may bend it, as MarchPhotons.
+                    let run = self.clearance.straight_run(x, u, f32::INFINITY);
+                    (ds, straight) = (run, run > 0.0);
+                }
+                if !straight && self.oct.data[oi + CLEAR] > 0.0 {
+                    let hi = smax.max(self.p.step) * h.min_element();
                     ds = leaf_exit(q, u / h, c, self.oct.data[oi + LEVEL].max(0.0) as u32).max(ds0).min(hi);
+                } else if !straight {
+                    ds = ds0;
                 }
             }
             let t_box = box_interval(x, u, m.min, m.max).map_or(0.0, |(_, t1)| t1);
@@ -217,8 +231,12 @@ impl Render<'_> {
                 return l + tr * self.hit(x, u, f32::INFINITY).map_or_else(|| self.environment(u), |s| self.shade(&s, -u, counts));
             }
             // Longer steps (through clear leaves) are midpoint steps, as in MarchPhotons.
-            let integrator = if ds > ds0 * 1.0001 { Integrator::Midpoint } else { self.p.integrator };
-            ray = ray_step(&self.oct_s, &ray, ds, integrator);
+            ray = if straight {
+                Ray::new(&self.oct_s, x + u * ds, u)
+            } else {
+                let integrator = if ds > ds0 * 1.0001 { Integrator::Midpoint } else { self.p.integrator };
+                ray_step(&self.oct_s, &ray, ds, integrator)
+            };
         }
         l
     }
@@ -246,6 +264,7 @@ pub fn render(i: &EikonalRenderIn, p: &EikonalRender, cx: &RunCtx) -> Result<(Im
         m,
         oct: i.octree,
         oct_s: Sampler::new(i.octree),
+        clearance: Clearance::of(i.octree),
         radiance: i.radiance,
         caustics: i.caustics,
         lights: photon_lights(i.scene),
@@ -268,11 +287,12 @@ pub fn render(i: &EikonalRenderIn, p: &EikonalRender, cx: &RunCtx) -> Result<(Im
     })
 }
 
-#[node(category = "volume", version = 3)]
+#[node(category = "volume", version = 4)]
 impl EikonalRender {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let image = inputs[6].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));
-        relume_core::MemoryEstimate { outputs: vec![image], working: 0 }
+        // The octree's clearance as a byte a voxel (its 8 channels hold 32).
+        relume_core::MemoryEstimate { outputs: vec![image], working: inputs[3].map_or(0, |s| s.bytes / 32) }
     }
 
     fn run(&self, i: EikonalRenderIn, cx: &RunCtx) -> Result<EikonalRenderOut, NodeError> {

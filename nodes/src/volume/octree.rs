@@ -18,13 +18,15 @@ use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 /// leaf is clear (κ = 0 all through it), where the eikonal render may take the leaf's steps
 /// too, having nothing to gather there. Output, 8 channels on the same grid: the leaf level
 /// (cell side 2^level voxels, aligned to multiples of it), Δs_max in voxels (+∞ for
-/// unbounded), clear (1 or 0), `bends` (1 where the voxel or a neighbour has
-/// |∇n| × voxel > 10⁻⁶: where a ray's trilinear gradient can be non-zero), then n (the
+/// unbounded), clear (1 or 0), the clearance (0 where the voxel or a neighbour has
+/// |∇n| × voxel > 10⁻⁶: where a ray's trilinear gradient can be non-zero, "bends"; elsewhere
+/// the L∞ distance in voxels to the nearest such voxel, at most 16), then n (the
 /// medium's own) and ∇n (central differences one voxel apart, replicated at the faces:
 /// trilinear sampling of these is the central difference of the trilinear index, what
 /// `Volume::gradient` computes) side by side, so that a ray step reads both in one lookup. A
-/// straight line that crosses no `bends` voxel is a ray the medium leaves exactly straight:
-/// the photons and the render's shadow rays split the light by it.
+/// straight line that crosses no voxel that bends is a ray the medium leaves exactly straight:
+/// the photons and the render's shadow rays split the light by it, and a ray in a voxel of
+/// clearance c may fly c − 1 voxels straight on without a lookup (`optics::straight_run`).
 #[derive(Params)]
 pub struct Octree {
     /// ε: an index range below this is uniform (unbounded steps)
@@ -38,7 +40,7 @@ pub struct Octree {
     pub step: f32,
 }
 
-/// Channels of the octree volume: level, Δs_max, clear, bends, n, ∇n (3).
+/// Channels of the octree volume: level, Δs_max, clear, clearance, n, ∇n (3).
 pub const CHANNELS: u32 = 8;
 /// The channel of the leaf level.
 pub const LEVEL: usize = 0;
@@ -46,8 +48,9 @@ pub const LEVEL: usize = 0;
 pub const MAX_STEP: usize = 1;
 /// The channel saying the voxel's leaf is clear (κ = 0 all through it).
 pub const CLEAR: usize = 2;
-/// The channel saying a ray may bend in the voxel.
-pub const BENDS: usize = 3;
+/// The channel of the voxel's clearance: the L∞ distance in voxels to the nearest voxel where
+/// a ray may bend (0: it may bend here), at most `CLEARANCE_CAP`.
+pub const CLEARANCE: usize = 3;
 /// The channel of the index n, followed by ∇n's three components.
 pub const INDEX: usize = 4;
 /// The channel of ∇n's x component.
@@ -113,38 +116,66 @@ pub fn build(v: &Volume, o: &Octree, budget: u64) -> Result<(Volume, [u64; 3]), 
             counts
         })
         .reduce(|| [0u64; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]);
-    mark_bends(&mut out);
+    mark_clearance(&mut out);
     Ok((out, counts))
 }
 
-/// Sets `BENDS` where the voxel or one of its 26 neighbours has a measurable gradient.
-fn mark_bends(o: &mut Volume) {
+/// The largest clearance stored (voxels): a straight run jumps at most this far at once.
+pub const CLEARANCE_CAP: u8 = 16;
+
+/// Sets `CLEARANCE`: the L∞ distance in voxels to the nearest voxel whose own or a neighbour's
+/// gradient is measurable (0 there: a ray may bend), at most `CLEARANCE_CAP`. The distance to
+/// the measurable voxels themselves, one less: separable, exact along x by two sweeps, then
+/// along y and z as min over k of max(|k|, d(i + k)) (what the L∞ norm makes of the
+/// minimum over the plane's distances). Each voxel alone: the same bytes on any thread count.
+fn mark_clearance(o: &mut Volume) {
     let d = o.dims.map(|x| x as usize);
     let h = o.voxel();
     let ch = CHANNELS as usize;
-    let steep: Vec<bool> =
-        o.data.chunks(ch).map(|c| (Vec3::new(c[GRADIENT], c[GRADIENT + 1], c[GRADIENT + 2]) * h).abs().max_element() > 1e-6).collect();
-    o.data.par_chunks_mut(d[0] * d[1] * ch).enumerate().for_each(|(z, slab)| {
-        for y in 0..d[1] {
-            for x in 0..d[0] {
-                let mut any = false;
-                'n: for zz in z.saturating_sub(1)..=(z + 1).min(d[2] - 1) {
-                    for yy in y.saturating_sub(1)..=(y + 1).min(d[1] - 1) {
-                        for xx in x.saturating_sub(1)..=(x + 1).min(d[0] - 1) {
-                            if steep[(zz * d[1] + yy) * d[0] + xx] {
-                                any = true;
-                                break 'n;
-                            }
-                        }
-                    }
-                }
-                slab[(y * d[0] + x) * ch + BENDS] = any as u8 as f32;
-            }
+    let far = CLEARANCE_CAP + 1;
+    let mut dist: Vec<u8> = o
+        .data
+        .chunks(ch)
+        .map(|c| if (Vec3::new(c[GRADIENT], c[GRADIENT + 1], c[GRADIENT + 2]) * h).abs().max_element() > 1e-6 { 0 } else { far })
+        .collect();
+    dist.par_chunks_mut(d[0]).for_each(|row| {
+        for x in 1..row.len() {
+            row[x] = row[x].min(row[x - 1].saturating_add(1));
+        }
+        for x in (0..row.len() - 1).rev() {
+            row[x] = row[x].min(row[x + 1].saturating_add(1));
         }
     });
+    // Along axis `stride` (y: d[0], z: d[0] d[1]) of length `n`, a row of x at a time (the
+    // rows k apart, min of max, vectorise).
+    let along = |src: &[u8], stride: usize, n: usize| -> Vec<u8> {
+        let mut out = src.to_vec();
+        out.par_chunks_mut(d[0]).enumerate().for_each(|(r, row)| {
+            let i = r * d[0];
+            let pos = (i / stride) % n;
+            for k in 1..far as usize {
+                let kk = k as u8;
+                let mut fold = |from: usize| {
+                    for (a, &b) in row.iter_mut().zip(&src[from..from + d[0]]) {
+                        *a = (*a).min(b.max(kk));
+                    }
+                };
+                if pos >= k {
+                    fold(i - k * stride);
+                }
+                if pos + k < n {
+                    fold(i + k * stride);
+                }
+            }
+        });
+        out
+    };
+    let dist = along(&dist, d[0], d[1]);
+    let dist = along(&dist, d[0] * d[1], d[2]);
+    o.data.par_chunks_mut(ch).zip(dist.par_iter()).for_each(|(c, &x)| c[CLEARANCE] = x.saturating_sub(1).min(CLEARANCE_CAP) as f32);
 }
 
-#[node(category = "volume", version = 5)]
+#[node(category = "volume", version = 6)]
 impl Octree {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // Eight channels per voxel where the medium has three (its usual layout), and two pyramids (8 bytes a
@@ -190,8 +221,8 @@ mod tests {
         let (o, c) = build(&field(16, |_, _, _| 1.5), &defaults(), u64::MAX).unwrap();
         assert_eq!(c, [4096, 0, 0]);
         assert!(
-            o.data.chunks(8).all(|v| v == [4.0, f32::INFINITY, 1.0, 0.0, 1.5, 0.0, 0.0, 0.0]),
-            "the 16³ cell is level 4, clear, flat, straight"
+            o.data.chunks(8).all(|v| v == [4.0, f32::INFINITY, 1.0, CLEARANCE_CAP as f32, 1.5, 0.0, 0.0, 0.0]),
+            "the 16³ cell is level 4, clear, flat, straight everywhere"
         );
     }
 
@@ -203,9 +234,10 @@ mod tests {
         assert_eq!(at(7), [0.0, 0.0], "the voxels whose trilinear index blends across the jump");
         assert_eq!(at(8), [0.0, 0.0]);
         // Rays bend in voxels 7 and 8 (their central differences span the jump) and may in
-        // their neighbours 6 and 9 (trilinear sampling reaches them); not beyond.
-        let bends: Vec<f32> = (0..16).map(|x| o.get(x, 3, 3, BENDS)).collect();
-        assert_eq!(bends, [0., 0., 0., 0., 0., 0., 1., 1., 1., 1., 0., 0., 0., 0., 0., 0.]);
+        // their neighbours 6 and 9 (trilinear sampling reaches them); not beyond, where the
+        // clearance counts the voxels to them.
+        let clearance: Vec<f32> = (0..16).map(|x| o.get(x, 3, 3, CLEARANCE)).collect();
+        assert_eq!(clearance, [6., 5., 4., 3., 2., 1., 0., 0., 0., 0., 1., 2., 3., 4., 5., 6.]);
         assert_eq!(c[2], 2 * 256, "two slabs of voxels");
         // Away from it, leaves as large as the aligned cells that stay clear of voxels 7 and 8:
         // shrinking toward them on both sides (4, 2, 1 voxels).
@@ -223,7 +255,7 @@ mod tests {
         // cells of 8 span 0.016, of 16 span 0.03 (> ε′).
         let (o, c) = build(&field(32, |x, _, _| 1.0 + 0.002 * x as f32), &defaults(), u64::MAX).unwrap();
         assert_eq!(c[2], 0);
-        assert!(o.data.chunks(8).all(|v| v[LEVEL] == 3.0 && v[MAX_STEP] == 8.0 && v[BENDS] == 1.0), "{:?}", &o.data[..8]);
+        assert!(o.data.chunks(8).all(|v| v[LEVEL] == 3.0 && v[MAX_STEP] == 8.0 && v[CLEARANCE] == 0.0), "{:?}", &o.data[..8]);
         assert_eq!(o.get(10, 5, 5, INDEX), 1.0 + 0.002 * 10.0, "the medium's own index, copied beside its gradient");
         // The gradient: 0.002 per voxel of 1/32 (central differences; one-sided halves at the faces).
         let g = o.get(10, 5, 5, GRADIENT);
@@ -247,6 +279,28 @@ mod tests {
         assert_eq!(o.get(1, 1, 1, CLEAR), 0.0, "but the 16³ leaf holds absorbing voxels");
         let (o, _) = build(&field(16, |_, _, _| 1.0), &defaults(), u64::MAX).unwrap();
         assert_eq!(o.get(1, 1, 1, CLEAR), 1.0);
+    }
+
+    #[test]
+    fn the_clearance_is_the_l_infinity_distance_to_where_rays_bend() {
+        // Three bumps of index: brute force over every pair of voxels.
+        let bumps = [(3usize, 4usize, 5usize), (17, 20, 2), (30, 30, 30)];
+        let v = field(32, |x, y, z| if bumps.contains(&(x, y, z)) { 1.2 } else { 1.0 });
+        let (o, _) = build(&v, &defaults(), u64::MAX).unwrap();
+        let steep: Vec<[usize; 3]> = (0..32usize.pow(3))
+            .filter(|&i| (0..3).any(|k| o.data[i * 8 + GRADIENT + k] != 0.0))
+            .map(|i| [i % 32, i / 32 % 32, i / 1024])
+            .collect();
+        assert_eq!(steep.len(), 3 * 6, "each bump's six neighbours along the axes");
+        for z in 0..32 {
+            for y in 0..32 {
+                for x in 0..32 {
+                    let dist = steep.iter().map(|s| (0..3).map(|k| s[k].abs_diff([x, y, z][k])).max().unwrap()).min().unwrap();
+                    let want = dist.saturating_sub(1).min(CLEARANCE_CAP as usize) as f32;
+                    assert_eq!(o.get(x, y, z, CLEARANCE), want, "({x}, {y}, {z})");
+                }
+            }
+        }
     }
 
     #[test]
