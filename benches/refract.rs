@@ -9,7 +9,8 @@
 
 use relume_benches::{add_output, bench_graph};
 use relume_core::{shard::run_all, CancelToken, Engine, Graph, RunCtx, RunOptions};
-use relume_nodes::types::{Accel, CausticMap, Photons, Scene, Volume};
+use relume_nodes::types::{Accel, CausticMap, Photons, Scene, ViewPaths, Volume};
+use relume_nodes::volume::eikonal_paths::{trace, EikonalPaths, EikonalPathsIn};
 use relume_nodes::volume::eikonal_render::{render, EikonalRender, EikonalRenderIn};
 use relume_nodes::volume::emit_photons::{emit, EmitPhotons, Proxy};
 use relume_nodes::volume::march_photons::{MarchPhotons, MarchPhotonsIn};
@@ -162,19 +163,41 @@ fn march_fixed(bencher: divan::Bencher, step: f64) {
     bencher.bench(|| march(s, &s.fixed, &p));
 }
 
-fn render_256(s: &Stages, octree: &Volume, adaptive: bool) -> relume_nodes::types::Image {
+fn camera_256(s: &Stages) -> relume_nodes::types::Camera {
     let mut camera = s.scene.camera.clone();
     (camera.width, camera.height) = (256, 256);
+    camera
+}
+
+fn paths_256(s: &Stages, octree: &Volume, adaptive: bool) -> ViewPaths {
+    let camera = camera_256(s);
+    let i = EikonalPathsIn { accel: s.accel(), medium: &s.medium, octree, camera: &camera };
+    cx(|c| trace(&i, &EikonalPaths { samples: 1, step: 1.0, adaptive, integrator: Integrator::Verlet }, c)).unwrap()
+}
+
+fn shade_256(s: &Stages, paths: &ViewPaths) -> relume_nodes::types::Image {
     let i = EikonalRenderIn {
         scene: &s.scene,
         accel: s.accel(),
         medium: &s.medium,
-        octree,
+        octree: &s.octree,
         radiance: &s.radiance,
         caustics: &s.caustics,
-        camera: &camera,
+        paths,
     };
-    cx(|c| render(&i, &EikonalRender { g: 0.0, samples: 1, step: 1.0, adaptive, integrator: Integrator::Verlet }, c)).unwrap().0
+    cx(|c| render(&i, &EikonalRender { g: 0.0 }, c)).unwrap().0
+}
+
+fn render_256(s: &Stages, octree: &Volume, adaptive: bool) -> relume_nodes::types::Image {
+    shade_256(s, &paths_256(s, octree, adaptive))
+}
+
+/// The shading alone (what a light edit re-runs of the render).
+#[divan::bench(sample_count = 10)]
+fn shade_256_only(bencher: divan::Bencher) {
+    let s = stages();
+    let paths = paths_256(s, &s.octree, true);
+    bencher.bench(|| shade_256(s, &paths));
 }
 
 #[divan::bench(sample_count = 10)]
@@ -193,7 +216,7 @@ fn render_256_fixed(bencher: divan::Bencher) {
 fn edit_graph() -> Graph {
     let reg = relume_nodes::registry();
     let mut g = bench_graph("refract_glass.ron");
-    for (k, v) in [("scene.width", "256"), ("scene.height", "256"), ("render.samples", "1")] {
+    for (k, v) in [("scene.width", "256"), ("scene.height", "256"), ("paths.samples", "1")] {
         g.set_param_text(&reg, k, v).unwrap();
     }
     g

@@ -9,6 +9,7 @@ use relume_core::{run_standalone, CancelToken, ParamValue, RunCtx, Value};
 use relume_nodes::scene::builder::SceneBuilder;
 use relume_nodes::types::accel::BuildQuality;
 use relume_nodes::types::{Accel, CausticMap, Image, Light, Material, Photons, Sampler, Scene, Volume};
+use relume_nodes::volume::eikonal_paths::{self, EikonalPaths, EikonalPathsIn};
 use relume_nodes::volume::eikonal_render::{self, EikonalRender, EikonalRenderIn};
 use relume_nodes::volume::emit_photons::{emit, EmitPhotons, Proxy};
 use relume_nodes::volume::march_photons::MarchPhotons;
@@ -75,13 +76,14 @@ fn metric(metrics: &[(String, f64)], name: &str) -> f64 {
     metrics.iter().find(|(n, _)| n == name).unwrap_or_else(|| panic!("no metric {name} in {metrics:?}")).1
 }
 
-/// EikonalRender at its defaults through the scene's camera at `size`².
+/// EikonalPaths and EikonalRender at their defaults through the scene's camera at `size`².
 fn render(scene: &Scene, accel: &Accel, m: &Volume, oct: &Volume, radiance: &Volume, caustics: &CausticMap, size: usize) -> Image {
     let mut camera = scene.camera.clone();
     (camera.width, camera.height) = (size, size);
-    let i = EikonalRenderIn { scene, accel, medium: m, octree: oct, radiance, caustics, camera: &camera };
-    let p = EikonalRender { g: 0.0, samples: 1, step: 1.0, adaptive: true, integrator: Integrator::Verlet };
-    with_cx(|cx| eikonal_render::render(&i, &p, cx)).unwrap().0
+    let p = EikonalPaths { samples: 1, step: 1.0, adaptive: true, integrator: Integrator::Verlet };
+    let paths = with_cx(|cx| eikonal_paths::trace(&EikonalPathsIn { accel, medium: m, octree: oct, camera: &camera }, &p, cx)).unwrap();
+    let i = EikonalRenderIn { scene, accel, medium: m, octree: oct, radiance, caustics, paths: &paths };
+    with_cx(|cx| eikonal_render::render(&i, &EikonalRender { g: 0.0 }, cx)).unwrap().0
 }
 
 /// A 3-channel medium (n, κ = 0, σ = 0) of `d`³ voxels over `lo … hi`, n given at each

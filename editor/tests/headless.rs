@@ -388,9 +388,9 @@ fn orbiting_moving_the_light_and_painting_on_refract_glass_update_the_image() {
     let vec3 = |x: f64, y: f64, z: f64| ParamValue::Tuple(vec![ParamValue::Float(x), ParamValue::Float(y), ParamValue::Float(z)]);
     // Each edit: the image first, from exactly the nodes the edit reaches on its way there.
     let edits: [(&str, &str, ParamValue, &[&str]); 3] = [
-        ("camera", "azimuth", ParamValue::Float(25.0), &["camera", "render"]),
+        ("camera", "azimuth", ParamValue::Float(25.0), &["camera", "paths", "render"]),
         ("light", "translation", vec3(0.3, 0.0, 0.0), &["bvh", "emit", "light", "march", "render"]),
-        ("paint", "weight", ParamValue::Float(0.3), &["emit", "march", "octree", "paint", "render"]),
+        ("paint", "weight", ParamValue::Float(0.3), &["emit", "march", "octree", "paint", "paths", "render"]),
     ];
     for (node, param, value, reran) in edits {
         app.set_param(node, param, value).unwrap();

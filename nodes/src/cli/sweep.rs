@@ -466,6 +466,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "MarchPhotons" => {
             &["photons", "photon_steps", "steps_per_photon", "landed_pct", "left_pct", "absorbed_pct", "stopped_pct", "straight_pct"]
         }
+        "EikonalPaths" => &["camera_samples", "gathers", "entered_pct"],
         "EikonalRender" => &["rays"],
         "Octree" => &["unbounded_pct", "stepped_pct", "minimum_step_pct"],
         "VolumePaint" => &["voxels_painted"],

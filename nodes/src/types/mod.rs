@@ -15,6 +15,7 @@ mod scene;
 mod sv_transfer;
 mod texture;
 mod transfer;
+pub mod view_paths;
 pub mod volume;
 
 pub use self::image::{Image, MAX_IMAGE_BYTES};
@@ -32,6 +33,7 @@ pub use scene::{Camera, EnvMap, Environment, Light, Object, Scene};
 pub use sv_transfer::{SparsePlane, SvBlock, SvTransfer};
 pub use texture::{MaterialMaps, Texture};
 pub use transfer::{floats_and_stride, ObjectMaterial, ObjectMaterials, PathCounts, Transfer, TransferRows, MAX_TRANSFER_BYTES};
+pub use view_paths::ViewPaths;
 pub use volume::{Sampler, Volume, MAX_VOLUME_BYTES};
 
 /// Serde of a `Vec` of plain 4-byte words (`f32`, `u32`, `Vec3`, `[u32; 3]`, …) as one byte

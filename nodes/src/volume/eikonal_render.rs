@@ -1,38 +1,31 @@
 //! EikonalRender node.
 
-use super::octree::{CLEAR, CLEARANCE, LEVEL, MAX_STEP};
-use super::optics::{
-    box_interval, leaf_exit, luminance, optical_depth, photon_lights, ray_step, voxel_of, Clearance, Integrator, PhotonLight, Ray,
-};
+use super::optics::{box_interval, luminance, optical_depth, photon_lights, Clearance, PhotonLight};
 use crate::brdf;
 use crate::math::frame::Frame;
-use crate::render::camera::CameraRays;
 use crate::render::film::per_pixel;
 use crate::render::integrator::Counts;
 use crate::render::lights::delta_sample;
 use crate::render::surface::Surface;
-use crate::types::{Accel, Camera, CausticMap, Environment, Image, Material, Sampler, Scene, Volume};
+use crate::types::view_paths::Gather;
+use crate::types::{Accel, CausticMap, Environment, Image, Material, Scene, ViewPaths, Volume};
 use glam::Vec3;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 use std::f32::consts::PI;
 
-/// The picture of a medium and its surroundings ([S] 6.3.5): per pixel (`samples`² stratified
-/// rays) the camera ray goes straight to the medium's box, then follows the ray equation
-/// through it with a fixed step (`step`, 1 voxel) — Störmer–Verlet or the thesis' Euler step
-/// x += Δs v / n, v += Δs ∇n (`integrator`, as `MarchPhotons`), |v| = n kept — or,
-/// with `adaptive`, the octree's step (as `MarchPhotons` takes it, `step` the least) inside
-/// clear leaves (κ = 0 all through: nothing to gather, the index flat within ε′) — where
-/// nothing absorbs anywhere, straight on across uniform leaves to the first voxel that may bend
-/// the ray, as `MarchPhotons` — and
-/// gathers the in-scattered light σ × fluence × phase × transmittance (the fluence and mean
-/// light direction `MarchPhotons` stored; phase Henyey–Greenstein of `g` about that direction,
-/// blended toward isotropic as the stored light is less directed; `g` = 0 is isotropic), the
-/// transmittance falling as e^{−κΔs}. Leaving the box it flies straight: a surface it meets
-/// is shaded by its BSDF under each light (the pipeline's point lights, shadowed by the scene
-/// and by the medium's transmittance along the straight shadow ray; a shadow ray crossing
-/// voxels where rays bend gets nothing, that light arriving as photons), plus the caustic
-/// map's irradiance × its diffuse albedo; with no surface, the environment. The camera is an input
-/// of its own, so orbiting re-runs this node alone. Biases by construction: no reflection at
+/// The picture of a medium and its surroundings ([S] 6.3.5), shaded along the camera's curved
+/// rays `EikonalPaths` traced (so that a light edit re-shades them and does not trace them
+/// again): per camera sample, a surface in front of the medium's box is shaded directly;
+/// otherwise the path gathers the in-scattered light at its samples, σ × fluence × phase ×
+/// transmittance (the fluence and mean light direction `MarchPhotons` stored; phase
+/// Henyey–Greenstein of `g` about that direction, blended toward isotropic as the stored light
+/// is less directed; `g` = 0 is isotropic), and takes the light from where it leaves: a surface
+/// it meets is shaded by its BSDF under each light (the pipeline's point lights, shadowed by the
+/// scene and by the medium's transmittance along the straight shadow ray; a shadow ray crossing
+/// voxels where rays bend gets nothing, that light arriving as photons), plus the caustic map's
+/// irradiance × its diffuse albedo; with no surface, the environment. Pixels average their
+/// samples. The surfaces inside the medium's box must be those the paths met (`accel` with
+/// the same triangles there), else an error says so. Biases by construction: no reflection at
 /// the object's interface (no Fresnel split), an interface blurred over the voxelisation's
 /// Gaussian, single scattering only. Rows in parallel, the same bytes on any thread count.
 #[derive(Params)]
@@ -40,21 +33,9 @@ pub struct EikonalRender {
     /// Henyey–Greenstein asymmetry of the medium (0: isotropic)
     #[param(default = 0.0, range = -0.99..=0.99)]
     pub g: f32,
-    /// rays per pixel side (stratified): samples² rays per pixel
-    #[param(default = 1, range = 1..=16)]
-    pub samples: u32,
-    /// the marching step through the medium
-    #[param(default = 1.0, range = 0.05..=16.0, unit = "voxels")]
-    pub step: f32,
-    /// take the octree's longer steps through clear leaves ([S] 6.3.5 steps fixed everywhere)
-    #[param(default = true)]
-    pub adaptive: bool,
-    /// how the ray equation is stepped
-    #[param(default = Verlet)]
-    pub integrator: Integrator,
 }
 
-inputs!(pub EikonalRenderIn { scene: Scene, accel: Accel, medium: Volume, octree: Volume, radiance: Volume, caustics: CausticMap, camera: Camera });
+inputs!(pub EikonalRenderIn { scene: Scene, accel: Accel, medium: Volume, octree: Volume, radiance: Volume, caustics: CausticMap, paths: ViewPaths });
 outputs!(pub EikonalRenderOut { image: Image });
 
 /// The Henyey–Greenstein phase function at scattering cosine `cos`.
@@ -68,10 +49,7 @@ struct Render<'a> {
     scene: &'a Scene,
     accel: &'a Accel,
     m: &'a Volume,
-    oct: &'a Volume,
-    /// Lookups of n and ∇n in `oct`.
-    oct_s: Sampler<'a>,
-    /// Its clearance, for straight runs and shadow rays.
+    /// The octree's clearance, for shadow rays.
     clearance: Clearance,
     radiance: &'a Volume,
     caustics: &'a CausticMap,
@@ -79,7 +57,6 @@ struct Render<'a> {
     p: &'a EikonalRender,
     has_kappa: bool,
     eps: f32,
-    obstacles: Option<(Vec3, Vec3)>,
 }
 
 impl Render<'_> {
@@ -140,112 +117,63 @@ impl Render<'_> {
         out + brdf::diffuse_albedo(&material) / PI * self.caustics.lookup(s.object, s.p)
     }
 
-    /// Where `o + t u` first meets the scene for t ∈ (0, tmax), starting a hair behind `o`.
-    fn hit(&self, o: Vec3, u: Vec3, tmax: f32) -> Option<Surface> {
+    /// The light along the straight segment `o + t u`, t ∈ (0, tmax) (starting a hair behind
+    /// `o`): the first surface's, or the environment's when nothing is met on an unbounded one.
+    fn along(&self, o: Vec3, u: Vec3, tmax: f32, counts: &mut Counts) -> Option<Vec3> {
+        counts.rays += 1;
         let start = o - u * self.eps;
-        self.accel.intersect(start, u, 0.0, tmax + self.eps).map(|h| Surface::at(self.scene, &h, start, u))
+        match self.accel.intersect(start, u, 0.0, tmax + self.eps) {
+            Some(h) => Some(self.shade(&Surface::at(self.scene, &h, start, u), -u, counts)),
+            None => (tmax == f32::INFINITY).then(|| self.environment(u)),
+        }
     }
 
-    /// Radiance arriving at `o` from direction −`d`.
-    fn radiance(&self, o: Vec3, d: Vec3, counts: &mut Counts) -> Vec3 {
-        counts.rays += 1;
-        let m = self.m;
-        let first = self.accel.intersect(o, d, 0.0, f32::INFINITY);
-        let t_surface = first.map_or(f32::INFINITY, |h| h.t);
-        let Some((t0, _)) = box_interval(o, d, m.min, m.max).filter(|(t0, _)| *t0 < t_surface) else {
-            return match first {
+    /// The in-scattered light at gather `g`.
+    fn gather(&self, g: &Gather) -> Vec3 {
+        let [r, gr, b, mx, my, mz] = self.radiance.sample_n::<6>(g.p, 0);
+        let fluence = Vec3::new(r, gr, b);
+        let md = Vec3::new(mx, my, mz);
+        let lum = luminance(fluence);
+        let phase = if self.p.g == 0.0 || lum <= 0.0 {
+            1.0 / (4.0 * PI)
+        } else {
+            let a = (md.length() / lum).clamp(0.0, 1.0);
+            let cos = md.try_normalize().map_or(0.0, |m| m.dot(-g.u));
+            (1.0 - a) / (4.0 * PI) + a * henyey_greenstein(self.p.g, cos)
+        };
+        fluence * (phase * g.w)
+    }
+
+    /// Radiance reaching the camera along sample `k` of `paths`.
+    fn sample(&self, paths: &ViewPaths, k: usize, counts: &mut Counts) -> Vec3 {
+        let (o, d, entry) = (paths.origin[k], paths.dir[k], paths.entry[k]);
+        if entry.is_finite() {
+            // A surface in front of the box hides the medium.
+            counts.rays += 1;
+            if let Some(h) = self.accel.intersect(o, d, 0.0, entry) {
+                return self.shade(&Surface::at(self.scene, &h, o, d), -d, counts);
+            }
+        }
+        let gathered: Vec3 = paths.gathers[paths.offsets[k] as usize..paths.offsets[k + 1] as usize].iter().map(|g| self.gather(g)).sum();
+        let e = paths.ends[k];
+        if e.tr <= 0.0 {
+            return gathered;
+        }
+        if !entry.is_finite() {
+            // The camera ray never meets the box: it starts at the camera, not a hair behind.
+            counts.rays += 1;
+            return match self.accel.intersect(o, d, 0.0, f32::INFINITY) {
                 Some(h) => self.shade(&Surface::at(self.scene, &h, o, d), -d, counts),
                 None => self.environment(d),
             };
-        };
-        let (mut l, mut tr) = (Vec3::ZERO, 1.0f32);
-        let mut ray = Ray::new(&self.oct_s, o + d * t0, d);
-        let ds0 = self.p.step * m.voxel().min_element();
-        let ch = m.channels as usize;
-        let max_steps = 64 * m.dims.iter().sum::<u32>() as usize * (1.0 / self.p.step).ceil().max(1.0) as usize;
-        let h = m.voxel();
-        for _ in 0..max_steps {
-            let (x, u) = (ray.x, ray.dir());
-            let mut ds = ds0;
-            let mut straight = false;
-            if self.p.adaptive {
-                let q = self.oct_s.to_grid(x);
-                let c = voxel_of(m, q);
-                let oi = self.oct.index(c[0], c[1], c[2]);
-                let smax = self.oct.data[oi + MAX_STEP];
-                if !self.has_kappa && smax == f32::INFINITY && self.oct.data[oi + CLEARANCE] > 0.0 {
-                    // Nothing to gather anywhere, and no ray bends here: straight on to the
-                    // first voxel that may bend it, as MarchPhotons.
-                    let run = self.clearance.straight_run(x, u, f32::INFINITY);
-                    (ds, straight) = (run, run > 0.0);
-                }
-                if !straight && self.oct.data[oi + CLEAR] > 0.0 {
-                    let hi = smax.max(self.p.step) * h.min_element();
-                    ds = leaf_exit(q, u / h, c, self.oct.data[oi + LEVEL].max(0.0) as u32).max(ds0).min(hi);
-                } else if !straight {
-                    ds = ds0;
-                }
-            }
-            let t_box = box_interval(x, u, m.min, m.max).map_or(0.0, |(_, t1)| t1);
-            let leaving = ds >= t_box;
-            if leaving {
-                ds = t_box;
-            }
-            if !leaving {
-                // A surface up to half a voxel past the step's end is taken now: the next step
-                // would start too close to it to be found.
-                let reach = ds + 0.5 * h.min_element();
-                if let Some((lo, hi)) = self.obstacles {
-                    let end = x + u * reach;
-                    if x.min(end).cmple(hi + self.eps).all() && x.max(end).cmpge(lo - self.eps).all() {
-                        if let Some(s) = self.hit(x, u, reach) {
-                            return l + self.shade(&s, -u, counts) * tr;
-                        }
-                    }
-                }
-            }
-            if ch > 2 && self.has_kappa {
-                let mid = x + u * (ds / 2.0);
-                let [_, kappa, sigma] = m.sample_n::<3>(mid, 0);
-                let (kappa, sigma) = (kappa.max(0.0), sigma.max(0.0));
-                let att = (-kappa * ds).exp();
-                if sigma > 0.0 {
-                    let [r, g, b, mx, my, mz] = self.radiance.sample_n::<6>(mid, 0);
-                    let fluence = Vec3::new(r, g, b);
-                    let md = Vec3::new(mx, my, mz);
-                    let lum = luminance(fluence);
-                    let phase = if self.p.g == 0.0 || lum <= 0.0 {
-                        1.0 / (4.0 * PI)
-                    } else {
-                        let a = (md.length() / lum).clamp(0.0, 1.0);
-                        let cos = md.try_normalize().map_or(0.0, |m| m.dot(-u));
-                        (1.0 - a) / (4.0 * PI) + a * henyey_greenstein(self.p.g, cos)
-                    };
-                    let w = if kappa * ds > 1e-6 { (1.0 - att) / kappa } else { ds };
-                    l += fluence * (sigma * phase * w * tr);
-                }
-                tr *= att;
-            }
-            if leaving {
-                // Traced from the step's start: the exit point may lie in a floor's plane.
-                return l + tr * self.hit(x, u, f32::INFINITY).map_or_else(|| self.environment(u), |s| self.shade(&s, -u, counts));
-            }
-            // Longer steps (through clear leaves) are midpoint steps, as in MarchPhotons.
-            ray = if straight {
-                Ray::new(&self.oct_s, x + u * ds, u)
-            } else {
-                let integrator = if ds > ds0 * 1.0001 { Integrator::Midpoint } else { self.p.integrator };
-                ray_step(&self.oct_s, &ray, ds, integrator)
-            };
         }
-        l
+        gathered + self.along(e.o, e.d, e.tmax, counts).unwrap_or(Vec3::ZERO) * e.tr
     }
 }
 
-/// The image of the medium seen by `camera` (see the node's doc).
+/// The image of the medium along `paths` (see the node's doc).
 pub fn render(i: &EikonalRenderIn, p: &EikonalRender, cx: &RunCtx) -> Result<(Image, u64), NodeError> {
-    let m = i.medium;
-    let o = i.octree;
+    let (m, o, paths) = (i.medium, i.octree, i.paths);
     if o.dims != m.dims || o.channels != super::octree::CHANNELS || o.min != m.min || o.max != m.max {
         return Err(NodeError::failed(format!(
             "the octree ({:?}, {} channels) was not built on the medium's grid ({:?})",
@@ -258,40 +186,46 @@ pub fn render(i: &EikonalRenderIn, p: &EikonalRender, cx: &RunCtx) -> Result<(Im
             i.radiance.dims, i.radiance.channels, m.dims
         )));
     }
+    if paths.min != m.min || paths.max != m.max {
+        return Err(NodeError::failed(format!(
+            "the paths were traced through a medium over {} … {}, not this one's {} … {}: wire the same medium into EikonalPaths",
+            paths.min, paths.max, m.min, m.max
+        )));
+    }
+    let here = i.accel.bounds_within(m.min, m.max);
+    if here != paths.obstacles {
+        return Err(NodeError::failed(format!(
+            "the surfaces inside the medium's box ({here:?}) are not those the paths stopped at ({:?}): give EikonalPaths a BVH with the same triangles there",
+            paths.obstacles
+        )));
+    }
     let r = Render {
         scene: i.scene,
         accel: i.accel,
         m,
-        oct: i.octree,
-        oct_s: Sampler::new(i.octree),
-        clearance: Clearance::of(i.octree),
+        clearance: Clearance::of(o),
         radiance: i.radiance,
         caustics: i.caustics,
         lights: photon_lights(i.scene),
         p,
         has_kappa: m.channels > 1 && m.data.chunks(m.channels as usize).any(|c| c[1] > 0.0),
         eps: 1e-5 * i.scene.extent().max((m.max - m.min).length()),
-        obstacles: i.accel.bounds_within(m.min, m.max),
     };
-    let cam = CameraRays::new(i.camera);
-    let s = p.samples as usize;
-    let inv = 1.0 / (s * s) as f32;
-    per_pixel(cx, i.camera.width, i.camera.height, |x, y, counts| {
-        let mut sum = Vec3::ZERO;
-        for k in 0..s * s {
-            let (fx, fy) = (x as f32 + ((k % s) as f32 + 0.5) / s as f32, y as f32 + ((k / s) as f32 + 0.5) / s as f32);
-            let (o, d) = cam.ray(fx, fy);
-            sum += r.radiance(o, d, counts);
-        }
+    let s2 = (paths.samples as usize).pow(2);
+    let inv = 1.0 / s2 as f32;
+    per_pixel(cx, paths.width as usize, paths.height as usize, |x, y, counts| {
+        let first = (y * paths.width as usize + x) * s2;
+        let sum: Vec3 = (first..first + s2).map(|k| r.sample(paths, k, counts)).sum();
         (sum * inv).to_array()
     })
 }
 
-#[node(category = "volume", version = 4)]
+#[node(category = "volume", version = 5)]
 impl EikonalRender {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        // The image at the paths' pixels, the octree's clearance as a byte a voxel (its 8
+        // channels hold 32).
         let image = inputs[6].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));
-        // The octree's clearance as a byte a voxel (its 8 channels hold 32).
         relume_core::MemoryEstimate { outputs: vec![image], working: inputs[3].map_or(0, |s| s.bytes / 32) }
     }
 
@@ -305,11 +239,13 @@ impl EikonalRender {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::camera::CameraRays;
+    use crate::volume::eikonal_paths::EikonalPaths;
     use crate::volume::emit_photons::Proxy;
     use crate::volume::test_support::*;
 
     /// The glass scene at `size`² seen through `medium` (photons marched at 48²).
-    fn picture(s: &Scene, m: &Volume, size: usize, p: &EikonalRender) -> Image {
+    fn picture(s: &Scene, m: &Volume, size: usize, p: &EikonalPaths) -> Image {
         let oct = octree_of(m);
         let a = accel_without(s, "glass");
         let ph = photons(s, &a, m, 48, Proxy::Active);
@@ -320,6 +256,25 @@ mod tests {
     }
 
     #[test]
+    fn paths_traced_past_other_surfaces_in_the_box_are_an_error() {
+        // The paths stopped at the floor only; a BVH holding the sphere too sees other
+        // surfaces inside the medium's box: shading would miss them, so it says so.
+        let s = glass();
+        let m = voxelize(&s, "glass", 16);
+        let oct = octree_of(&m);
+        let (without, with) = (accel_without(&s, "glass"), accel_without(&s, ""));
+        let mut cam = s.camera.clone();
+        (cam.width, cam.height) = (8, 8);
+        let paths = view_paths(&without, &m, &oct, &cam, &paths_params());
+        let (rad, map) = (Volume::try_new([1; 3], 6, m.min, m.max, 0.0, u64::MAX).unwrap(), CausticMap::none());
+        let i = EikonalRenderIn { scene: &s, accel: &with, medium: &m, octree: &oct, radiance: &rad, caustics: &map, paths: &paths };
+        let e = with_cx(|cx| render(&i, &EikonalRender { g: 0.0 }, cx)).unwrap_err();
+        assert!(e.to_string().contains("not those the paths stopped at"), "{e}");
+        let i = EikonalRenderIn { accel: &without, ..i };
+        assert!(with_cx(|cx| render(&i, &EikonalRender { g: 0.0 }, cx)).is_ok());
+    }
+
+    #[test]
     fn index_one_gives_the_unrefracted_image() {
         // The glass scene's box reaches down to the floor's plane: camera rays leaving the box
         // there must still find the floor (they did not when traced from the exit point), and
@@ -327,11 +282,11 @@ mod tests {
         let s = glass();
         let mut m = voxelize(&s, "glass", 24);
         m.data.chunks_mut(3).for_each(|c| c.copy_from_slice(&[1.0, 0.0, 0.0]));
-        let through = picture(&s, &m, 40, &render_params());
+        let through = picture(&s, &m, 40, &paths_params());
         // The same box far away: no ray meets it.
         let (lo, hi) = (m.min, m.max);
         (m.min, m.max) = (lo + Vec3::splat(100.0), hi + Vec3::splat(100.0));
-        let without = picture(&s, &m, 40, &render_params());
+        let without = picture(&s, &m, 40, &paths_params());
         let worst = through.pixels.iter().zip(&without.pixels).map(|(a, b)| (a[0] - b[0]).abs()).fold(0.0f32, f32::max);
         assert!(worst < 1e-4, "{worst}");
         let lit = (20 * 40..40 * 40).filter(|&k| through.pixels[k][0] > 0.0).count();
@@ -360,7 +315,7 @@ mod tests {
         let ph = photons(&s, &a, &m, 128, Proxy::Active);
         let p = crate::volume::march_photons::MarchPhotons { receiver: "".into(), ..march_params(8) };
         let (rad, map) = march(&s, &a, &m, &oct, &ph, &p);
-        let img = render_image(&s, &a, &m, &oct, &rad, &map, &s.camera, &EikonalRender { step: 0.5, ..render_params() });
+        let img = render_image(&s, &a, &m, &oct, &rad, &map, &s.camera, &EikonalPaths { step: 0.5, ..paths_params() });
         let cam = CameraRays::new(&s.camera);
         let (mut got, mut want) = (0.0f64, 0.0f64);
         for y in 8..13 {

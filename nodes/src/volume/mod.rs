@@ -4,10 +4,12 @@
 //! by scanlines (`scanline`) — with the `Volume` port type in
 //! `types::volume`. The optics photon marching and
 //! rendering share are in `optics`. The stage nodes, one file each: `Voxelize`,
-//! `VolumeSource`, `VolumePaint`, `Octree`, `EmitPhotons`, `MarchPhotons`, `EikonalRender`,
+//! `VolumeSource`, `VolumePaint`, `Octree`, `EmitPhotons`, `MarchPhotons`, `EikonalPaths`,
+//! `EikonalRender`,
 //! and `VolumeSlice` to look inside a volume.
 
 pub mod blur;
+pub mod eikonal_paths;
 pub mod eikonal_render;
 pub mod emit_photons;
 pub mod march_photons;
@@ -33,5 +35,6 @@ pub fn register(reg: &mut Registry) {
     reg.add::<volume_paint::VolumePaint>();
     reg.add::<emit_photons::EmitPhotons>();
     reg.add::<march_photons::MarchPhotons>();
+    reg.add::<eikonal_paths::EikonalPaths>();
     reg.add::<eikonal_render::EikonalRender>();
 }

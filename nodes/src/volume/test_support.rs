@@ -1,6 +1,7 @@
 //! Fixtures for pipeline 3's unit tests: the `glass` scene and the stages between it and a
 //! picture, called directly (no engine), small enough for debug builds.
 
+use super::eikonal_paths::{self, EikonalPaths, EikonalPathsIn};
 use super::eikonal_render::{self, EikonalRender, EikonalRenderIn};
 use super::emit_photons::{emit, EmitPhotons, Proxy};
 use super::march_photons::MarchPhotons;
@@ -8,7 +9,7 @@ use super::octree::{self, Octree};
 use super::voxelize::Voxelize;
 use crate::testing::{i, run_on, t};
 use crate::types::accel::BuildQuality;
-use crate::types::{Accel, Camera, CausticMap, Image, Photons, Scene, Volume};
+use crate::types::{Accel, Camera, CausticMap, Image, Photons, Scene, ViewPaths, Volume};
 use relume_core::{CancelToken, RunCtx, Value};
 
 /// The canonical `glass` scene (graphs/scenes/glass.ron).
@@ -78,7 +79,13 @@ pub fn march(scene: &Scene, accel: &Accel, m: &Volume, oct: &Volume, ph: &Photon
     (out.radiance, out.caustics)
 }
 
-/// The eikonal render of everything above through `camera`.
+/// The camera's paths through `m` (EikonalPaths).
+pub fn view_paths(accel: &Accel, m: &Volume, oct: &Volume, camera: &Camera, p: &EikonalPaths) -> ViewPaths {
+    let i = EikonalPathsIn { accel, medium: m, octree: oct, camera };
+    with_cx(|cx| eikonal_paths::trace(&i, p, cx)).unwrap()
+}
+
+/// The eikonal render of everything above through `camera` (isotropic phase).
 #[allow(clippy::too_many_arguments)]
 pub fn render_image(
     scene: &Scene,
@@ -88,15 +95,16 @@ pub fn render_image(
     radiance: &Volume,
     caustics: &CausticMap,
     camera: &Camera,
-    p: &EikonalRender,
+    p: &EikonalPaths,
 ) -> Image {
-    let i = EikonalRenderIn { scene, accel, medium: m, octree: oct, radiance, caustics, camera };
-    with_cx(|cx| eikonal_render::render(&i, p, cx)).unwrap().0
+    let paths = view_paths(accel, m, oct, camera, p);
+    let i = EikonalRenderIn { scene, accel, medium: m, octree: oct, radiance, caustics, paths: &paths };
+    with_cx(|cx| eikonal_render::render(&i, &EikonalRender { g: 0.0 }, cx)).unwrap().0
 }
 
-/// EikonalRender's defaults.
-pub fn render_params() -> EikonalRender {
-    EikonalRender { g: 0.0, samples: 1, step: 1.0, adaptive: true, integrator: super::optics::Integrator::Verlet }
+/// EikonalPaths' defaults.
+pub fn paths_params() -> EikonalPaths {
+    EikonalPaths { samples: 1, step: 1.0, adaptive: true, integrator: super::optics::Integrator::Verlet }
 }
 
 /// A procedural medium (VolumeSource) of `kind` over the cube of side `size` at `centre`.
