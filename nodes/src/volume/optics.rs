@@ -419,6 +419,53 @@ mod tests {
     }
 
     #[test]
+    fn a_straight_run_ends_in_the_first_voxel_a_voxel_walk_finds_bending() {
+        // 24 bumps of index in a 32³ grid over a box that is not a cube; 400 seeded rays from
+        // inside it. The clearance's jumps must stop in the voxel where the walk through every
+        // voxel first meets one that may bend rays, a thousandth of a voxel into it, or run
+        // out of the grid where the walk finds none.
+        use crate::math::rng::uniform;
+        let mut v = Volume::try_new([32; 3], 3, Vec3::new(-1.0, 0.0, 2.0), Vec3::new(1.0, 0.5, 3.0), 1.0, u64::MAX).unwrap();
+        for k in 0..24u64 {
+            let b = [0, 1, 2].map(|d| (uniform(76, k, d) * 32.0) as usize);
+            let i = v.index(b[0], b[1], b[2]);
+            v.data[i] = 1.1 + 0.05 * k as f32;
+        }
+        let oct = octree(&v);
+        let c = Clearance::of(&oct);
+        let ch = oct.channels as usize;
+        let (mut found, mut missed) = (0, 0);
+        for r in 0..400u64 {
+            let u3 = |d: u32| uniform(77, r, d);
+            let a = v.min + (v.max - v.min) * Vec3::new(u3(0), u3(1), u3(2));
+            let u = Vec3::new(u3(3) - 0.5, u3(4) - 0.5, u3(5) - 0.5).normalize();
+            let mut first = None;
+            for_each_voxel(&oct, a, u, 1e3, |i, t0, _| {
+                if oct.data[i * ch + CLEARANCE] == 0.0 {
+                    first = Some((i, t0));
+                    return false;
+                }
+                true
+            });
+            let run = c.straight_run(a, u, f32::INFINITY);
+            match first {
+                None => {
+                    assert_eq!(run, f32::INFINITY, "ray {r}: no voxel bends on its line");
+                    missed += 1;
+                }
+                Some((i, t0)) => {
+                    let h = oct.voxel().min_element();
+                    assert!(run >= t0 - 1e-4 * h && run <= t0 + 2e-3 * h, "ray {r}: run {run} against the walk's {t0}");
+                    let q = voxel_of(&oct, oct.to_grid(a + u * run));
+                    assert_eq!(oct.index(q[0], q[1], q[2]) / ch, i, "ray {r} stops in the voxel the walk found");
+                    found += 1;
+                }
+            }
+        }
+        assert!(found > 40 && missed > 40, "{found} rays meet a bump, {missed} do not");
+    }
+
+    #[test]
     fn leaf_exits_and_box_intervals() {
         // A level-2 cell (4 voxels) holding voxel (5, 1, 2) spans [4, 8) × [0, 4) × [0, 4).
         let t = leaf_exit(Vec3::new(5.5, 1.5, 2.5), Vec3::X, [5, 1, 2], 2);
