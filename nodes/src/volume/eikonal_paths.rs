@@ -101,13 +101,13 @@ impl Tracer<'_> {
                     // Nothing to gather anywhere, and no ray bends here: straight on to the
                     // first voxel that may bend it, as MarchPhotons.
                     let run = self.clearance.straight_run(x, u, f32::INFINITY);
-                    (ds, straight) = (run, run > 0.0);
+                    if run > 0.0 {
+                        (ds, straight) = (run, true);
+                    }
                 }
                 if !straight && self.oct.data[oi + CLEAR] > 0.0 {
                     let hi = smax.max(self.p.step) * h.min_element();
                     ds = leaf_exit(q, u / h, c, self.oct.data[oi + LEVEL].max(0.0) as u32).max(ds0).min(hi);
-                } else if !straight {
-                    ds = ds0;
                 }
             }
             let t_box = box_interval(x, u, m.min, m.max).map_or(0.0, |(_, t1)| t1);

@@ -21,8 +21,8 @@ use std::sync::OnceLock;
 /// Δs is the distance to the boundary of the photon's octree leaf along its direction,
 /// at least `min_step` (Δs_min) and at most the leaf's Δs_max (`Octree`); in a uniform leaf
 /// (Δs_max unbounded) where no ray bends, the photon flies straight on across leaves to the
-/// first voxel that may bend it, in one step (the octree's clearance: exact, the trilinear
-/// gradient is zero all the way). Along every step the
+/// first voxel that may bend it, in one step (the octree's clearance: the trilinear gradient
+/// is below 10⁻⁶ per voxel all the way, so the stepped ray would go as straight). Along every step the
 /// photon deposits its power × the length it travels in each voxel it crosses (where σ > 0)
 /// and its luminance × length × direction; those sums over the voxel's volume are the fluence
 /// (W/unit²) and the mean light direction `EikonalRender` reads, after a 3³ Gaussian
@@ -32,7 +32,7 @@ use std::sync::OnceLock;
 /// voxels are in cache, photons in Morton order of their first voxel) or after `max_steps`
 /// steps. Caustics: the light is split by straight
 /// lines. A photon whose straight line crosses no voxel where rays may bend (`Octree`'s
-/// `bends`) would go exactly straight: its light reaches surfaces as the render's direct light
+/// clearance 0) would go exactly straight: its light reaches surfaces as the render's direct light
 /// (straight, attenuated by the medium's transmittance), so it adds nothing to the map (and
 /// is not marched at all where nothing absorbs or scatters). Every other photon is marched
 /// and adds its power where it lands on the planar `receiver`, where the render's shadow rays

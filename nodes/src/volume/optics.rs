@@ -214,9 +214,9 @@ impl Clearance {
     /// How far the straight line `a + t u` (`a` in the grid, `u` unit) goes, up to `len`,
     /// before it is in a voxel where rays may bend (clearance 0), a thousandth of a voxel into
     /// it; ∞ if it leaves the grid or passes `len` first. Through the voxels before it the
-    /// trilinear gradient is exactly zero (every centre a lookup there blends is a voxel or
-    /// neighbour without gradient): a ray goes exactly straight whatever the steps, so one step
-    /// can cross them all. From a voxel of clearance c ≥ 2 the line jumps c − 1 voxels (no
+    /// trilinear gradient is below 10⁻⁶ per voxel (every centre a lookup there blends is a
+    /// voxel or neighbour without a measurable gradient): a ray goes straight whatever the
+    /// steps, so one step can cross them all. From a voxel of clearance c ≥ 2 the line jumps c − 1 voxels (no
     /// voxel within c − 1 bends), from one of clearance 1 to the next voxel it enters (what a
     /// voxel walk would do).
     pub fn straight_run(&self, a: Vec3, u: Vec3, len: f32) -> f32 {
