@@ -4,7 +4,7 @@
 //! and are read trilinearly between them (clamped at the faces).
 
 use super::pod_vec;
-use glam::{UVec3, Vec3};
+use glam::{UVec3, Vec3, Vec4};
 use relume_core::memory::fmt_bytes;
 use relume_core::{codec, NodeError, PortValue};
 use serde::{Deserialize, Serialize};
@@ -39,6 +39,19 @@ impl<'a> Sampler<'a> {
     #[inline]
     pub fn sample_n<const N: usize>(&self, p: Vec3, c: usize) -> [f32; N] {
         self.volume.trilinear(self.to_grid(p) - 0.5, self.top, c)
+    }
+
+    /// Channels `c .. c + 4` at `p`, the same numbers as `sample_n::<4>` (the same lerps, four
+    /// channels at once, one bounds check a corner).
+    #[inline]
+    pub fn sample4(&self, p: Vec3, c: usize) -> Vec4 {
+        let v = self.volume;
+        let (b, [sx, sy, sz], f) = v.cell(self.to_grid(p) - 0.5, self.top, c);
+        let at = |off: usize| Vec4::from_slice(&v.data[b + off..b + off + 4]);
+        let lerp = |a: Vec4, b: Vec4, t: f32| a + (b - a) * t;
+        let p0 = lerp(lerp(at(0), at(sx), f.x), lerp(at(sy), at(sy + sx), f.x), f.y);
+        let p1 = lerp(lerp(at(sz), at(sz + sx), f.x), lerp(at(sz + sy), at(sz + sy + sx), f.x), f.y);
+        lerp(p0, p1, f.z)
     }
 }
 
@@ -132,21 +145,29 @@ impl Volume {
         self.trilinear(self.to_grid(p) - 0.5, d.max(Vec3::ZERO), c)
     }
 
-    /// Channels `c .. c + N` at grid point `g` (voxel centres at integers), clamped to
-    /// [0, `top`] (the largest voxel index per axis).
+    /// The trilinear cell of grid point `g` (voxel centres at integers), clamped to [0, `top`]
+    /// (the largest voxel index per axis; a point that is not finite reads voxel 0): the index
+    /// of channel `c` of its first corner, the offsets to the next corner along x, y and z (0
+    /// on the last voxel), and `g`'s fractions inside the cell.
     #[inline]
-    fn trilinear<const N: usize>(&self, g: Vec3, top: Vec3, c: usize) -> [f32; N] {
+    fn cell(&self, g: Vec3, top: Vec3, c: usize) -> (usize, [usize; 3], Vec3) {
         let g = g.clamp(Vec3::ZERO, top);
         let g = if g.is_finite() { g } else { Vec3::ZERO };
         let i = g.floor();
-        let f = g - i;
         let (x0, y0, z0) = (i.x as usize, i.y as usize, i.z as usize);
         let step = |v: usize, axis: usize, s: usize| if v + 1 < self.dims[axis] as usize { s } else { 0 };
         let ch = self.channels as usize;
         let sx = step(x0, 0, ch);
         let sy = step(y0, 1, self.dims[0] as usize * ch);
         let sz = step(z0, 2, (self.dims[0] * self.dims[1]) as usize * ch);
-        let b = self.index(x0, y0, z0) + c;
+        (self.index(x0, y0, z0) + c, [sx, sy, sz], g - i)
+    }
+
+    /// Channels `c .. c + N` at grid point `g` (voxel centres at integers), clamped to
+    /// [0, `top`] (the largest voxel index per axis).
+    #[inline]
+    fn trilinear<const N: usize>(&self, g: Vec3, top: Vec3, c: usize) -> [f32; N] {
+        let (b, [sx, sy, sz], f) = self.cell(g, top, c);
         let mut out = [0.0; N];
         for (k, o) in out.iter_mut().enumerate() {
             let at = |off: usize| self.data[b + off + k];
@@ -223,6 +244,26 @@ mod tests {
             }
         }
         v
+    }
+
+    #[test]
+    fn four_channels_at_once_are_the_same_numbers_as_one_at_a_time() {
+        // A 5 × 4 × 3 grid of 6 channels, values from a seeded hash; points inside, on the
+        // faces, outside (clamped) and not finite.
+        let mut v = Volume::try_new([5, 4, 3], 6, Vec3::new(-1.0, 0.0, 2.0), Vec3::new(1.5, 0.5, 3.0), 0.0, u64::MAX).unwrap();
+        for (k, x) in v.data.iter_mut().enumerate() {
+            *x = crate::math::rng::uniform(3, k as u64, 0) * 4.0 - 2.0;
+        }
+        let s = Sampler::new(&v);
+        for k in 0..200u64 {
+            let u = |d| crate::math::rng::uniform(4, k, d) * 1.4 - 0.2;
+            let p = v.min + (v.max - v.min) * Vec3::new(u(0), u(1), u(2));
+            for c in [0, 2] {
+                assert_eq!(s.sample4(p, c).to_array(), s.sample_n::<4>(p, c), "{p} from channel {c}");
+            }
+        }
+        let nan = Vec3::splat(f32::NAN);
+        assert_eq!(s.sample4(nan, 1).to_array(), s.sample_n::<4>(nan, 1));
     }
 
     #[test]

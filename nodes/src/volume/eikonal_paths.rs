@@ -236,7 +236,7 @@ pub fn trace(i: &EikonalPathsIn, p: &EikonalPaths, cx: &RunCtx) -> Result<ViewPa
     Ok(out)
 }
 
-#[node(category = "volume", version = 1)]
+#[node(category = "volume", version = 2)]
 impl EikonalPaths {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The samples' fixed part (the gathers are counted as they grow), the octree's

@@ -110,7 +110,7 @@ impl Render<'_> {
             let tmax = if dist.is_finite() { (dist - l.radius * 1.001) * (1.0 - 1e-4) } else { f32::INFINITY };
             // Light whose straight line crosses voxels where rays bend arrives as photons
             // (the caustic map), never here.
-            if tmax > 0.0 && !self.accel.occluded(origin, wi, 0.0, tmax) && !self.clearance.crosses_bends(origin, wi, tmax) {
+            if tmax > 0.0 && !self.clearance.crosses_bends(origin, wi, tmax) && !self.accel.occluded(origin, wi, 0.0, tmax) {
                 out += f * li * self.transmittance(origin, wi, tmax);
             }
         }
@@ -220,7 +220,7 @@ pub fn render(i: &EikonalRenderIn, p: &EikonalRender, cx: &RunCtx) -> Result<(Im
     })
 }
 
-#[node(category = "volume", version = 5)]
+#[node(category = "volume", version = 6)]
 impl EikonalRender {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The image at the paths' pixels, the octree's clearance as a byte a voxel (its 8

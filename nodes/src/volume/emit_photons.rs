@@ -45,22 +45,23 @@ outputs!(pub EmitPhotonsOut { photons: Photons });
 
 /// The box of voxels of `m` with n ≠ 1 or κ > 0, one voxel wider (clamped to the box), if any.
 pub fn active_box(m: &Volume) -> Option<(Vec3, Vec3)> {
+    use rayon::prelude::*;
     let d = m.dims.map(|x| x as usize);
-    let (mut lo, mut hi) = ([usize::MAX; 3], [0usize; 3]);
-    for z in 0..d[2] {
-        for y in 0..d[1] {
-            for x in 0..d[0] {
-                let i = m.index(x, y, z);
-                let kappa = if m.channels > 1 { m.data[i + 1] } else { 0.0 };
-                if m.data[i] != 1.0 || kappa > 0.0 {
-                    for (k, c) in [x, y, z].into_iter().enumerate() {
-                        lo[k] = lo[k].min(c);
-                        hi[k] = hi[k].max(c);
-                    }
-                }
+    let ch = m.channels as usize;
+    // Rows in parallel; a min and a max come out the same in any order.
+    let (lo, hi) = m
+        .data
+        .par_chunks(d[0] * ch)
+        .enumerate()
+        .map(|(r, row)| {
+            let (y, z) = (r % d[1], r / d[1]);
+            let active = |c: &[f32]| c[0] != 1.0 || (ch > 1 && c[1] > 0.0);
+            match (row.chunks(ch).position(active), row.chunks(ch).rposition(active)) {
+                (Some(x0), Some(x1)) => ([x0, y, z], [x1, y, z]),
+                _ => ([usize::MAX; 3], [0; 3]),
             }
-        }
-    }
+        })
+        .reduce(|| ([usize::MAX; 3], [0; 3]), |a, b| ([0, 1, 2].map(|k| a.0[k].min(b.0[k])), [0, 1, 2].map(|k| a.1[k].max(b.1[k]))));
     if lo[0] == usize::MAX {
         return None;
     }
@@ -283,6 +284,12 @@ mod tests {
         m.data[i] = 1.3;
         let (lo, hi) = active_box(&m).unwrap();
         assert_eq!((lo, hi), (Vec3::new(-0.5, -0.25, 0.0), Vec3::new(0.25, 0.5, 0.75)), "voxels 2…4, 3…5, 4…6");
+        // An absorbing voxel of index 1 elsewhere (another row and slice, at the grid's edge):
+        // the box spans both, clamped to the grid.
+        let i = m.index(6, 1, 2);
+        m.data[i + 1] = 0.5;
+        let (lo, hi) = active_box(&m).unwrap();
+        assert_eq!((lo, hi), (Vec3::new(-0.5, -1.0, -0.75), Vec3::new(1.0, 0.5, 0.75)), "voxels 2…7, 0…5, 1…6");
         let e = {
             let s = empty_scene(vec![Light::Point { position: Vec3::ZERO, intensity: Vec3::ONE }]);
             let cancel = CancelToken::new();

@@ -28,9 +28,10 @@ use std::sync::OnceLock;
 /// (W/unit²) and the mean light direction `EikonalRender` reads, after a 3³ Gaussian
 /// (`blur_sigma`). Photons leave the box (then fly straight on), fall below `cutoff` of their
 /// power, or hit a surface; marching stops when fewer than `stop_fraction` of a chunk's photons
-/// remain ([S]: 1/1000; counted every 8 steps, each photon taking 8 steps in a row while its
-/// voxels are in cache, photons in Morton order of their first voxel) or after `max_steps`
-/// steps. Caustics: the light is split by straight
+/// remain ([S]: 1/1000; counted every 8 steps: photons in Morton order of their first voxel,
+/// in groups of 64 neighbours that take 8 steps in turn, a step of each photon of the group
+/// after the other — independent work the processor overlaps, on voxels in cache) or after
+/// `max_steps` steps. Caustics: the light is split by straight
 /// lines. A photon whose straight line crosses no voxel where rays may bend (`Octree`'s
 /// clearance 0) would go exactly straight: its light reaches surfaces as the render's direct light
 /// (straight, attenuated by the medium's transmittance), so it adds nothing to the map (and
@@ -159,9 +160,15 @@ impl<'a> Setup<'a> {
             )));
         }
         let ch = m.channels as usize;
-        let kappa = |v: usize| if ch > 1 { m.data[v * ch + 1] } else { 0.0 };
-        let sigma = |v: usize| if ch > 2 { m.data[v * ch + 2] } else { 0.0 };
-        let has_kappa = (0..m.voxels()).any(|v| kappa(v) > 0.0);
+        // Whether anything absorbs, and the voxels that scatter: one pass, in parallel.
+        let (has_kappa, n_slots) = if ch > 1 {
+            m.data
+                .par_chunks(ch)
+                .map(|c| (c[1] > 0.0, usize::from(ch > 2 && c[2] > 0.0)))
+                .reduce(|| (false, 0), |a, b| (a.0 || b.0, a.1 + b.1))
+        } else {
+            (false, 0)
+        };
         let map = match p.receiver.as_str() {
             "" => CausticMap::none(),
             name => {
@@ -177,7 +184,6 @@ impl<'a> Setup<'a> {
                 CausticMap { object: o as u32, origin, u, v, width: w, height: h, texels: Vec::new() }
             }
         };
-        let n_slots = (0..m.voxels()).filter(|&v| sigma(v) > 0.0).count();
         let chunk = CHUNK.min(i.photons.len() as u64);
         let need = (n_slots as u64 * 6 + map.width as u64 * map.height as u64 * 3) * 8 * 2
             + chunk * std::mem::size_of::<Photon>() as u64
@@ -191,8 +197,8 @@ impl<'a> Setup<'a> {
         }
         let mut slots = vec![u32::MAX; if n_slots > 0 { m.voxels() } else { 0 }];
         let mut k = 0u32;
-        for (v, s) in slots.iter_mut().enumerate() {
-            if sigma(v) > 0.0 {
+        for (s, c) in slots.iter_mut().zip(m.data.chunks(ch)) {
+            if c[2] > 0.0 {
                 *s = k;
                 k += 1;
             }
@@ -283,11 +289,19 @@ impl<'a> Setup<'a> {
         // (A run of 0: `x` on the face of a voxel that bends, which the lookup put in its
         // neighbour.)
         let straight = run > 0.0;
-        let mut ds = if straight { run } else { leaf_exit(q, u / h, c, level).max(lo).min(hi) };
-        let t_box = box_interval(x, u, m.min, m.max).map_or(0.0, |(_, t1)| t1);
-        let leaving = ds >= t_box;
+        let mut ds = if straight {
+            run
+        } else if hi > lo {
+            leaf_exit(q, u / h, c, level).max(lo).min(hi)
+        } else {
+            lo
+        };
+        // A step that ends inside the box does not leave it (the box is convex); one that does
+        // not is cut at the box's face.
+        let end = x + u * ds;
+        let leaving = !(end.cmpgt(m.min).all() && end.cmplt(m.max).all());
         if leaving {
-            ds = t_box;
+            ds = box_interval(x, u, m.min, m.max).map_or(0.0, |(_, t1)| t1);
         }
         // Where it meets a surface: beyond the box when leaving (traced from the step's start,
         // never from the exit point, which may lie in a floor's plane), or inside the box where
@@ -412,13 +426,10 @@ impl<'a> Setup<'a> {
                 .par_chunks_mut(64)
                 .map(|c| {
                     let mut n = 0u64;
-                    for ph in c {
-                        for _ in 0..batch {
+                    for _ in 0..batch {
+                        for ph in c.iter_mut().filter(|p| p.fate == Fate::Alive) {
                             ph.fate = self.advance(ph, &vol, &map);
                             n += 1;
-                            if ph.fate != Fate::Alive {
-                                break;
-                            }
                         }
                     }
                     n
@@ -488,7 +499,7 @@ impl<'a> Setup<'a> {
     }
 }
 
-#[node(category = "volume", version = 4, sharded)]
+#[node(category = "volume", version = 5, sharded)]
 impl MarchPhotons {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The radiance on the medium's grid (6 channels where it has 3) and its blur.

@@ -26,7 +26,8 @@ use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 /// `Volume::gradient` computes) side by side, so that a ray step reads both in one lookup. A
 /// straight line that crosses no voxel that bends is a ray the medium leaves exactly straight:
 /// the photons and the render's shadow rays split the light by it, and a ray in a voxel of
-/// clearance c may fly c − 1 voxels straight on without a lookup (`optics::straight_run`).
+/// clearance c may fly c − 1 voxels (along the axis it moves fastest along) straight on
+/// without a lookup (`optics::straight_run`).
 #[derive(Params)]
 pub struct Octree {
     /// ε: an index range below this is uniform (unbounded steps)

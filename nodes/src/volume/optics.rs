@@ -117,8 +117,8 @@ pub struct Ray {
 
 /// n and ∇n at `p`, one trilinear lookup of the octree's `INDEX` and `GRADIENT` channels.
 pub fn index_at(octree: &Sampler, p: Vec3) -> (f32, Vec3) {
-    let [n, gx, gy, gz] = octree.sample_n::<4>(p, INDEX);
-    (n.max(1e-3), Vec3::new(gx, gy, gz))
+    let v = octree.sample4(p, INDEX);
+    (v.x.max(1e-3), Vec3::new(v.y, v.z, v.w))
 }
 
 impl Ray {
@@ -173,10 +173,18 @@ pub fn ray_step(octree: &Sampler, r: &Ray, ds: f32, integrator: Integrator) -> R
     Ray { x: x1, v: v1, n: n1, g: g1 }
 }
 
+/// A 4 × 4 × 4 block of voxels' bytes, one cache line.
+#[derive(Clone, Copy)]
+#[repr(align(64))]
+struct Brick([u8; 64]);
+
 /// The octree's clearance channel as one byte a voxel (2 MiB at 128³, where the octree holds
-/// 64 MiB): straight runs read a voxel's byte from a grid that stays in cache.
+/// 64 MiB), in 4³ bricks of one cache line each: straight runs read a voxel's byte from a grid
+/// that stays in cache, and a walk's next voxels mostly from the line it already has.
 pub struct Clearance {
-    bytes: Vec<u8>,
+    bricks: Vec<Brick>,
+    /// Bricks along each axis.
+    bdims: [usize; 3],
     dims: [usize; 3],
     min: Vec3,
     max: Vec3,
@@ -190,17 +198,31 @@ impl Clearance {
     /// The clearance of `octree` (`Octree`'s output).
     pub fn of(octree: &Volume) -> Clearance {
         use rayon::prelude::*;
+        let dims = octree.dims.map(|d| d as usize);
+        let bdims = dims.map(|d| d.div_ceil(4));
         let ch = octree.channels as usize;
-        let bytes = octree.data.par_chunks(ch).map(|c| c[CLEARANCE].clamp(0.0, 255.0) as u8).collect();
+        let mut bricks = vec![Brick([0; 64]); bdims.iter().product()];
+        // A slab of bricks (4 slices of voxels, read in order) a task.
+        bricks.par_chunks_mut(bdims[0] * bdims[1]).enumerate().for_each(|(bz, slab)| {
+            for z in bz * 4..(bz * 4 + 4).min(dims[2]) {
+                for y in 0..dims[1] {
+                    let row = &octree.data[octree.index(0, y, z)..][..dims[0] * ch];
+                    for (x, c) in row.chunks_exact(ch).enumerate() {
+                        slab[(y >> 2) * bdims[0] + (x >> 2)].0[(z & 3) << 4 | (y & 3) << 2 | (x & 3)] =
+                            c[CLEARANCE].clamp(0.0, 255.0) as u8;
+                    }
+                }
+            }
+        });
         let s = Sampler::new(octree);
-        Clearance {
-            bytes,
-            dims: octree.dims.map(|d| d as usize),
-            min: octree.min,
-            max: octree.max,
-            scale: s.scale,
-            hmin: octree.voxel().min_element(),
-        }
+        Clearance { bricks, bdims, dims, min: octree.min, max: octree.max, scale: s.scale, hmin: octree.voxel().min_element() }
+    }
+
+    /// The clearance of voxel `c` (inside the grid).
+    #[inline]
+    fn at(&self, c: [usize; 3]) -> u8 {
+        let b = ((c[2] >> 2) * self.bdims[1] + (c[1] >> 2)) * self.bdims[0] + (c[0] >> 2);
+        self.bricks[b].0[(c[2] & 3) << 4 | (c[1] & 3) << 2 | (c[0] & 3)]
     }
 
     /// Whether the straight segment `a + t u`, t ∈ [0, len], crosses a voxel where rays may
@@ -216,12 +238,15 @@ impl Clearance {
     /// it; ∞ if it leaves the grid or passes `len` first. Through the voxels before it the
     /// trilinear gradient is below 10⁻⁶ per voxel (every centre a lookup there blends is a
     /// voxel or neighbour without a measurable gradient): a ray goes straight whatever the
-    /// steps, so one step can cross them all. From a voxel of clearance c ≥ 2 the line jumps c − 1 voxels (no
-    /// voxel within c − 1 bends), from one of clearance 1 to the next voxel it enters (what a
-    /// voxel walk would do).
+    /// steps, so one step can cross them all. From a voxel of clearance c ≥ 2 the line jumps
+    /// (a thousandth short of) c − 1 voxels along the axis it moves fastest along, so c − 1 at
+    /// most along every axis (no voxel within c − 1 bends); from one of clearance 1 to the next
+    /// voxel it enters (what a voxel walk would do).
     pub fn straight_run(&self, a: Vec3, u: Vec3, len: f32) -> f32 {
         let du = u * self.scale;
         let dims = Vec3::new(self.dims[0] as f32, self.dims[1] as f32, self.dims[2] as f32);
+        // Moving `jump` along `u` moves one voxel along the fastest axis.
+        let jump = 1.0 / du.abs().max_element();
         let mut t = 0.0f32;
         // Each pass enters a new voxel at least, and a line crosses at most the sum of the
         // sides (+ 3) voxels.
@@ -232,11 +257,11 @@ impl Clearance {
                 return f32::INFINITY;
             }
             let c = [0, 1, 2].map(|k| (q[k].max(0.0) as usize).min(self.dims[k] - 1));
-            let clearance = self.bytes[(c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]];
+            let clearance = self.at(c);
             if clearance == 0 {
                 return t;
             }
-            t += ((clearance - 1) as f32 * self.hmin).max(leaf_exit(q, du, c, 0) + 1e-3 * self.hmin);
+            t += ((clearance as f32 - 1.001) * jump).max(leaf_exit(q, du, c, 0) + 1e-3 * self.hmin);
         }
         t
     }
@@ -420,14 +445,15 @@ mod tests {
 
     #[test]
     fn a_straight_run_ends_in_the_first_voxel_a_voxel_walk_finds_bending() {
-        // 24 bumps of index in a 32³ grid over a box that is not a cube; 400 seeded rays from
-        // inside it. The clearance's jumps must stop in the voxel where the walk through every
+        // 24 bumps of index in a 30 × 33 × 29 grid (sides that are not multiples of the
+        // clearance's 4³ bricks) over a box that is not a cube; 400 seeded rays from inside it. The clearance's jumps must stop in the voxel where the walk through every
         // voxel first meets one that may bend rays, a thousandth of a voxel into it, or run
         // out of the grid where the walk finds none.
         use crate::math::rng::uniform;
-        let mut v = Volume::try_new([32; 3], 3, Vec3::new(-1.0, 0.0, 2.0), Vec3::new(1.0, 0.5, 3.0), 1.0, u64::MAX).unwrap();
+        let dims = [30, 33, 29];
+        let mut v = Volume::try_new(dims, 3, Vec3::new(-1.0, 0.0, 2.0), Vec3::new(1.0, 0.5, 3.0), 1.0, u64::MAX).unwrap();
         for k in 0..24u64 {
-            let b = [0, 1, 2].map(|d| (uniform(76, k, d) * 32.0) as usize);
+            let b = [0, 1, 2].map(|d| (uniform(76, k, d as u32) * dims[d] as f32) as usize);
             let i = v.index(b[0], b[1], b[2]);
             v.data[i] = 1.1 + 0.05 * k as f32;
         }
