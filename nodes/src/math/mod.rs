@@ -1,5 +1,7 @@
 //! Shared math used by several nodes (one place for each piece).
 
+pub mod cube_haar;
+pub mod cubemap;
 pub mod frame;
 pub mod haar;
 pub mod kmeans;

@@ -1,6 +1,7 @@
 //! EmitPhotons node.
 
 use super::optics::{box_interval, intensity_along, luminance, photon_lights, PhotonLight};
+use crate::math::cubemap::rect_solid_angle;
 use crate::math::rng::uniform;
 use crate::types::{Accel, Light, Photons, Scene, Volume};
 use glam::Vec3;
@@ -69,12 +70,6 @@ pub fn active_box(m: &Volume) -> Option<(Vec3, Vec3)> {
     let a = Vec3::from(lo.map(|c| c.saturating_sub(1) as f32));
     let b = Vec3::from([0, 1, 2].map(|k| (hi[k] + 2).min(d[k]) as f32));
     Some((m.min + a * h, m.min + b * h))
-}
-
-/// The solid angle of the rectangle [x0, x1] × [y0, y1] on the plane at distance 1.
-fn rect_solid_angle(x0: f64, x1: f64, y0: f64, y1: f64) -> f64 {
-    let f = |x: f64, y: f64| (x * y / (1.0 + x * x + y * y).sqrt()).atan();
-    f(x1, y1) - f(x0, y1) - f(x1, y0) + f(x0, y0)
 }
 
 /// Two unit vectors completing `w` to an orthonormal frame.

@@ -1,0 +1,261 @@
+//! Cube maps: 6 faces of N × N texels over the sphere of directions (pipeline 2's lighting and
+//! visibility, [S] chapter 5: 6 × 64 × 64; wavelet PBGI's radiance, 6 × 32 × 32).
+//!
+//! Faces in the order +X, −X, +Y, −Y, +Z, −Z; on each, the direction is the face axis plus u
+//! and v ∈ [−1, 1] along two other axes (the OpenGL layout), texel (i, j) covering
+//! u ∈ [−1 + 2i/N, −1 + 2(i+1)/N] and v likewise with j, stored face after face, row (j) after
+//! row. Texels near the corners see less of the sphere: each carries its exact solid angle
+//! (the integral of dω = du dv / (1 + u² + v²)^{3/2} over its square, a closed form), so sums
+//! over texels are integrals over the sphere.
+
+use glam::Vec3;
+use std::f64::consts::PI;
+
+/// The solid angle of the rectangle [x0, x1] × [y0, y1] on the plane at distance 1 from the
+/// eye, seen from the eye (exact; also the texels of a light's shadow map).
+pub fn rect_solid_angle(x0: f64, x1: f64, y0: f64, y1: f64) -> f64 {
+    let f = |x: f64, y: f64| (x * y / (1.0 + x * x + y * y).sqrt()).atan();
+    f(x1, y1) - f(x0, y1) - f(x1, y0) + f(x0, y0)
+}
+
+/// The direction (not unit) of point (u, v) ∈ [−1, 1]² on `face`.
+pub fn face_point(face: usize, u: f32, v: f32) -> Vec3 {
+    match face {
+        0 => Vec3::new(1.0, -v, -u),
+        1 => Vec3::new(-1.0, -v, u),
+        2 => Vec3::new(u, 1.0, v),
+        3 => Vec3::new(u, -1.0, -v),
+        4 => Vec3::new(u, -v, 1.0),
+        _ => Vec3::new(-u, -v, -1.0),
+    }
+}
+
+/// The face holding direction `d` and its (u, v) there (the inverse of `face_point`; the
+/// largest component picks the face, ties toward x, then y; not finite or zero: face 0's
+/// centre).
+pub fn locate(d: Vec3) -> (usize, f32, f32) {
+    let a = d.abs();
+    if !(d.is_finite() && a.max_element() > 0.0) {
+        return (0, 0.0, 0.0);
+    }
+    if a.x >= a.y && a.x >= a.z {
+        let (u, v) = (-d.z / a.x, -d.y / a.x);
+        if d.x > 0.0 {
+            (0, u, v)
+        } else {
+            (1, -u, v)
+        }
+    } else if a.y >= a.z {
+        if d.y > 0.0 {
+            (2, d.x / a.y, d.z / a.y)
+        } else {
+            (3, d.x / a.y, -d.z / a.y)
+        }
+    } else if d.z > 0.0 {
+        (4, d.x / a.z, -d.y / a.z)
+    } else {
+        (5, -d.x / a.z, -d.y / a.z)
+    }
+}
+
+/// An RGB cube map (see the module doc).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CubeMap {
+    /// Texels along a face's side.
+    pub n: usize,
+    /// 6 n² texels, face after face, row after row.
+    pub texels: Vec<Vec3>,
+}
+
+impl CubeMap {
+    /// A map of `value` everywhere.
+    pub fn constant(n: usize, value: Vec3) -> CubeMap {
+        CubeMap { n, texels: vec![value; 6 * n * n] }
+    }
+
+    /// Bytes of a map of side `n` (what a node checks against its budget before allocating).
+    pub fn bytes_for(n: usize) -> u64 {
+        6 * (n as u64).pow(2) * std::mem::size_of::<Vec3>() as u64
+    }
+
+    /// The index of texel (i, j) of `face`.
+    pub fn index(&self, face: usize, i: usize, j: usize) -> usize {
+        (face * self.n + j) * self.n + i
+    }
+
+    /// The unit direction through the centre of texel `k`.
+    pub fn direction(&self, k: usize) -> Vec3 {
+        let (face, i, j) = (k / (self.n * self.n), k % self.n, k / self.n % self.n);
+        let c = |t: usize| -1.0 + (2 * t + 1) as f32 / self.n as f32;
+        face_point(face, c(i), c(j)).normalize()
+    }
+
+    /// The solid angle of texel `k` (the same on every face).
+    pub fn solid_angle(&self, k: usize) -> f32 {
+        let (i, j) = (k % self.n, k / self.n % self.n);
+        let e = |t: usize| -1.0 + 2.0 * t as f64 / self.n as f64;
+        rect_solid_angle(e(i), e(i + 1), e(j), e(j + 1)) as f32
+    }
+
+    /// The texel direction `d` falls in.
+    pub fn texel_of(&self, d: Vec3) -> usize {
+        let (face, u, v) = locate(d);
+        let t = |x: f32| (((x + 1.0) * 0.5 * self.n as f32) as usize).min(self.n - 1);
+        self.index(face, t(u), t(v))
+    }
+
+    /// The map of side `n` whose texels are the solid-angle-weighted means of `f` over
+    /// `s` × `s` sub-texels each (a box filter over the texel's piece of sphere).
+    pub fn from_fn(n: usize, s: usize, f: impl Fn(Vec3) -> Vec3 + Sync) -> CubeMap {
+        use rayon::prelude::*;
+        let s = s.max(1);
+        let m = n * s;
+        let e = |t: usize| -1.0 + 2.0 * t as f64 / m as f64;
+        let texels = (0..6 * n * n)
+            .into_par_iter()
+            .map(|k| {
+                let (face, i, j) = (k / (n * n), k % n, k / n % n);
+                let (mut sum, mut w) = (Vec3::ZERO, 0.0f64);
+                for b in j * s..(j + 1) * s {
+                    for a in i * s..(i + 1) * s {
+                        let dw = rect_solid_angle(e(a), e(a + 1), e(b), e(b + 1));
+                        let (u, v) = (((e(a) + e(a + 1)) / 2.0) as f32, ((e(b) + e(b + 1)) / 2.0) as f32);
+                        sum += f(face_point(face, u, v).normalize()) * dw as f32;
+                        w += dw;
+                    }
+                }
+                sum / w as f32
+            })
+            .collect();
+        CubeMap { n, texels }
+    }
+
+    /// The value at direction `d`, bilinear between texel centres on its face (clamped at the
+    /// face's edges).
+    pub fn lookup(&self, d: Vec3) -> Vec3 {
+        let (face, u, v) = locate(d);
+        let g = |x: f32| ((x + 1.0) * 0.5 * self.n as f32 - 0.5).clamp(0.0, (self.n - 1) as f32);
+        let (x, y) = (g(u), g(v));
+        let (i0, j0) = (x as usize, y as usize);
+        let (i1, j1) = ((i0 + 1).min(self.n - 1), (j0 + 1).min(self.n - 1));
+        let (fx, fy) = (x - i0 as f32, y - j0 as f32);
+        let t = |i, j| self.texels[self.index(face, i, j)];
+        (t(i0, j0) * (1.0 - fx) + t(i1, j0) * fx) * (1.0 - fy) + (t(i0, j1) * (1.0 - fx) + t(i1, j1) * fx) * fy
+    }
+
+    /// ∫ over the sphere: Σ texel × its solid angle (in f64, texel order).
+    pub fn integral(&self) -> Vec3 {
+        let mut sum = [0.0f64; 3];
+        for (k, t) in self.texels.iter().enumerate() {
+            let w = self.solid_angle(k) as f64;
+            for c in 0..3 {
+                sum[c] += t[c] as f64 * w;
+            }
+        }
+        Vec3::new(sum[0] as f32, sum[1] as f32, sum[2] as f32)
+    }
+
+    /// A `width` × `height` latitude-longitude image of the map in the scenes' convention
+    /// (`scene::envmap::uv_to_dir`: row 0 at the +y pole), bilinear lookups.
+    pub fn to_latlong(&self, width: usize, height: usize) -> Vec<Vec3> {
+        let mut out = Vec::with_capacity(width * height);
+        for y in 0..height {
+            for x in 0..width {
+                let uv = glam::Vec2::new((x as f32 + 0.5) / width as f32, (y as f32 + 0.5) / height as f32);
+                out.push(self.lookup(crate::scene::envmap::uv_to_dir(uv)));
+            }
+        }
+        out
+    }
+}
+
+/// 4π, the solid angle of the sphere.
+pub const SPHERE: f64 = 4.0 * PI;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::rng::uniform;
+
+    fn unit(k: u64) -> Vec3 {
+        crate::math::sampling::uniform_sphere(glam::Vec2::new(uniform(11, k, 0), uniform(11, k, 1)))
+    }
+
+    #[test]
+    fn texel_solid_angles_cover_the_sphere_once() {
+        for n in [1, 2, 3, 16, 64] {
+            let m = CubeMap::constant(n, Vec3::ONE);
+            let total: f64 = (0..6 * n * n).map(|k| m.solid_angle(k) as f64).sum();
+            assert!((total / SPHERE - 1.0).abs() < 1e-6, "n = {n}: {total}");
+            // Symmetric about the face's centre; the centre texels see most.
+            if n >= 3 {
+                assert_eq!(m.solid_angle(0), m.solid_angle(n * n - 1));
+                assert!(m.solid_angle(0) < m.solid_angle(n / 2 * (n + 1)));
+            }
+        }
+        // One face is a sixth of the sphere.
+        assert!((rect_solid_angle(-1.0, 1.0, -1.0, 1.0) - SPHERE / 6.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn directions_locate_back_to_their_texel_and_points_to_their_face() {
+        let m = CubeMap::constant(16, Vec3::ZERO);
+        for k in 0..m.texels.len() {
+            assert_eq!(m.texel_of(m.direction(k)), k, "texel {k}");
+            assert_eq!(m.texel_of(m.direction(k) * 7.5), k, "length does not matter");
+        }
+        for k in 0..500 {
+            let d = unit(k);
+            let (face, u, v) = locate(d);
+            assert!(u.abs() <= 1.0 && v.abs() <= 1.0);
+            let p = face_point(face, u, v);
+            assert!((p.normalize() - d).length() < 1e-5, "{d} → {face} ({u}, {v}) → {p}");
+        }
+        // Edges, corners and bad directions land somewhere valid.
+        for d in [Vec3::ONE, Vec3::new(1.0, -1.0, 0.0), -Vec3::ONE, Vec3::ZERO, Vec3::NAN, Vec3::INFINITY] {
+            assert!(m.texel_of(d) < m.texels.len(), "{d}");
+            assert!(m.lookup(d).is_finite());
+        }
+    }
+
+    #[test]
+    fn a_constant_stays_constant_and_integrals_match_the_analytic_ones() {
+        let c = Vec3::new(0.5, 1.0, 2.0);
+        let m = CubeMap::from_fn(8, 2, |_| c);
+        for t in &m.texels {
+            assert!((*t - c).abs().max_element() < 1e-6);
+        }
+        let i = m.integral();
+        assert!((i / c - Vec3::splat(SPHERE as f32)).abs().max_element() < 1e-4, "{i}");
+        // ∫ max(0, d · n) dω = π for any n (clamped cosine), here off every axis.
+        let n = Vec3::new(0.3, -0.5, 0.8).normalize();
+        let m = CubeMap::from_fn(32, 4, |d| Vec3::splat(d.dot(n).max(0.0)));
+        let i = m.integral().x as f64;
+        assert!((i / PI - 1.0).abs() < 1e-3, "{i}");
+        // ∫ (d · z)² dω = 4π/3.
+        let m = CubeMap::from_fn(32, 2, |d| Vec3::splat(d.z * d.z));
+        assert!((m.integral().x as f64 / (SPHERE / 3.0) - 1.0).abs() < 1e-3);
+    }
+
+    #[test]
+    fn lookups_reproduce_a_smooth_field_and_a_latlong_round_trip() {
+        let f = |d: Vec3| Vec3::new(1.0 + d.x, 1.5 + 0.5 * d.y * d.z, 2.0 - d.z);
+        let m = CubeMap::from_fn(64, 1, f);
+        let mut worst = 0.0f32;
+        for k in 0..500 {
+            let d = unit(k);
+            worst = worst.max((m.lookup(d) - f(d)).abs().max_element());
+        }
+        assert!(worst < 0.02, "worst {worst}");
+        // A texel centre returns the texel itself.
+        for k in (0..m.texels.len()).step_by(97) {
+            assert!((m.lookup(m.direction(k)) - m.texels[k]).abs().max_element() < 1e-5);
+        }
+        let ll = m.to_latlong(64, 32);
+        assert_eq!(ll.len(), 64 * 32);
+        for (p, v) in ll.iter().enumerate() {
+            let uv = glam::Vec2::new(((p % 64) as f32 + 0.5) / 64.0, ((p / 64) as f32 + 0.5) / 32.0);
+            assert!((*v - f(crate::scene::envmap::uv_to_dir(uv))).abs().max_element() < 0.02);
+        }
+    }
+}
