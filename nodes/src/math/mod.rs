@@ -12,3 +12,4 @@ pub mod sh;
 pub mod srgb;
 pub mod ssim;
 pub mod streamed_pca;
+pub mod tucker;

@@ -275,7 +275,7 @@ pub(crate) fn symmetric_eigen(g: &Mat<f64>) -> Result<(Vec<f64>, Mat<f64>), Node
     let scratch = evd::self_adjoint_evd_scratch::<f64>(n, ComputeEigenvectors::Yes, Par::Seq, Default::default());
     let mut mem = MemBuffer::new(scratch);
     evd::self_adjoint_evd(g.as_ref(), s.as_mut(), Some(u.as_mut()), Par::Seq, MemStack::new(&mut mem), Default::default())
-        .map_err(|e| NodeError::failed(format!("PCA: the eigen-decomposition of the {n} × {n} Gram matrix did not converge ({e:?})")))?;
+        .map_err(|e| NodeError::failed(format!("the eigen-decomposition of a {n} × {n} Gram matrix did not converge ({e:?})")))?;
     Ok((s.column_vector().iter().copied().collect(), u))
 }
 
