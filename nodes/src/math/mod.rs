@@ -9,6 +9,7 @@ pub mod pca;
 pub mod rng;
 pub mod sampling;
 pub mod sh;
+pub mod sh_rotation;
 pub mod srgb;
 pub mod ssim;
 pub mod streamed_pca;
