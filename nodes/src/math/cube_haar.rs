@@ -3,8 +3,15 @@
 //! `math::haar`, RGB, and the non-linear approximation that keeps the k terms of largest
 //! *area-weighted* magnitude: |c| (the RGB norm) × the solid angle of the coefficient's
 //! support on the sphere. Weighting by the support favours coarse terms of equal magnitude,
-//! which carry light over more of the sphere (Ng et al.'s selection); a constant environment
-//! is one term per face (its scaling coefficient), six in all.
+//! which carry light over more of the sphere (Ng et al.'s selection).
+//!
+//! The six faces' scaling terms then go through one more orthonormal step, so that the whole
+//! sphere has one scaling term: sums and differences of the opposite faces' (+X/−X, +Y/−Y,
+//! +Z/−Z, over √2), then of the three sums (their total over √3, the first two's difference
+//! over √2, and (s₁ + s₂ − 2 s₃)/√6). Equal faces give exact zeros there, so a constant
+//! environment is one coefficient. The results sit where the faces' scaling terms were:
+//! face 0 holds the total, faces 1, 3, 5 the opposite faces' differences, faces 2 and 4 the
+//! sums' two differences.
 
 use super::cubemap::{rect_solid_angle, CubeMap};
 use super::haar;
@@ -64,28 +71,68 @@ fn block_solid_angle(n: usize, x0: usize, y0: usize, side: usize) -> f64 {
     rect_solid_angle(e(x0), e(x0 + side), e(y0), e(y0 + side))
 }
 
+const R2: f32 = std::f32::consts::FRAC_1_SQRT_2;
+
+/// The step over the six faces' scaling terms (see the module doc), in place.
+fn faces_forward(c: &mut [Vec3], n: usize) {
+    let a: Vec<Vec3> = (0..6).map(|f| c[f * n * n]).collect();
+    let (r3, r6) = (1.0 / 3f32.sqrt(), 1.0 / 6f32.sqrt());
+    let p = [0, 1, 2].map(|k| (a[2 * k] + a[2 * k + 1]) * R2);
+    let d = [0, 1, 2].map(|k| (a[2 * k] - a[2 * k + 1]) * R2);
+    let t = [(p[0] + p[1] + p[2]) * r3, (p[0] - p[1]) * R2, (p[0] + p[1] - p[2] * 2.0) * r6];
+    for (f, v) in [t[0], d[0], t[1], d[1], t[2], d[2]].into_iter().enumerate() {
+        c[f * n * n] = v;
+    }
+}
+
+/// The inverse of `faces_forward`, in place.
+fn faces_inverse(c: &mut [Vec3], n: usize) {
+    let g = |f: usize| c[f * n * n];
+    let (t, d) = ([g(0), g(2), g(4)], [g(1), g(3), g(5)]);
+    let (r3, r6) = (1.0 / 3f32.sqrt(), 1.0 / 6f32.sqrt());
+    let p = [t[0] * r3 + t[1] * R2 + t[2] * r6, t[0] * r3 - t[1] * R2 + t[2] * r6, t[0] * r3 - t[2] * (2.0 * r6)];
+    for k in 0..3 {
+        c[2 * k * n * n] = (p[k] + d[k]) * R2;
+        c[(2 * k + 1) * n * n] = (p[k] - d[k]) * R2;
+    }
+}
+
 impl CubeHaar {
     /// The coefficients of `map` (its side a power of two).
     pub fn forward(map: &CubeMap) -> CubeHaar {
         assert!(map.n.is_power_of_two(), "a cube map's Haar transform needs a power-of-two side, not {}", map.n);
-        CubeHaar { n: map.n, coeffs: per_face(&map.texels, map.n, haar::forward) }
+        let mut coeffs = per_face(&map.texels, map.n, haar::forward);
+        faces_forward(&mut coeffs, map.n);
+        CubeHaar { n: map.n, coeffs }
     }
 
     /// The map back (exact up to rounding).
     pub fn inverse(&self) -> CubeMap {
-        CubeMap { n: self.n, texels: per_face(&self.coeffs, self.n, haar::inverse) }
+        let mut c = self.coeffs.clone();
+        faces_inverse(&mut c, self.n);
+        CubeMap { n: self.n, texels: per_face(&c, self.n, haar::inverse) }
     }
 
-    /// The area weight of coefficient `k`: the solid angle of its support.
+    /// The area weight of coefficient `k`: the solid angle of its support (for the six
+    /// scaling terms, the faces each spans: the total and the sums' second difference all
+    /// six, the sums' first difference four, the opposite faces' differences two).
     pub fn support_solid_angle(&self, k: usize) -> f64 {
         let n = self.n;
+        if k.is_multiple_of(n * n) {
+            let faces = match k / (n * n) {
+                0 | 4 => 6.0,
+                2 => 4.0,
+                _ => 2.0,
+            };
+            return faces * 4.0 * std::f64::consts::PI / 6.0;
+        }
         let (i, j) = (k % n, k / n % n);
         let (x0, y0, side) = support(n, i, j);
         block_solid_angle(n, x0, y0, side)
     }
 
     /// Keeps the `k` coefficients of largest |c| × support solid angle (ties to the lower
-    /// index; zeros never kept, so a constant map keeps six terms whatever `k` ≥ 6).
+    /// index; zeros never kept, so a constant map keeps one term whatever `k`).
     pub fn keep_largest(&self, k: usize) -> SparseCubeHaar {
         let weight: Vec<f64> = self.coeffs.iter().enumerate().map(|(i, c)| c.length() as f64 * self.support_solid_angle(i)).collect();
         let mut order: Vec<u32> = (0..self.coeffs.len() as u32).filter(|&i| weight[i as usize] > 0.0).collect();
@@ -150,13 +197,13 @@ mod tests {
     }
 
     #[test]
-    fn a_constant_environment_is_one_term_a_face_and_a_zero_one_none() {
+    fn a_constant_environment_is_one_coefficient_and_a_zero_one_none() {
         let m = CubeMap::constant(16, Vec3::new(0.2, 0.4, 0.8));
         let h = CubeHaar::forward(&m);
         let nz: Vec<usize> = (0..h.coeffs.len()).filter(|&k| h.coeffs[k] != Vec3::ZERO).collect();
-        assert_eq!(nz, (0..6).map(|f| f * 256).collect::<Vec<_>>());
+        assert_eq!(nz, [0]);
         let kept = h.keep_largest(96);
-        assert_eq!(kept.index.len(), 6);
+        assert_eq!(kept.index, [0]);
         let back = kept.dense().inverse();
         for (a, b) in back.texels.iter().zip(&m.texels) {
             assert!((*a - *b).abs().max_element() < 1e-6);
@@ -179,9 +226,9 @@ mod tests {
 
     #[test]
     fn the_sun_survives_96_terms() {
-        // The envlit sky's contrast at 6 × 64 × 64 (a uniform sky: its six scaling terms, and
+        // The envlit sky's contrast at 6 × 64 × 64 (a uniform sky: its one scaling term, and
         // the sun's details): the kept terms hold the sun's energy and the sphere's within
-        // 10⁻⁴ (measured: 2 × 10⁻⁷ and 3 × 10⁻⁷).
+        // 10⁻⁴ (measured: 1.6 × 10⁻⁷ and 5.3 × 10⁻⁷).
         let sun = Vec3::new(0.3, 0.8, -0.5).normalize();
         let m = sky(64, sun);
         let approx = CubeHaar::forward(&m).keep_largest(96).dense().inverse();
