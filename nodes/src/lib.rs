@@ -6,6 +6,7 @@ pub mod geometry;
 pub mod image;
 pub mod math;
 pub mod pbgi;
+pub mod ptt;
 pub mod reference;
 pub mod relight;
 pub mod render;
@@ -24,6 +25,7 @@ pub fn register_all(reg: &mut Registry) {
     geometry::register(reg);
     reference::register(reg);
     pbgi::register(reg);
+    ptt::register(reg);
     relight::register(reg);
     volume::register(reg);
 }

@@ -1,0 +1,13 @@
+//! Precomputed transfer tensors (PIPELINES.md pipeline 2; [S] chapter 5): fixed geometry lit by
+//! an environment, with the view, the environment and the dynamic objects' BRDFs edited
+//! together. Per vertex: direct light from the environment's Haar coefficients against the
+//! vertex's visibility times the BRDF tensor's incoming factor (T0), one bounce in 4-band SH
+//! (T1) and two bounces as a scalar (T2); shading with the Tucker-decomposed BRDF tensor plus
+//! the separated specular lobes; then rasterised.
+
+use relume_core::Registry;
+
+/// Registers the transfer-tensor nodes.
+pub fn register(reg: &mut Registry) {
+    let _ = reg;
+}
