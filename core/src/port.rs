@@ -60,6 +60,16 @@ macro_rules! serde_codec {
             $crate::codec::from_bytes(bytes)
         }
     };
+    // Decoding keeps only values that pass `$check` (`fn(&Self) -> bool`): a loader that
+    // never hands on an inconsistent value.
+    (check $check:path) => {
+        fn encode(&self) -> Vec<u8> {
+            $crate::codec::to_bytes(self)
+        }
+        fn decode(bytes: &[u8]) -> Option<Self> {
+            $crate::codec::from_bytes::<Self>(bytes).filter($check)
+        }
+    };
 }
 
 type EncodeFn = fn(&(dyn Any + Send + Sync)) -> Vec<u8>;

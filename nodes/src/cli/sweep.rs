@@ -431,6 +431,8 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
             "energy_kept_pct",
         ],
         "SceneMaterials" => &["dynamic_objects"],
+        "EnvLighting" => &["radiance_max", "luminance_integral", "haar_nonzero", "energy_share_top96", "bytes"],
+        "VertexVisibility" => &["vertices", "visible_fraction", "bytes"],
         "TransferPrecompute" => &[
             "images",
             "images_grey",
@@ -665,26 +667,36 @@ mod tests {
         let reg = crate::registry();
         let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
         let mut checked = 0;
-        for folder in std::fs::read_dir(&src).unwrap().flatten().filter(|e| e.path().is_dir()) {
-            for file in std::fs::read_dir(folder.path()).unwrap().flatten() {
-                let text = std::fs::read_to_string(file.path()).unwrap_or_default();
-                // The kind a node file implements: `impl Kind {` after its `#[node…]`.
-                let Some(kind) = text.split("#[node").nth(1).and_then(|t| t.split("impl ").nth(1)).and_then(|t| t.split([' ', '{']).next())
-                else {
-                    continue;
-                };
-                if reg.node(kind).is_none() {
-                    continue;
+        // Every source file under src/, subfolders included (ptt/brdf/…).
+        let mut files = vec![];
+        let mut folders = vec![src.clone()];
+        while let Some(dir) = folders.pop() {
+            for e in std::fs::read_dir(&dir).unwrap().flatten() {
+                if e.path().is_dir() {
+                    folders.push(e.path());
+                } else {
+                    files.push(e);
                 }
-                let code = text.split("#[cfg(test)]").next().unwrap();
-                let literal: Vec<&str> = code.split("cx.metric(\"").skip(1).filter_map(|t| t.split('"').next()).collect();
-                let reports = code.contains("cx.metric(");
-                assert_eq!(reports, !reported_metrics(kind).is_empty(), "{kind} ({}): reports metrics?", file.path().display());
-                for m in literal {
-                    assert!(reported_metrics(kind).contains(&m), "{kind} reports `{m}`: add it to reported_metrics");
-                }
-                checked += 1;
             }
+        }
+        for file in files {
+            let text = std::fs::read_to_string(file.path()).unwrap_or_default();
+            // The kind a node file implements: `impl Kind {` after its `#[node…]`.
+            let Some(kind) = text.split("#[node").nth(1).and_then(|t| t.split("impl ").nth(1)).and_then(|t| t.split([' ', '{']).next())
+            else {
+                continue;
+            };
+            if reg.node(kind).is_none() {
+                continue;
+            }
+            let code = text.split("#[cfg(test)]").next().unwrap();
+            let literal: Vec<&str> = code.split("cx.metric(\"").skip(1).filter_map(|t| t.split('"').next()).collect();
+            let reports = code.contains("cx.metric(");
+            assert_eq!(reports, !reported_metrics(kind).is_empty(), "{kind} ({}): reports metrics?", file.path().display());
+            for m in literal {
+                assert!(reported_metrics(kind).contains(&m), "{kind} reports `{m}`: add it to reported_metrics");
+            }
+            checked += 1;
         }
         assert!(checked >= 20, "node files found: {checked}");
     }

@@ -197,6 +197,33 @@ impl CubeMap {
         CubeMap { n, texels }
     }
 
+    /// The index, in a map of side `m` (a divisor of this map's side), of the coarse texel
+    /// that fine texel `k` lies in.
+    pub fn coarse_of(&self, k: usize, m: usize) -> usize {
+        let r = self.n / m;
+        let (face, i, j) = (k / (self.n * self.n), k % self.n, k / self.n % self.n);
+        (face * m + j / r) * m + i / r
+    }
+
+    /// The map at side `m` (a divisor of the side): each coarse texel the solid-angle-weighted
+    /// mean of the fine texels it covers, so the integral over the sphere is kept (the box
+    /// lighting bases of the one- and two-bounce transfer, [S] 5.3.3.4–5). Summed in texel
+    /// order in f64.
+    pub fn box_downsample(&self, m: usize) -> CubeMap {
+        assert!(m > 0 && self.n.is_multiple_of(m), "a cube map of side {} cannot be box-filtered to side {m}", self.n);
+        let mut sum = vec![[0.0f64; 4]; 6 * m * m];
+        for (k, t) in self.texels.iter().enumerate() {
+            let w = self.solid_angle(k) as f64;
+            let s = &mut sum[self.coarse_of(k, m)];
+            for c in 0..3 {
+                s[c] += t[c] as f64 * w;
+            }
+            s[3] += w;
+        }
+        let texels = sum.iter().map(|s| Vec3::new((s[0] / s[3]) as f32, (s[1] / s[3]) as f32, (s[2] / s[3]) as f32)).collect();
+        CubeMap { n: m, texels }
+    }
+
     /// A `width` × `height` latitude-longitude image of the map in the scenes' convention
     /// (`scene::envmap::uv_to_dir`: row 0 at the +y pole), bilinear lookups.
     pub fn to_latlong(&self, width: usize, height: usize) -> Vec<Vec3> {
@@ -307,6 +334,24 @@ mod tests {
         assert!((e / sun_energy - 1.0).abs() < 0.02, "{e} vs {sun_energy}");
         // σ = 0 is a resampling.
         assert_eq!(m.gaussian_prefilter(0.0, 64), m);
+    }
+
+    #[test]
+    fn box_downsampling_keeps_the_integral_and_constants() {
+        let m = CubeMap::from_fn(16, 1, |d| Vec3::new(1.0 + d.x, d.y * d.y, (4.0 * d.z).sin() + 2.0));
+        for side in [1, 2, 8, 16] {
+            let c = m.box_downsample(side);
+            assert_eq!(c.texels.len(), 6 * side * side);
+            assert!((c.integral() - m.integral()).abs().max_element() < 1e-4 * m.integral().max_element(), "side {side}");
+        }
+        let k = CubeMap::constant(16, Vec3::new(0.5, 1.0, 2.0)).box_downsample(4);
+        assert!(k.texels.iter().all(|t| (*t - Vec3::new(0.5, 1.0, 2.0)).abs().max_element() < 1e-6));
+        // Each fine texel's coarse texel holds its direction.
+        let c = CubeMap::constant(4, Vec3::ZERO);
+        for f in 0..m.texels.len() {
+            let d = m.direction(f);
+            assert!(d.dot(c.direction(m.coarse_of(f, 4))) > 0.8, "texel {f}");
+        }
     }
 
     #[test]

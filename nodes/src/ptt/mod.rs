@@ -5,9 +5,15 @@
 //! (T1) and two bounces as a scalar (T2); shading with the Tucker-decomposed BRDF tensor plus
 //! the separated specular lobes; then rasterised.
 
+pub mod env_lighting;
+pub mod types;
+pub mod vertex_visibility;
+pub mod vertices;
+
 use relume_core::Registry;
 
 /// Registers the transfer-tensor nodes.
 pub fn register(reg: &mut Registry) {
-    let _ = reg;
+    reg.add::<env_lighting::EnvLighting>();
+    reg.add::<vertex_visibility::VertexVisibility>();
 }

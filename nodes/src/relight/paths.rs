@@ -26,7 +26,7 @@ use crate::render::integrator::Sampler;
 use crate::render::lights::LightSampler;
 use crate::render::surface::Surface;
 use crate::types::accel::{Accel, Hit};
-use crate::types::{Environment, PathCounts, Scene};
+use crate::types::{PathCounts, Scene};
 use glam::Vec3;
 use std::f32::consts::PI;
 
@@ -121,11 +121,7 @@ impl<'a, S: Shade> Paths<'a, S> {
     }
 
     fn environment(&self, d: Vec3) -> Vec3 {
-        match &self.scene.environment {
-            Some(Environment::Constant(c)) => *c,
-            Some(Environment::Map(m)) => m.eval(d),
-            None => Vec3::ZERO,
-        }
+        self.scene.environment_radiance(d)
     }
 
     /// Direct light at surface `s` (shading frame `frame`) from `n` light samples: calls

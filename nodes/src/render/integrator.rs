@@ -11,7 +11,7 @@ use crate::math::sampling::{power_heuristic, uniform_sphere, UNIFORM_SPHERE_PDF}
 use crate::render::lights::LightSampler;
 use crate::render::surface::Surface;
 use crate::types::accel::Accel;
-use crate::types::{Environment, Material, Medium, Scene};
+use crate::types::{Material, Medium, Scene};
 use glam::{Vec2, Vec3};
 
 /// Integrator settings.
@@ -64,11 +64,7 @@ impl<'a> Tracer<'a> {
     }
 
     fn environment(&self, d: Vec3) -> Vec3 {
-        match &self.scene.environment {
-            Some(Environment::Constant(c)) => *c,
-            Some(Environment::Map(m)) => m.eval(d),
-            None => Vec3::ZERO,
-        }
+        self.scene.environment_radiance(d)
     }
 
     /// Radiance along the camera ray (o, d) for sample `id`.

@@ -146,6 +146,16 @@ impl Scene {
         groups
     }
 
+    /// Radiance arriving from the environment along unit direction `d` (pointing away from
+    /// the scene); zero without an environment.
+    pub fn environment_radiance(&self, d: Vec3) -> Vec3 {
+        match &self.environment {
+            Some(Environment::Constant(c)) => *c,
+            Some(Environment::Map(m)) => m.eval(d),
+            None => Vec3::ZERO,
+        }
+    }
+
     /// Corner positions of triangle `t`.
     pub fn corners(&self, t: usize) -> [Vec3; 3] {
         self.triangles[t].map(|i| self.positions[i as usize])

@@ -8,7 +8,7 @@ use crate::render::integrator::Counts;
 use crate::render::lights::delta_sample;
 use crate::render::surface::Surface;
 use crate::types::view_paths::Gather;
-use crate::types::{Accel, CausticMap, Environment, Image, Material, Scene, ViewPaths, Volume};
+use crate::types::{Accel, CausticMap, Image, Material, Scene, ViewPaths, Volume};
 use glam::Vec3;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 use std::f32::consts::PI;
@@ -61,11 +61,7 @@ struct Render<'a> {
 
 impl Render<'_> {
     fn environment(&self, d: Vec3) -> Vec3 {
-        match &self.scene.environment {
-            Some(Environment::Constant(c)) => *c,
-            Some(Environment::Map(m)) => m.eval(d),
-            None => Vec3::ZERO,
-        }
+        self.scene.environment_radiance(d)
     }
 
     /// Transmittance of the medium along the straight segment `o + t u`, t ∈ [0, len].
