@@ -5,6 +5,8 @@
 //! (T1) and two bounces as a scalar (T2); shading with the Tucker-decomposed BRDF tensor plus
 //! the separated specular lobes; then rasterised.
 
+pub mod bounce;
+pub mod channels;
 pub mod env_lighting;
 pub mod types;
 pub mod vertex_visibility;

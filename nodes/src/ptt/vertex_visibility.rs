@@ -171,7 +171,7 @@ impl VertexVisibility {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::testing::{i, run_on};
     use crate::types::accel::BuildQuality;
