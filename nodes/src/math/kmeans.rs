@@ -49,6 +49,27 @@ impl Metric<Vec3> for Euclidean {
     }
 }
 
+/// Squared Euclidean distance on points of any dimension given as rows of a row-major f32
+/// matrix (`data.chunks_exact(d)`), summed in f64 in index order; the centre is the arithmetic
+/// mean in f64, its members summed in order.
+impl<'a> Metric<&'a [f32]> for Euclidean {
+    type Center = Vec<f64>;
+    fn center_at(&self, p: &&'a [f32]) -> Vec<f64> {
+        p.iter().map(|&v| v as f64).collect()
+    }
+    fn distance(&self, c: &Vec<f64>, p: &&'a [f32]) -> f32 {
+        c.iter().zip(p.iter()).map(|(a, &b)| (a - b as f64) * (a - b as f64)).sum::<f64>() as f32
+    }
+    fn mean(&self, points: &[&'a [f32]], members: &[u32], _previous: &Vec<f64>) -> Vec<f64> {
+        let mut sum = vec![0.0f64; points[members[0] as usize].len()];
+        for &i in members {
+            sum.iter_mut().zip(points[i as usize]).for_each(|(s, &v)| *s += v as f64);
+        }
+        sum.iter_mut().for_each(|s| *s /= members.len() as f64);
+        sum
+    }
+}
+
 /// What to run: `k` clusters, at most `max_iterations` Lloyd iterations, random stream `seed`.
 #[derive(Clone, Copy, Debug)]
 pub struct KMeans {
@@ -75,12 +96,48 @@ pub struct KMeansResult<C> {
 impl<C> KMeansResult<C> {
     /// The member indices of each cluster, in point order.
     pub fn members(&self) -> Vec<Vec<u32>> {
-        let mut m = vec![Vec::new(); self.centers.len()];
-        for (i, &c) in self.assignment.iter().enumerate() {
-            m[c as usize].push(i as u32);
-        }
-        m
+        members_of(&self.assignment, self.centers.len())
     }
+}
+
+/// The member indices of each of `k` clusters, in point order.
+pub fn members_of(assignment: &[u32], k: usize) -> Vec<Vec<u32>> {
+    let mut members = vec![Vec::new(); k];
+    for (i, &a) in assignment.iter().enumerate() {
+        members[a as usize].push(i as u32);
+    }
+    members
+}
+
+/// Gives each empty one of `k` clusters (in index order) a point of its own: the point of
+/// largest `cost` (the first on ties) among the clusters with two or more members, whose cost
+/// becomes `zero` (it now stands alone). Returns the moves as (cluster, point), in order. With
+/// at least k points no cluster is left empty.
+pub fn refill_empty_clusters<T: PartialOrd + Copy>(assignment: &mut [u32], cost: &mut [T], k: usize, zero: T) -> Vec<(usize, usize)> {
+    let mut counts = vec![0usize; k];
+    for &a in assignment.iter() {
+        counts[a as usize] += 1;
+    }
+    let mut moves = Vec::new();
+    for c in 0..k {
+        if counts[c] > 0 {
+            continue;
+        }
+        let mut far: Option<usize> = None;
+        for i in 0..assignment.len() {
+            if counts[assignment[i] as usize] >= 2 && far.is_none_or(|f| cost[i] > cost[f]) {
+                far = Some(i);
+            }
+        }
+        // n ≥ k points in fewer than k non-empty clusters: one of them has two members.
+        let i = far.expect("at least k points leave a cluster with two members");
+        counts[assignment[i] as usize] -= 1;
+        counts[c] = 1;
+        assignment[i] = c as u32;
+        cost[i] = zero;
+        moves.push((c, i));
+    }
+    moves
 }
 
 impl KMeans {
@@ -129,35 +186,12 @@ impl KMeans {
                 dist[i] = best_d;
             }
             // Refill empty clusters.
-            let mut counts = vec![0usize; k];
-            for &a in &assignment {
-                counts[a as usize] += 1;
-            }
-            for c in 0..k {
-                if counts[c] > 0 {
-                    continue;
-                }
-                // n > k, so some cluster has two or more members.
-                let mut far: Option<usize> = None;
-                for i in 0..n {
-                    if counts[assignment[i] as usize] >= 2 && far.is_none_or(|f| dist[i] > dist[f]) {
-                        far = Some(i);
-                    }
-                }
-                let i = far.expect("n > k leaves a cluster with two members");
-                counts[assignment[i] as usize] -= 1;
-                counts[c] = 1;
-                assignment[i] = c as u32;
-                dist[i] = 0.0;
+            for (c, i) in refill_empty_clusters(&mut assignment, &mut dist, k, 0.0) {
                 centers[c] = metric.center_at(&points[i]);
                 changed = true;
             }
             // Update.
-            let mut members = vec![Vec::new(); k];
-            for (i, &a) in assignment.iter().enumerate() {
-                members[a as usize].push(i as u32);
-            }
-            for (c, m) in members.iter().enumerate() {
+            for (c, m) in members_of(&assignment, k).iter().enumerate() {
                 centers[c] = metric.mean(points, m, &centers[c]);
             }
             objective.push(assignment.iter().zip(points).map(|(&a, p)| metric.distance(&centers[a as usize], p) as f64).sum());
@@ -328,6 +362,19 @@ mod tests {
         assert!(r.converged && r.iterations == 0);
         let empty = KMeans { k: 8, max_iterations: 10, seed: 0 }.run(&[] as &[Vec3], &Euclidean);
         assert!(empty.centers.is_empty() && empty.assignment.is_empty());
+    }
+
+    #[test]
+    fn rows_of_any_dimension_cluster_as_the_same_points_in_vec3() {
+        let pts = random_points(400, 12);
+        let flat: Vec<f32> = pts.iter().flat_map(|p| p.to_array()).collect();
+        let rows: Vec<&[f32]> = flat.chunks_exact(3).collect();
+        let a = KMeans { k: 9, max_iterations: 50, seed: 3 }.run(&pts, &Euclidean);
+        let b = KMeans { k: 9, max_iterations: 50, seed: 3 }.run(&rows, &Euclidean);
+        assert_eq!(a.assignment, b.assignment);
+        for (ca, cb) in a.centers.iter().zip(&b.centers) {
+            assert!(ca.as_dvec3().distance(DVec3::from_slice(cb)) < 1e-5);
+        }
     }
 
     #[test]

@@ -1,5 +1,6 @@
 //! Shared math used by several nodes (one place for each piece).
 
+pub mod cpca;
 pub mod cube_haar;
 pub mod cubemap;
 pub mod frame;

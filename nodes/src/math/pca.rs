@@ -279,6 +279,29 @@ pub(crate) fn symmetric_eigen(g: &Mat<f64>) -> Result<(Vec<f64>, Mat<f64>), Node
     Ok((s.column_vector().iter().copied().collect(), u))
 }
 
+/// The (at most) `r` leading eigenvectors of the symmetric matrix `g` (n × n) and their
+/// eigenvalues, decreasing: `(eigenvalues, vectors)`, the vectors as rows of length n,
+/// row-major. No more than the numerical rank are returned (eigenvalues > 0 and ≥
+/// [`RANK_TOLERANCE`] × the largest: a zero matrix gives none), and each vector's entry of
+/// largest magnitude (the first on ties) is positive. Sequential, as [`symmetric_eigen`].
+pub fn leading_eigenvectors(g: &Mat<f64>, r: usize) -> Result<(Vec<f64>, Vec<f64>), NodeError> {
+    let n = g.nrows();
+    let (ascending, u) = symmetric_eigen(g)?;
+    let largest = ascending.last().copied().unwrap_or(0.0);
+    let rank = if largest > 0.0 { ascending.iter().rev().take_while(|&&l| l > 0.0 && l >= RANK_TOLERANCE * largest).count() } else { 0 };
+    let kept = r.min(rank);
+    let mut vectors = Vec::with_capacity(kept * n);
+    for k in 0..kept {
+        let start = vectors.len();
+        vectors.extend((0..n).map(|a| u[(a, n - 1 - k)]));
+        let v = &mut vectors[start..];
+        if largest_entry(v).is_some_and(|l| v[l] < 0.0) {
+            v.iter_mut().for_each(|x| *x = -*x);
+        }
+    }
+    Ok((ascending.iter().rev().take(kept).copied().collect(), vectors))
+}
+
 /// Modified Gram-Schmidt under W, two passes, over the first `k` rows of `b` (each of W-norm
 /// ≈ 1 as formed); returns how many leading rows survive (a row left with W-norm under
 /// `SURVIVAL_NORM` after the projections ends the list).
@@ -517,6 +540,20 @@ mod tests {
         let x = [1.0f64, 2.0, 5.0, 1.0, 2.0, -7.0];
         let p = uncentred_pca(&x, 2, &[1.0, 1.0, 0.0], 2).unwrap();
         assert_eq!(p.rank, 1);
+    }
+
+    #[test]
+    fn leading_eigenvectors_are_cut_to_the_rank_and_signed() {
+        let g = Mat::from_fn(2, 2, |i, j| if i == j { 2.0 } else { 1.0 });
+        let (l, v) = leading_eigenvectors(&g, 5).unwrap();
+        assert_eq!(l.len(), 2);
+        assert!((l[0] - 3.0).abs() < 1e-14 && (l[1] - 1.0).abs() < 1e-14);
+        let h = 0.5f64.sqrt();
+        // (1, 1)/√2, then (1, −1)/√2: on a tie of magnitudes the first entry is the positive one.
+        for (a, b) in v.iter().zip([h, h, h, -h]) {
+            assert!((a - b).abs() < 1e-14, "{v:?}");
+        }
+        assert_eq!(leading_eigenvectors(&Mat::zeros(3, 3), 2).unwrap(), (vec![], vec![]));
     }
 
     #[test]
