@@ -5,9 +5,10 @@
 //! (T1) and two bounces as a scalar (T2); shading with the Tucker-decomposed BRDF tensor plus
 //! the separated specular lobes; then rasterised.
 
+pub mod brdf;
 use relume_core::Registry;
 
 /// Registers the transfer-tensor nodes.
 pub fn register(reg: &mut Registry) {
-    let _ = reg;
+    brdf::register(reg);
 }
