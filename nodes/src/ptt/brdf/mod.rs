@@ -5,6 +5,7 @@
 //! the core and the h, ωo, ωi factors a renderer shades with. Port types in `types`.
 
 pub mod brdf_tensor;
+pub mod tucker_decompose;
 pub mod types;
 
 use relume_core::Registry;
@@ -12,18 +13,26 @@ use relume_core::Registry;
 /// Registers the BRDF-tensor nodes.
 pub fn register(reg: &mut Registry) {
     reg.add::<brdf_tensor::BrdfTensor>();
+    reg.add::<tucker_decompose::TuckerDecompose>();
 }
 
 /// Tensors, separations and decompositions made by the nodes themselves, for this folder's
 /// unit tests.
 #[cfg(test)]
 pub(crate) mod test_support {
-    use super::types::BrdfTensorTable;
+    use super::types::{BrdfTensorTable, TuckerBrdf};
     use crate::testing::{first, run_on};
-    use relume_core::ParamValue;
+    use crate::types::Metrics;
+    use relume_core::{ParamValue, Value};
 
     /// `BrdfTensor` with the given parameters.
     pub fn tensor(p: &[(&str, ParamValue)]) -> BrdfTensorTable {
         first(&run_on::<super::brdf_tensor::BrdfTensor>(p, vec![]).unwrap())
+    }
+
+    /// `TuckerDecompose` of `t`: the decomposition and its metrics.
+    pub fn decompose(t: &BrdfTensorTable, p: &[(&str, ParamValue)]) -> (TuckerBrdf, Metrics) {
+        let out = run_on::<super::tucker_decompose::TuckerDecompose>(p, vec![Value::new(t.clone())]).unwrap();
+        (first(&out), first(&out[1..]))
     }
 }
