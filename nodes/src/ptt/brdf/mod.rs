@@ -5,6 +5,7 @@
 //! the core and the h, ωo, ωi factors a renderer shades with. Port types in `types`.
 
 pub mod brdf_tensor;
+pub mod specular_separation;
 pub mod tucker_decompose;
 pub mod types;
 
@@ -13,6 +14,7 @@ use relume_core::Registry;
 /// Registers the BRDF-tensor nodes.
 pub fn register(reg: &mut Registry) {
     reg.add::<brdf_tensor::BrdfTensor>();
+    reg.add::<specular_separation::SpecularSeparation>();
     reg.add::<tucker_decompose::TuckerDecompose>();
 }
 
@@ -20,7 +22,7 @@ pub fn register(reg: &mut Registry) {
 /// unit tests.
 #[cfg(test)]
 pub(crate) mod test_support {
-    use super::types::{BrdfTensorTable, TuckerBrdf};
+    use super::types::{BrdfTensorTable, SpecularLobes, TuckerBrdf};
     use crate::testing::{first, run_on};
     use crate::types::Metrics;
     use relume_core::{ParamValue, Value};
@@ -28,6 +30,12 @@ pub(crate) mod test_support {
     /// `BrdfTensor` with the given parameters.
     pub fn tensor(p: &[(&str, ParamValue)]) -> BrdfTensorTable {
         first(&run_on::<super::brdf_tensor::BrdfTensor>(p, vec![]).unwrap())
+    }
+
+    /// `SpecularSeparation` of `t`: residual, lobes, metrics.
+    pub fn separate(t: &BrdfTensorTable, p: &[(&str, ParamValue)]) -> (BrdfTensorTable, SpecularLobes, Metrics) {
+        let out = run_on::<super::specular_separation::SpecularSeparation>(p, vec![Value::new(t.clone())]).unwrap();
+        (first(&out), first(&out[1..]), first(&out[2..]))
     }
 
     /// `TuckerDecompose` of `t`: the decomposition and its metrics.
