@@ -6,6 +6,7 @@
 //! the separated specular lobes; then rasterised.
 
 pub mod bounce;
+pub mod brdf;
 pub mod channels;
 pub mod env_lighting;
 pub mod types;
@@ -18,4 +19,5 @@ use relume_core::Registry;
 pub fn register(reg: &mut Registry) {
     reg.add::<env_lighting::EnvLighting>();
     reg.add::<vertex_visibility::VertexVisibility>();
+    brdf::register(reg);
 }

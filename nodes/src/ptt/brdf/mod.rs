@@ -1,0 +1,46 @@
+//! The BRDF side of pipeline 2 ([S] 5.2.2, 5.3.1, 5.3.3.1): `BrdfTensor` samples a BRDF
+//! family's specular part into F(h, ωo, ωi) over the disk-projected hemisphere,
+//! `SpecularSeparation` splits F into Gaussian lobes around the mirror direction plus a
+//! low-frequency residual, and `TuckerDecompose` factors a tensor (F or the residual) into
+//! the core and the h, ωo, ωi factors a renderer shades with. Port types in `types`.
+
+pub mod brdf_tensor;
+pub mod specular_separation;
+pub mod tucker_decompose;
+pub mod types;
+
+use relume_core::Registry;
+
+/// Registers the BRDF-tensor nodes.
+pub fn register(reg: &mut Registry) {
+    reg.add::<brdf_tensor::BrdfTensor>();
+    reg.add::<specular_separation::SpecularSeparation>();
+    reg.add::<tucker_decompose::TuckerDecompose>();
+}
+
+/// Tensors, separations and decompositions made by the nodes themselves, for this folder's
+/// unit tests.
+#[cfg(test)]
+pub(crate) mod test_support {
+    use super::types::{BrdfTensorTable, SpecularLobes, TuckerBrdf};
+    use crate::testing::{first, run_on};
+    use crate::types::Metrics;
+    use relume_core::{ParamValue, Value};
+
+    /// `BrdfTensor` with the given parameters.
+    pub fn tensor(p: &[(&str, ParamValue)]) -> BrdfTensorTable {
+        first(&run_on::<super::brdf_tensor::BrdfTensor>(p, vec![]).unwrap())
+    }
+
+    /// `SpecularSeparation` of `t`: residual, lobes, metrics.
+    pub fn separate(t: &BrdfTensorTable, p: &[(&str, ParamValue)]) -> (BrdfTensorTable, SpecularLobes, Metrics) {
+        let out = run_on::<super::specular_separation::SpecularSeparation>(p, vec![Value::new(t.clone())]).unwrap();
+        (first(&out), first(&out[1..]), first(&out[2..]))
+    }
+
+    /// `TuckerDecompose` of `t`: the decomposition and its metrics.
+    pub fn decompose(t: &BrdfTensorTable, p: &[(&str, ParamValue)]) -> (TuckerBrdf, Metrics) {
+        let out = run_on::<super::tucker_decompose::TuckerDecompose>(p, vec![Value::new(t.clone())]).unwrap();
+        (first(&out), first(&out[1..]))
+    }
+}
