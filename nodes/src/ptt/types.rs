@@ -163,3 +163,27 @@ impl PortValue for VisibilityChunk {
     }
     relume_core::serde_codec!(check VisibilityChunk::is_consistent);
 }
+
+/// One RGB value per scene vertex (the relit radiance toward the camera, [S] 5-5), in the
+/// scene's vertex order.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct VertexColors {
+    #[serde(with = "pod_vec")]
+    pub colors: Vec<Vec3>,
+}
+
+impl VertexColors {
+    fn is_consistent(&self) -> bool {
+        self.colors.iter().all(|c| c.is_finite())
+    }
+}
+
+impl PortValue for VertexColors {
+    const NAME: &'static str = "VertexColors";
+    const COLOR: [u8; 3] = [240, 150, 200];
+    const DOC: &'static str = "one RGB value per scene vertex";
+    fn byte_size(&self) -> usize {
+        self.colors.len() * 12 + 8
+    }
+    relume_core::serde_codec!(check VertexColors::is_consistent);
+}
