@@ -1,6 +1,7 @@
 //! Shared math used by several nodes (one place for each piece).
 
 pub mod cpca;
+pub mod cta;
 pub mod cube_haar;
 pub mod cubemap;
 pub mod frame;
