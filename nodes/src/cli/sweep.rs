@@ -434,6 +434,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "EnvLighting" => &["radiance_max", "luminance_integral", "haar_nonzero", "energy_share_top96", "bytes"],
         "VertexVisibility" => &["vertices", "visible_fraction", "bytes"],
         "BrdfTensor" => &["samples", "directions"],
+        "CtaCompress" => &["clusters", "largest_cluster", "smallest_cluster"],
         "SpecularSeparation" => &[
             "lobes",
             "lobe_energy_share_min",

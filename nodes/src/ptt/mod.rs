@@ -8,6 +8,7 @@
 pub mod bounce;
 pub mod brdf;
 pub mod channels;
+pub mod cta_compress;
 pub mod env_lighting;
 pub mod types;
 pub mod vertex_visibility;
@@ -19,5 +20,6 @@ use relume_core::Registry;
 pub fn register(reg: &mut Registry) {
     reg.add::<env_lighting::EnvLighting>();
     reg.add::<vertex_visibility::VertexVisibility>();
+    reg.add::<cta_compress::CtaCompress>();
     brdf::register(reg);
 }

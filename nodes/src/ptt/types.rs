@@ -187,3 +187,42 @@ impl PortValue for VertexColors {
     }
     relume_core::serde_codec!(check VertexColors::is_consistent);
 }
+
+/// The clustered tensor approximation's plan ([S] 5.3.3.4): the vertex clusters (each
+/// cluster's members ascending; every vertex in exactly one) and the ranks each cluster's
+/// bounce transfer is cut to: `rank_v` eigenvectors over its vertices, `rank_l` over the
+/// lighting bases, after `sweeps` HOOI rounds.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CtaPlan {
+    pub members: Vec<Vec<u32>>,
+    pub rank_v: u32,
+    pub rank_l: u32,
+    pub sweeps: u32,
+}
+
+impl CtaPlan {
+    /// Vertices in all.
+    pub fn vertices(&self) -> usize {
+        self.members.iter().map(|m| m.len()).sum()
+    }
+    /// The largest cluster's size.
+    pub fn largest(&self) -> usize {
+        self.members.iter().map(|m| m.len()).max().unwrap_or(0)
+    }
+
+    fn is_consistent(&self) -> bool {
+        let n = self.vertices();
+        let mut seen = vec![false; n];
+        self.members.iter().flatten().all(|&v| (v as usize) < n && !std::mem::replace(&mut seen[v as usize], true))
+    }
+}
+
+impl PortValue for CtaPlan {
+    const NAME: &'static str = "CtaPlan";
+    const COLOR: [u8; 3] = [170, 140, 230];
+    const DOC: &'static str = "vertex clusters and the ranks of the clustered tensor approximation";
+    fn byte_size(&self) -> usize {
+        self.vertices() * 4 + self.members.len() * 8 + 16
+    }
+    relume_core::serde_codec!(check CtaPlan::is_consistent);
+}
