@@ -435,6 +435,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "VertexVisibility" => &["vertices", "visible_fraction", "bytes"],
         "BrdfTensor" => &["samples", "directions"],
         "CtaCompress" => &["clusters", "largest_cluster", "smallest_cluster"],
+        "TransferT1" => &["rays", "raw_bytes", "compressed_bytes", "relative_error", "channels", "lighting_bases"],
         "SpecularSeparation" => &[
             "lobes",
             "lobe_energy_share_min",

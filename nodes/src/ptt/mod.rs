@@ -10,6 +10,7 @@ pub mod brdf;
 pub mod channels;
 pub mod cta_compress;
 pub mod env_lighting;
+pub mod transfer_t1;
 pub mod types;
 pub mod vertex_visibility;
 pub mod vertices;
@@ -21,5 +22,6 @@ pub fn register(reg: &mut Registry) {
     reg.add::<env_lighting::EnvLighting>();
     reg.add::<vertex_visibility::VertexVisibility>();
     reg.add::<cta_compress::CtaCompress>();
+    reg.add::<transfer_t1::TransferT1>();
     brdf::register(reg);
 }
