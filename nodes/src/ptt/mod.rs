@@ -9,6 +9,7 @@ pub mod bounce;
 pub mod brdf;
 pub mod channels;
 pub mod env_lighting;
+pub mod rasterize_vertex_colors;
 pub mod types;
 pub mod vertex_visibility;
 pub mod vertices;
@@ -18,6 +19,7 @@ use relume_core::Registry;
 /// Registers the transfer-tensor nodes.
 pub fn register(reg: &mut Registry) {
     reg.add::<env_lighting::EnvLighting>();
+    reg.add::<rasterize_vertex_colors::RasterizeVertexColors>();
     reg.add::<vertex_visibility::VertexVisibility>();
     brdf::register(reg);
 }
