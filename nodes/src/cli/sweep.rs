@@ -433,6 +433,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "SceneMaterials" => &["dynamic_objects"],
         "EnvLighting" => &["radiance_max", "luminance_integral", "haar_nonzero", "energy_share_top96", "bytes"],
         "VertexVisibility" => &["vertices", "visible_fraction", "bytes"],
+        "RasterizeVertexColors" => &["spp", "rays", "covered_fraction"],
         "BrdfTensor" => &["samples", "directions"],
         "CtaCompress" => &["clusters", "largest_cluster", "smallest_cluster"],
         "TransferT1" => &["rays", "raw_bytes", "compressed_bytes", "relative_error", "channels", "lighting_bases"],

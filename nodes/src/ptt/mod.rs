@@ -10,6 +10,7 @@ pub mod brdf;
 pub mod channels;
 pub mod cta_compress;
 pub mod env_lighting;
+pub mod rasterize_vertex_colors;
 pub mod transfer_t1;
 pub mod types;
 pub mod vertex_visibility;
@@ -20,6 +21,7 @@ use relume_core::Registry;
 /// Registers the transfer-tensor nodes.
 pub fn register(reg: &mut Registry) {
     reg.add::<env_lighting::EnvLighting>();
+    reg.add::<rasterize_vertex_colors::RasterizeVertexColors>();
     reg.add::<vertex_visibility::VertexVisibility>();
     reg.add::<cta_compress::CtaCompress>();
     reg.add::<transfer_t1::TransferT1>();

@@ -5,6 +5,7 @@ use crate::render::film::{with_ctx, Film};
 use crate::render::integrator::{Settings, Tracer};
 use crate::types::accel::Accel;
 use crate::types::{gather_rows, row_spec, Image, ImageRows, Scene};
+use glam::Vec3;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx, ShardSpec};
 use std::ops::Range;
 
@@ -37,6 +38,17 @@ pub struct PathTrace {
 inputs!(pub PathTraceIn { scene: Scene, accel: Accel });
 outputs!(pub PathTraceOut { image: Image, variance: Image });
 
+/// Camera sample `s` of pixel (x, y) of a `width`-wide image as the reference takes it (box
+/// filter: a point uniform over the pixel, from (seed, pixel, sample) only): the ray's origin,
+/// direction and the sample's id, which keys the sample's further random numbers. Renderers
+/// whose antialiased edges must match the reference's take their samples here.
+pub fn camera_sample(cam: &CameraRays, seed: u64, width: usize, x: usize, y: usize, s: u32) -> (Vec3, Vec3, u64) {
+    let id = ((y * width + x) as u64) << 32 | s as u64;
+    let (jx, jy) = (crate::math::rng::uniform(seed ^ 0x5EED, id, 0), crate::math::rng::uniform(seed ^ 0x5EED, id, 1));
+    let (o, d) = cam.ray(x as f32 + jx, y as f32 + jy);
+    (o, d, id)
+}
+
 /// Renders `p.spp` samples per pixel of the rows `rows`; returns them as a band with the
 /// mean, the variance of the mean and the counters [rays, samples dropped as NaN or
 /// infinite]. Each pixel depends only on (seed, pixel, sample): any split of the rows gives
@@ -54,10 +66,7 @@ pub fn render_rows(scene: &Scene, accel: &Accel, p: &PathTrace, rows: Range<usiz
     let y0 = rows.start;
     with_ctx(cx, |cx| {
         film.add_passes(cx, p.spp, |x, y, s, counts| {
-            let y = y + y0;
-            let id = ((y * w + x) as u64) << 32 | s as u64;
-            let jitter = (crate::math::rng::uniform(p.seed ^ 0x5EED, id, 0), crate::math::rng::uniform(p.seed ^ 0x5EED, id, 1));
-            let (o, d) = cam_rays.ray(x as f32 + jitter.0, y as f32 + jitter.1);
+            let (o, d, id) = camera_sample(&cam_rays, p.seed, w, x, y + y0, s);
             tracer.radiance(o, d, id, counts)
         })
     })?;
