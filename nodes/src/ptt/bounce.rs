@@ -1,7 +1,10 @@
 //! The one-bounce transfer of a vertex ([S] 5-8, 5.3.3.6), raw: T¹(l, c, s), the incident
 //! radiance at the vertex after one reflection, per box lighting basis l (a texel of the
 //! coarse cube map of `Visibility`), reflectance channel c (`ptt::channels`) and real SH
-//! coefficient s (4 bands, 16, in the vertex's local frame).
+//! coefficient s (4 bands, 16, in world axes: neighbouring vertices' transfers can then be
+//! interpolated, as the two-bounce transfer does at its hits, without their tangent frames —
+//! which turn abruptly where a normal crosses z = 0 — entering; shading turns them into the
+//! vertex frame with `math::sh_rotation`).
 //!
 //! Rays leave the vertex through the centres of the texels of a cube map of side
 //! `rays_side` above its tangent plane (deterministic quadrature, each ray weighted by its
@@ -75,7 +78,7 @@ impl<'a> Bounce<'a> {
         if n == Vec3::ZERO {
             return 0;
         }
-        let (frame, o) = (vertex_frame(n), self.scene.positions[v] + n * self.eps);
+        let o = self.scene.positions[v] + n * self.eps;
         let (lights, cc) = (self.lights(), self.channels.count());
         let mut sh = [0.0f32; SH];
         let mut direct = vec![0.0f32; lights];
@@ -100,7 +103,7 @@ impl<'a> Bounce<'a> {
                     *a += b[k] * c;
                 }
             }
-            sh_basis_into(frame.to_local(d), &mut sh);
+            sh_basis_into(d, &mut sh);
             sh.iter_mut().for_each(|y| *y *= omega);
             let object = self.scene.tri_object[hit.tri as usize] as usize;
             let chans = self.channels.of_object(object);
@@ -161,10 +164,11 @@ mod tests {
         s
     }
 
-    /// Irradiance at vertex `v` from its transfer under a uniform sky and channel weights `w`.
+    /// Irradiance on a floor (normal +y) from its transfer under a uniform sky and channel
+    /// weights `w`.
     fn irradiance(b: &Bounce, t: &[f32], w: &[f32]) -> f32 {
         let cc = w.len();
-        let cos = sh_clamped_cosine(4, Vec3::Z);
+        let cos = sh_clamped_cosine(4, Vec3::Y);
         let mut e = 0.0;
         for l in 0..b.lights() {
             for (c, wc) in w.iter().enumerate() {
