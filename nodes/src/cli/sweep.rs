@@ -436,6 +436,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "RasterizeVertexColors" => &["spp", "rays", "covered_fraction"],
         "BrdfTensor" => &["samples", "directions"],
         "CtaCompress" => &["clusters", "largest_cluster", "smallest_cluster"],
+        "TransferT2" => &["bytes", "channels", "lighting_bases"],
         "TransferT1" => &["rays", "raw_bytes", "compressed_bytes", "relative_error", "channels", "lighting_bases"],
         "SpecularSeparation" => &[
             "lobes",

@@ -12,6 +12,7 @@ pub mod cta_compress;
 pub mod env_lighting;
 pub mod rasterize_vertex_colors;
 pub mod transfer_t1;
+pub mod transfer_t2;
 pub mod types;
 pub mod vertex_visibility;
 pub mod vertices;
@@ -25,5 +26,6 @@ pub fn register(reg: &mut Registry) {
     reg.add::<vertex_visibility::VertexVisibility>();
     reg.add::<cta_compress::CtaCompress>();
     reg.add::<transfer_t1::TransferT1>();
+    reg.add::<transfer_t2::TransferT2>();
     brdf::register(reg);
 }

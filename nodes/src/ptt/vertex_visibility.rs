@@ -178,26 +178,48 @@ pub(crate) mod tests {
     use crate::types::{Environment, Material};
     use relume_core::Value;
 
-    /// A unit-square floor (9 × 9 vertices) and, over its +x half, a roof at height h.
-    pub(crate) fn floor_and_roof(h: f32) -> Scene {
-        let lambert = Material::Lambert { albedo: Vec3::splat(0.5) };
+    /// A 9 × 9-vertex grid from `corner` spanned by `a` and `b`, facing `normal` (the
+    /// winding follows it).
+    pub(crate) fn grid(corner: Vec3, a: Vec3, b: Vec3, normal: Vec3) -> (Vec<Vec3>, Vec<Vec3>, Vec<[u32; 3]>) {
         let mut pos = vec![];
         let mut tris = vec![];
         for j in 0..9 {
             for k in 0..9 {
-                pos.push(Vec3::new(-1.0 + k as f32 * 0.25, 0.0, -1.0 + j as f32 * 0.25));
+                pos.push(corner + a * (k as f32 / 8.0) + b * (j as f32 / 8.0));
             }
         }
+        let flip = a.cross(b).dot(normal) > 0.0;
         for j in 0..8u32 {
             for k in 0..8u32 {
-                let a = j * 9 + k;
-                tris.push([a, a + 9, a + 1]);
-                tris.push([a + 1, a + 9, a + 10]);
+                let q = j * 9 + k;
+                let (t0, t1) = ([q, q + 1, q + 9], [q + 1, q + 10, q + 9]);
+                tris.extend(if flip { [t0, t1] } else { [[t0[0], t0[2], t0[1]], [t1[0], t1[2], t1[1]]] });
             }
         }
+        (pos, vec![normal; 81], tris)
+    }
+
+    /// A 2 × 2 floor (9 × 9 vertices, ρ 0.5) at y = 0 and, over its +x half and far beyond, a
+    /// downward-facing roof (one quad) at height h, under a uniform sky of radiance 1.
+    pub(crate) fn floor_and_roof(h: f32) -> Scene {
+        let lambert = Material::Lambert { albedo: Vec3::splat(0.5) };
+        let (pos, nrm, tris) = grid(Vec3::new(-1.0, 0.0, -1.0), Vec3::X * 2.0, Vec3::Z * 2.0, Vec3::Y);
         crate::scene::builder::SceneBuilder::new(Vec3::new(0.0, 3.0, 3.0), Vec3::ZERO, 40.0, 16, 16)
-            .mesh("floor", pos, Some(vec![Vec3::Y; 81]), tris, lambert, Vec3::ZERO)
+            .mesh("floor", pos, Some(nrm), tris, lambert, Vec3::ZERO)
             .quad("roof", Vec3::new(0.0, h, 50.0), Vec3::new(0.0, 0.0, -100.0), Vec3::new(50.0, 0.0, 0.0), lambert, Vec3::ZERO)
+            .environment(Environment::Constant(Vec3::ONE))
+            .build()
+    }
+
+    /// The floor of `floor_and_roof` under a tessellated roof (9 × 9 vertices, facing down)
+    /// over x ∈ [0, 2] at height h: the roof's vertices see the sunlit open floor.
+    pub(crate) fn floor_and_tiled_roof(h: f32) -> Scene {
+        let lambert = Material::Lambert { albedo: Vec3::splat(0.5) };
+        let (pos, nrm, tris) = grid(Vec3::new(-1.0, 0.0, -1.0), Vec3::X * 2.0, Vec3::Z * 2.0, Vec3::Y);
+        let (rp, rn, rt) = grid(Vec3::new(0.0, h, -1.0), Vec3::X * 2.0, Vec3::Z * 2.0, Vec3::NEG_Y);
+        crate::scene::builder::SceneBuilder::new(Vec3::new(0.0, 3.0, 3.0), Vec3::ZERO, 40.0, 16, 16)
+            .mesh("floor", pos, Some(nrm), tris, lambert, Vec3::ZERO)
+            .mesh("roof", rp, Some(rn), rt, lambert, Vec3::ZERO)
             .environment(Environment::Constant(Vec3::ONE))
             .build()
     }
