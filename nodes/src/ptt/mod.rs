@@ -9,6 +9,7 @@ pub mod bounce;
 pub mod brdf;
 pub mod channels;
 pub mod env_lighting;
+pub mod transfer_t0;
 pub mod types;
 pub mod vertex_visibility;
 pub mod vertices;
@@ -19,5 +20,6 @@ use relume_core::Registry;
 pub fn register(reg: &mut Registry) {
     reg.add::<env_lighting::EnvLighting>();
     reg.add::<vertex_visibility::VertexVisibility>();
+    reg.add::<transfer_t0::TransferT0>();
     brdf::register(reg);
 }
