@@ -434,6 +434,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "EnvLighting" => &["radiance_max", "luminance_integral", "haar_nonzero", "energy_share_top96", "bytes"],
         "VertexVisibility" => &["vertices", "visible_fraction", "bytes"],
         "RasterizeVertexColors" => &["spp", "rays", "covered_fraction"],
+        "TransferT0" => &["vertices", "columns", "terms_mean", "energy_kept", "lobe_maps", "bytes"],
         "BrdfTensor" => &["samples", "directions"],
         "CtaCompress" => &["clusters", "largest_cluster", "smallest_cluster"],
         "TransferT2" => &["bytes", "channels", "lighting_bases"],

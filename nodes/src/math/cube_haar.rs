@@ -135,16 +135,24 @@ impl CubeHaar {
     /// index; zeros never kept, so a constant map keeps one term whatever `k`).
     pub fn keep_largest(&self, k: usize) -> SparseCubeHaar {
         let weight: Vec<f64> = self.coeffs.iter().enumerate().map(|(i, c)| c.length() as f64 * self.support_solid_angle(i)).collect();
-        let mut order: Vec<u32> = (0..self.coeffs.len() as u32).filter(|&i| weight[i as usize] > 0.0).collect();
-        let k = k.min(order.len());
-        if k < order.len() {
-            order.select_nth_unstable_by(k, |a, b| weight[*b as usize].total_cmp(&weight[*a as usize]).then(a.cmp(b)));
-            order.truncate(k);
-        }
-        order.sort_unstable();
-        let value = order.iter().map(|&i| self.coeffs[i as usize]).collect();
-        SparseCubeHaar { n: self.n, index: order, value }
+        let index = largest(&weight, k);
+        let value = index.iter().map(|&i| self.coeffs[i as usize]).collect();
+        SparseCubeHaar { n: self.n, index, value }
     }
+}
+
+/// The indices (ascending) of the `k` largest positive entries of `weight`, ties to the
+/// lower index; zeros and negatives are never chosen (the selection of `keep_largest`, for
+/// callers that rank one channel or weigh terms their own way).
+pub fn largest(weight: &[f64], k: usize) -> Vec<u32> {
+    let mut order: Vec<u32> = (0..weight.len() as u32).filter(|&i| weight[i as usize] > 0.0).collect();
+    let k = k.min(order.len());
+    if k < order.len() {
+        order.select_nth_unstable_by(k, |a, b| weight[*b as usize].total_cmp(&weight[*a as usize]).then(a.cmp(b)));
+        order.truncate(k);
+    }
+    order.sort_unstable();
+    order
 }
 
 impl SparseCubeHaar {
@@ -243,6 +251,15 @@ mod tests {
         assert!(b > 0.0 && (a / b - 1.0).abs() < 1e-4, "sun {a} of {b}");
         let (ta, tb) = (approx.integral().x as f64, m.integral().x as f64);
         assert!((ta / tb - 1.0).abs() < 1e-4, "sphere {ta} of {tb}");
+    }
+
+    #[test]
+    fn largest_picks_the_biggest_positive_weights_in_index_order() {
+        assert_eq!(largest(&[0.5, 3.0, 0.0, 2.0, 3.0, -9.0], 3), [1, 3, 4]);
+        // Ties go to the lower index; zeros and negatives are never picked, whatever k.
+        assert_eq!(largest(&[1.0, 2.0, 2.0, 2.0], 2), [1, 2]);
+        assert_eq!(largest(&[0.0, -1.0, 4.0], 10), [2]);
+        assert!(largest(&[], 5).is_empty() && largest(&[1.0], 0).is_empty());
     }
 
     #[test]

@@ -11,6 +11,7 @@ pub mod channels;
 pub mod cta_compress;
 pub mod env_lighting;
 pub mod rasterize_vertex_colors;
+pub mod transfer_t0;
 pub mod transfer_t1;
 pub mod transfer_t2;
 pub mod types;
@@ -25,6 +26,7 @@ pub fn register(reg: &mut Registry) {
     reg.add::<rasterize_vertex_colors::RasterizeVertexColors>();
     reg.add::<vertex_visibility::VertexVisibility>();
     reg.add::<cta_compress::CtaCompress>();
+    reg.add::<transfer_t0::TransferT0>();
     reg.add::<transfer_t1::TransferT1>();
     reg.add::<transfer_t2::TransferT2>();
     brdf::register(reg);
