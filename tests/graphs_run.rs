@@ -2,7 +2,7 @@
 
 use relume_core::{Graph, RunOptions};
 use relume_nodes::types::{Image, Metrics};
-use relume_tests::{all_graphs, engine, graphs_dir};
+use relume_tests::{all_graphs, engine, graphs_dir, ptt_test_size};
 
 #[test]
 fn every_graph_in_graphs_runs_and_its_outputs_are_finite() {
@@ -30,7 +30,11 @@ fn every_graph_in_graphs_runs_and_its_outputs_are_finite() {
                 "SampleSurface" => g.set_param_text(&reg, &format!("{}.count", n.id), "2000").unwrap(),
                 "Voxelize" | "VolumeSource" => g.set_param_text(&reg, &format!("{}.resolution", n.id), "32").unwrap(),
                 "EmitPhotons" => g.set_param_text(&reg, &format!("{}.resolution", n.id), "64").unwrap(),
-                _ => {}
+                kind => {
+                    for (param, value) in ptt_test_size(kind) {
+                        g.set_param_text(&reg, &format!("{}.{param}", n.id), value).unwrap();
+                    }
+                }
             }
         }
         let r = e.run(&g, &RunOptions::default()).unwrap_or_else(|err| panic!("{}: {err}", path.display()));

@@ -3,7 +3,7 @@
 //! entry of each type is a miss that is recomputed, never a crash.
 
 use relume_core::{DiskPolicy, Engine, Graph, Hash, RunOptions};
-use relume_tests::{add_output, files_under, load_graph};
+use relume_tests::{add_output, files_under, load_graph, ptt_test_size};
 use std::collections::BTreeSet;
 
 /// `pbgi_vs_reference.ron` at test size with every output port of every node as an output:
@@ -77,13 +77,39 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
         &[("voxelize.resolution", "12"), ("emit.resolution", "24"), ("reference.spp", "1"), ("scene.width", "8"), ("scene.height", "8")],
     ));
     let re = first.run(&e, &RunOptions::default()).unwrap();
+    // The transfer tensors of pipeline 2 at test size.
+    let mut f = load_graph("ptt_precompute.ron", &[]);
+    for n in f.nodes.clone() {
+        for (param, value) in ptt_test_size(&n.kind) {
+            f.set_param_text(&reg, &format!("{}.{param}", n.id), value).unwrap();
+        }
+    }
+    let f = every_port(f);
+    let rf = first.run(&f, &RunOptions::default()).unwrap();
 
     // Every registered port type is produced by this graph (as an output, or as the partial
     // results of its sharded nodes, kept on disk chunk by chunk), and each value decodes to
     // itself.
-    let mut produced: BTreeSet<&str> =
-        r1.outputs.iter().chain(&rb.outputs).chain(&rc.outputs).chain(&rd.outputs).chain(&re.outputs).map(|(_, v)| v.type_name()).collect();
-    for n in r1.report.nodes.iter().chain(&rb.report.nodes).chain(&rc.report.nodes).chain(&rd.report.nodes).chain(&re.report.nodes) {
+    let mut produced: BTreeSet<&str> = r1
+        .outputs
+        .iter()
+        .chain(&rb.outputs)
+        .chain(&rc.outputs)
+        .chain(&rd.outputs)
+        .chain(&re.outputs)
+        .chain(&rf.outputs)
+        .map(|(_, v)| v.type_name())
+        .collect();
+    for n in r1
+        .report
+        .nodes
+        .iter()
+        .chain(&rb.report.nodes)
+        .chain(&rc.report.nodes)
+        .chain(&rd.report.nodes)
+        .chain(&re.report.nodes)
+        .chain(&rf.report.nodes)
+    {
         let kind = reg.node(&n.kind).unwrap();
         if let (Some(sh), Some(stats)) = (kind.sharded(), &n.shards) {
             assert_eq!((stats.ran, stats.cached), (stats.chunks, 0), "{}: every chunk ran", n.id);
@@ -92,7 +118,7 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
     }
     let registered: BTreeSet<&str> = reg.port_types().map(|t| t.name).collect();
     assert_eq!(produced, registered, "the graph covers every registered port type");
-    for (name, v) in r1.outputs.iter().chain(&rb.outputs).chain(&rc.outputs).chain(&rd.outputs).chain(&re.outputs) {
+    for (name, v) in r1.outputs.iter().chain(&rb.outputs).chain(&rc.outputs).chain(&rd.outputs).chain(&re.outputs).chain(&rf.outputs) {
         let bytes = v.encode();
         let info = reg.port_type(v.type_name()).unwrap();
         let back = (info.decode)(&bytes, v.fingerprint()).unwrap_or_else(|| panic!("{name} ({}) does not decode", v.type_name()));
@@ -105,7 +131,7 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
 
     // A second engine (another process) gets every node's result from disk, the same values.
     let second = Engine::new(relume_nodes::registry()).with_disk_cache(dir.path());
-    for (graph, r) in [(&g, &r1), (&b, &rb), (&c, &rc), (&d, &rd), (&e, &re)] {
+    for (graph, r) in [(&g, &r1), (&b, &rb), (&c, &rc), (&d, &rd), (&e, &re), (&f, &rf)] {
         let r2 = second.run(graph, &RunOptions::default()).unwrap();
         assert_eq!(r2.report.ran, 0, "{:?}", r2.report.ran_ids());
         // From disk, or from memory where an earlier graph or node had the same one (the BRDF

@@ -23,7 +23,7 @@ use relume_core::Registry;
 /// Registers the transfer-tensor nodes.
 pub fn register(reg: &mut Registry) {
     reg.add::<env_lighting::EnvLighting>();
-    reg.add::<rasterize_vertex_colors::RasterizeVertexColors>();
+    // RasterizeVertexColors is registered with PttRelight, the node that makes its input.
     reg.add::<vertex_visibility::VertexVisibility>();
     reg.add::<cta_compress::CtaCompress>();
     reg.add::<transfer_t0::TransferT0>();
