@@ -384,7 +384,7 @@ fn reorthonormalise(b: &mut [f64], cols: usize, k: usize, w: &[f64], cx: &RunCtx
 }
 
 /// Index of the entry of largest magnitude (the first on ties); `None` for an empty slice.
-fn largest_entry(b: &[f64]) -> Option<usize> {
+pub(crate) fn largest_entry(b: &[f64]) -> Option<usize> {
     let mut best: Option<(usize, f64)> = None;
     for (l, v) in b.iter().enumerate() {
         if best.is_none_or(|(_, m)| v.abs() > m) {
