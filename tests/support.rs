@@ -253,7 +253,7 @@ pub fn small_cornell() -> relume_nodes::types::Scene {
 /// a small BRDF tensor, few clusters, on envlit's 49 K vertices.
 pub fn ptt_test_size(kind: &str) -> &'static [(&'static str, &'static str)] {
     match kind {
-        "EnvLighting" => &[("side", "16"), ("supersample", "2")],
+        "EnvLighting" => &[("side", "8"), ("supersample", "2")],
         "VertexVisibility" => &[("side", "8"), ("coarse", "2")],
         "BrdfTensor" => &[("disk", "6"), ("samples", "12")],
         "BrdfSpaceSample" => &[("n_theta_i", "8"), ("n_theta_o", "8"), ("n_phi", "16"), ("samples", "21")],

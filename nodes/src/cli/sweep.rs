@@ -438,6 +438,10 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "BrdfTensor" => &["samples", "directions"],
         "CtaCompress" => &["clusters", "largest_cluster", "smallest_cluster"],
         "TransferT2" => &["bytes", "channels", "lighting_bases"],
+        "IncidentProjection" => &["slots", "columns", "bytes"],
+        "PttIncident" => &["vertices", "slots", "bounces", "e0_mean", "e1_mean", "e2_mean", "bytes"],
+        "PttRelight" => &["vertices", "shaded", "diffuse_mean", "specular_mean"],
+        "VertexPathTrace" => &["vertices", "rays"],
         "TransferT1" => &["rays", "raw_bytes", "compressed_bytes", "relative_error", "channels", "lighting_bases"],
         "SpecularSeparation" => &[
             "lobes",

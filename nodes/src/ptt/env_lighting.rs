@@ -4,21 +4,22 @@ use super::types::{EnvLight, PrefilteredEnv};
 use crate::math::cube_haar::CubeHaar;
 use crate::math::cubemap::CubeMap;
 use crate::types::{Environment, Metrics, Scene};
-use glam::{Mat3, Vec3};
+use glam::Vec3;
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
 /// The scene's environment as the transfer-tensor renderer reads it ([S] 5.2.3, 5.3.3.3): a
 /// cube map of 6 × `side` × `side` texels (each the solid-angle-weighted mean of
 /// `supersample`² sub-texels of the lat-long map, so a sun smaller than a texel keeps its
-/// energy), turned by `rotation_deg` about the vertical axis and scaled by `scale`; its Haar
+/// energy; turn or scale the sky with `TurnEnvironment` upstream, so the reference sees it
+/// too); its Haar
 /// coefficients C^L (`math::cube_haar`: non-standard Haar per face, then one orthonormal step
 /// over the faces' six scaling terms, so a constant environment is one coefficient); and, for
 /// the specular lobes of widths `lobe_step_deg` × 1 … `lobes` ([S] 5-13: 7°, 14°, 21°; the
 /// 0° lobe reads the map itself), the environment convolved with each normalised Gaussian
 /// lobe (`CubeMap::gaussian_prefilter`, on a box-filtered copy whose texels are at most half
 /// the lobe's σ wide). All coefficients are kept: each transfer keeps its own largest terms.
-/// Rotating or swapping the environment re-runs this node and the relighting only.
+/// Turning or swapping the environment re-runs this node and the relighting only.
 ///
 /// Metrics: the largest texel radiance and the luminance integral ∫ L dω (sr-weighted sum),
 /// the number of non-zero Haar coefficients and the share of the coefficients' energy the 96
@@ -31,12 +32,6 @@ pub struct EnvLighting {
     /// sub-texels per texel side averaged from the lat-long map
     #[param(default = 4, range = 1..=16)]
     pub supersample: usize,
-    /// turn of the environment about the vertical (+y) axis, right-handed
-    #[param(default = 0.0, range = -360.0..=360.0, unit = "°")]
-    pub rotation_deg: f64,
-    /// radiance multiplier
-    #[param(default = 1.0, range = 0.0..=1.0e6)]
-    pub scale: f64,
     /// angular standard deviation of the first specular lobe; lobe k has k times it
     #[param(default = 7.0, range = 0.1..=60.0, unit = "°")]
     pub lobe_step_deg: f64,
@@ -64,13 +59,11 @@ impl EnvLighting {
         3 * CubeMap::bytes_for(self.side) + lobes
     }
 
-    /// The cube map of the scene's environment, turned and scaled.
+    /// The cube map of the scene's environment.
     pub fn cube(&self, scene: &Scene) -> CubeMap {
-        let turn = Mat3::from_rotation_y(-(self.rotation_deg as f32).to_radians());
-        let scale = self.scale as f32;
         match &scene.environment {
-            Some(Environment::Constant(c)) => CubeMap::constant(self.side, *c * scale),
-            _ => CubeMap::from_fn(self.side, self.supersample, |d| scene.environment_radiance(turn * d) * scale),
+            Some(Environment::Constant(c)) => CubeMap::constant(self.side, *c),
+            _ => CubeMap::from_fn(self.side, self.supersample, |d| scene.environment_radiance(d)),
         }
     }
 }
@@ -133,7 +126,7 @@ impl EnvLighting {
 mod tests {
     use super::*;
     use crate::scene::builder::SceneBuilder;
-    use crate::testing::{f, first, i, run_on};
+    use crate::testing::{first, i, run_on};
     use relume_core::Value;
 
     fn scene(env: Environment) -> Scene {
@@ -189,16 +182,9 @@ mod tests {
         let l = light(&s, &[("side", i(32)), ("supersample", i(8))]);
         let total = l.cube().integral().x as f64;
         assert!((total / brute - 1.0).abs() < 0.02, "cube {total} against {brute}");
-        // The brightest texel points at the sun; turned by 90° it points at the sun turned.
+        // The brightest texel points at the sun.
         let brightest = |l: &EnvLight| (0..l.map.len()).max_by(|&a, &b| l.map[a].x.total_cmp(&l.map[b].x)).unwrap_or(0);
         assert!(l.cube().direction(brightest(&l)).dot(sun) > 0.99);
-        let t = light(&s, &[("side", i(32)), ("supersample", i(8)), ("rotation_deg", f(90.0))]);
-        let turned = Mat3::from_rotation_y(90f32.to_radians()) * sun;
-        assert!(t.cube().direction(brightest(&t)).dot(turned) > 0.99, "turned sun at {:?}", t.cube().direction(brightest(&t)));
-        // A full turn is no turn.
-        let full = light(&s, &[("side", i(32)), ("supersample", i(8)), ("rotation_deg", f(360.0))]);
-        let d = full.map.iter().zip(&l.map).map(|(a, b)| (*a - *b).abs().max_element()).fold(0.0f32, f32::max);
-        assert!(d < 1e-3 * l.map[brightest(&l)].x, "full turn differs by {d}");
     }
 
     #[test]

@@ -10,11 +10,15 @@ pub mod brdf;
 pub mod channels;
 pub mod cta_compress;
 pub mod env_lighting;
+pub mod incident_projection;
+pub mod ptt_incident;
+pub mod ptt_relight;
 pub mod rasterize_vertex_colors;
 pub mod transfer_t0;
 pub mod transfer_t1;
 pub mod transfer_t2;
 pub mod types;
+pub mod vertex_path_trace;
 pub mod vertex_visibility;
 pub mod vertices;
 
@@ -23,11 +27,17 @@ use relume_core::Registry;
 /// Registers the transfer-tensor nodes.
 pub fn register(reg: &mut Registry) {
     reg.add::<env_lighting::EnvLighting>();
-    // RasterizeVertexColors is registered with PttRelight, the node that makes its input.
     reg.add::<vertex_visibility::VertexVisibility>();
     reg.add::<cta_compress::CtaCompress>();
     reg.add::<transfer_t0::TransferT0>();
     reg.add::<transfer_t1::TransferT1>();
     reg.add::<transfer_t2::TransferT2>();
+    reg.add::<incident_projection::IncidentProjection>();
+    reg.add::<ptt_incident::PttIncident>();
+    reg.add::<ptt_relight::PttRelight>();
+    reg.add::<rasterize_vertex_colors::RasterizeVertexColors>();
+    reg.add::<vertex_path_trace::VertexPathTrace>();
     brdf::register(reg);
 }
+#[cfg(test)]
+pub(crate) mod test_support;

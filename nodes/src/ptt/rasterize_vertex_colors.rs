@@ -3,7 +3,7 @@
 use super::types::VertexColors;
 use crate::reference::path_trace::camera_sample;
 use crate::render::camera::CameraRays;
-use crate::types::{Accel, Image, Scene};
+use crate::types::{Accel, Camera, Image, Scene};
 use glam::Vec3;
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
@@ -35,13 +35,13 @@ pub struct RasterizeVertexColors {
     pub background: bool,
 }
 
-inputs!(pub RasterizeVertexColorsIn { scene: Scene, accel: Accel, colors: VertexColors });
+inputs!(pub RasterizeVertexColorsIn { scene: Scene, accel: Accel, camera: Camera, colors: VertexColors });
 outputs!(pub RasterizeVertexColorsOut { image: Image });
 
 #[node(category = "ptt")]
 impl RasterizeVertexColors {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
-        let image = inputs[0].and_then(|s| s.dims).map(|[w, h]| PortSize::image(w, h));
+        let image = inputs[2].and_then(|s| s.dims).map(|[w, h]| PortSize::image(w, h));
         MemoryEstimate { outputs: vec![image], working: 0 }
     }
 
@@ -53,7 +53,7 @@ impl RasterizeVertexColors {
                 format!("holds {} colours but the scene has {} vertices (one colour per vertex)", colors.len(), scene.positions.len()),
             ));
         }
-        let (w, h) = (scene.camera.width, scene.camera.height);
+        let (w, h) = (i.camera.width, i.camera.height);
         let bytes = PortSize::image(w, h).bytes;
         if bytes > cx.memory_budget() {
             return Err(NodeError::over_limit(format!(
@@ -63,7 +63,7 @@ impl RasterizeVertexColors {
             )));
         }
         let mut image = Image::try_new(w, h)?;
-        let cam = CameraRays::new(&scene.camera);
+        let cam = CameraRays::new(i.camera);
         let hits = AtomicU64::new(0);
         cx.par_chunks_mut(&mut image.pixels, w, |y, row| {
             let mut covered = 0;
@@ -120,7 +120,12 @@ mod tests {
     }
 
     fn inputs(s: &Scene, colors: Vec<Vec3>) -> Vec<Value> {
-        vec![Value::new(s.clone()), Value::new(Accel::build(s, BuildQuality::Fast)), Value::new(VertexColors { colors })]
+        vec![
+            Value::new(s.clone()),
+            Value::new(Accel::build(s, BuildQuality::Fast)),
+            Value::new(s.camera.clone()),
+            Value::new(VertexColors { colors }),
+        ]
     }
 
     fn raster(s: &Scene, colors: Vec<Vec3>, params: &[(&str, ParamValue)]) -> Image {

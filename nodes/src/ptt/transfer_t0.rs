@@ -614,23 +614,14 @@ impl TransferT0 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ptt::brdf::test_support::{decompose, separate, tensor};
     use crate::ptt::brdf::types::MaterialParam;
     use crate::ptt::vertex_visibility::tests::{floor_and_roof, visibility};
-    use crate::testing::{f, first, i, run_on};
+    use crate::testing::{first, run_on};
     use relume_core::Value;
     use std::f64::consts::PI;
-    use std::sync::OnceLock;
 
-    /// A small Blinn-Phong family (s 1 … 100, disk 16), separated into 0°, 7°, 14°, 21° lobes
-    /// and its residual decomposed at ranks (3, 8, 8).
     fn brdf() -> &'static (TuckerBrdf, SpecularLobes) {
-        static B: OnceLock<(TuckerBrdf, SpecularLobes)> = OnceLock::new();
-        B.get_or_init(|| {
-            let t = tensor(&[("disk", i(16)), ("samples", i(12)), ("s_max", f(100.0))]);
-            let (residual, lobes, _) = separate(&t, &[]);
-            (decompose(&residual, &[]).0, lobes)
-        })
+        crate::ptt::brdf::test_support::small_brdf()
     }
 
     /// graphs/assets/envlit/sky.exr on a cube map of side `n`.

@@ -173,6 +173,19 @@ pub struct VertexColors {
 }
 
 impl VertexColors {
+    /// Refuses `vertices` colours over the budget, before they are allocated.
+    pub fn check_budget(vertices: usize, budget: u64) -> Result<(), relume_core::NodeError> {
+        let bytes = vertices as u64 * 12 + 8;
+        if bytes > budget {
+            return Err(relume_core::NodeError::over_limit(format!(
+                "the colours of {vertices} vertices would hold {}, over the {} budget",
+                relume_core::memory::fmt_bytes(bytes),
+                relume_core::memory::fmt_bytes(budget)
+            )));
+        }
+        Ok(())
+    }
+
     fn is_consistent(&self) -> bool {
         self.colors.iter().all(|c| c.is_finite())
     }

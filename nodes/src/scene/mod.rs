@@ -10,6 +10,7 @@ pub mod move_object;
 pub mod obj;
 pub mod orbit_camera;
 pub mod shapes;
+pub mod turn_environment;
 
 use relume_core::Registry;
 
@@ -18,4 +19,5 @@ pub fn register(reg: &mut Registry) {
     reg.add::<move_object::MoveObject>();
     reg.add::<deform_mesh::DeformMesh>();
     reg.add::<orbit_camera::OrbitCamera>();
+    reg.add::<turn_environment::TurnEnvironment>();
 }

@@ -38,6 +38,18 @@ pub(crate) mod test_support {
         (first(&out), first(&out[1..]), first(&out[2..]))
     }
 
+    /// A small Blinn-Phong family (s 1 … 100, disk 16), separated into 0°, 7°, 14°, 21° lobes
+    /// and its residual decomposed at ranks (3, 8, 8); built once per test binary.
+    pub fn small_brdf() -> &'static (TuckerBrdf, SpecularLobes) {
+        use crate::testing::{f, i};
+        static B: std::sync::OnceLock<(TuckerBrdf, SpecularLobes)> = std::sync::OnceLock::new();
+        B.get_or_init(|| {
+            let t = tensor(&[("disk", i(16)), ("samples", i(12)), ("s_max", f(100.0))]);
+            let (residual, lobes, _) = separate(&t, &[]);
+            (decompose(&residual, &[]).0, lobes)
+        })
+    }
+
     /// `TuckerDecompose` of `t`: the decomposition and its metrics.
     pub fn decompose(t: &BrdfTensorTable, p: &[(&str, ParamValue)]) -> (TuckerBrdf, Metrics) {
         let out = run_on::<super::tucker_decompose::TuckerDecompose>(p, vec![Value::new(t.clone())]).unwrap();

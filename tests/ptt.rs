@@ -1,0 +1,56 @@
+//! Pipeline 2 (precomputed transfer tensors) through its graph: each edit re-runs only what it
+//! reaches, asserted from the run report.
+
+use relume_core::{Engine, Graph, RunOptions};
+use relume_nodes::types::Image;
+use relume_tests::{load_graph, ptt_test_size, ran};
+
+/// `ptt_envlit.ron` at test size.
+fn small_ptt() -> Graph {
+    let reg = relume_nodes::registry();
+    let mut g = load_graph(
+        "ptt_envlit.ron",
+        &[
+            ("scene.width", "24"),
+            ("scene.height", "24"),
+            ("reference.spp", "4"),
+            ("raster.spp", "2"),
+            ("vertex_reference.spp", "2"),
+            ("vertex_raster.spp", "2"),
+        ],
+    );
+    for n in g.nodes.clone() {
+        for (param, value) in ptt_test_size(&n.kind) {
+            g.set_param_text(&reg, &format!("{}.{param}", n.id), value).unwrap();
+        }
+    }
+    g
+}
+
+#[test]
+fn view_material_and_sky_edits_rerun_only_what_they_reach_never_the_transfer() {
+    let reg = relume_nodes::registry();
+    let e = Engine::new(relume_nodes::registry());
+    let mut g = small_ptt();
+    let r = e.run(&g, &RunOptions::default()).unwrap();
+    let img = r.output("image").unwrap().get::<Image>().unwrap().clone();
+    assert_eq!((img.width, img.height, img.nonfinite_pixels()), (24, 24, 0));
+    assert!(img.pixels.iter().any(|p| p[0] > 0.0), "the relit image is not black");
+    let mut rerun = |param: &str, value: &str| {
+        g.set_param_text(&reg, param, value).unwrap();
+        ran(&e.run(&g, &RunOptions::default()).unwrap().report)
+    };
+    // Orbiting: the camera, the shading and the rasteriser (the reference keeps the scene's view).
+    assert_eq!(rerun("camera.azimuth", "20"), ["camera", "error", "method_error", "raster", "relight"]);
+    // The bunny's material: its projection, the incident light (the bounces carry it), the
+    // shading onward, and the reference with the new material.
+    let references = ["interpolation_error", "method_error", "reference", "vertex_raster", "vertex_reference"];
+    let with = |nodes: &[&str]| {
+        let mut v: Vec<String> = nodes.iter().chain(&references).map(|s| s.to_string()).collect();
+        v.sort();
+        v
+    };
+    assert_eq!(rerun("project.s", "60"), with(&["apply", "error", "incident", "project", "raster", "relight"]));
+    // Turning the sky: the environment's cube map and what reads it, never the transfer.
+    assert_eq!(rerun("turn.rotation_deg", "45"), with(&["apply", "env", "error", "incident", "raster", "relight", "turn"]));
+}
