@@ -404,3 +404,61 @@ fn orbiting_moving_the_light_and_painting_on_refract_glass_update_the_image() {
         until_idle(&ctx, &mut app);
     }
 }
+
+#[test]
+fn turning_the_sky_changing_the_material_and_orbiting_on_ptt_envlit_update_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let i = ParamValue::Int;
+    let mut app = open_shipped(
+        dir.path(),
+        "ptt_envlit.ron",
+        &[
+            ("scene", "width", i(24)),
+            ("scene", "height", i(24)),
+            ("env", "side", i(8)),
+            ("env", "supersample", i(2)),
+            ("visibility", "side", i(8)),
+            ("visibility", "coarse", i(2)),
+            ("tensor", "disk", i(6)),
+            ("tensor", "samples", i(12)),
+            ("space", "n_theta_i", i(8)),
+            ("space", "n_theta_o", i(8)),
+            ("space", "n_phi", i(16)),
+            ("space", "samples", i(21)),
+            ("plan", "clusters", i(64)),
+            ("plan", "eigenvectors", i(8)),
+            ("plan", "lighting", i(8)),
+            ("plan", "cpca_iterations", i(2)),
+            ("t0", "terms", i(16)),
+            ("t0", "lobe_side", i(2)),
+            ("t1", "rays_side", i(2)),
+            ("t2", "side", i(1)),
+            ("t2", "rays_side", i(2)),
+            ("reference", "spp", i(4)),
+            ("raster", "spp", i(2)),
+            ("vertex_reference", "spp", i(2)),
+            ("vertex_raster", "spp", i(2)),
+        ],
+    );
+    assert_eq!(app.view_target.as_deref(), Some("image"));
+    let ctx = egui::Context::default();
+    first_run(&ctx, &mut app);
+    let mut img = app.viewer.image().expect("the relit image is shown").clone();
+    // Each edit: the image first, from exactly the nodes the edit reaches on its way there.
+    let edits: [(&str, &str, ParamValue, &[&str]); 3] = [
+        ("turn", "rotation_deg", ParamValue::Float(60.0), &["env", "incident", "raster", "relight", "turn"]),
+        ("project", "s", ParamValue::Float(80.0), &["incident", "project", "raster", "relight"]),
+        ("camera", "azimuth", ParamValue::Float(25.0), &["camera", "raster", "relight"]),
+    ];
+    for (node, param, value, reran) in edits {
+        app.set_param(node, param, value).unwrap();
+        frames_until_refreshed(&ctx, &mut app);
+        let mut ran = app.report.as_ref().unwrap().ran_ids();
+        ran.sort();
+        assert_eq!(ran, reran, "{node}.{param}");
+        let now = app.viewer.image().unwrap().clone();
+        assert!(!std::sync::Arc::ptr_eq(&img, &now) && img.pixels != now.pixels, "{node}.{param}: the viewer shows the edit");
+        img = now;
+        until_idle(&ctx, &mut app);
+    }
+}
