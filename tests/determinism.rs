@@ -20,7 +20,7 @@ fn test_size(path: &std::path::Path) -> Graph {
             "DirectLight" => set(&mut g, "pixel_samples", "4"),
             "Voxelize" | "VolumeSource" => set(&mut g, "resolution", "32"),
             "EmitPhotons" => set(&mut g, "resolution", "64"),
-            _ => {}
+            kind => relume_nodes::ptt::test_size(kind).iter().for_each(|(p, v)| set(&mut g, p, v)),
         }
     }
     g

@@ -39,5 +39,25 @@ pub fn register(reg: &mut Registry) {
     reg.add::<vertex_path_trace::VertexPathTrace>();
     brdf::register(reg);
 }
+
+/// Test-size parameters of the transfer-tensor nodes (pipeline 2): coarse cube maps, few rays,
+/// a small BRDF tensor, few clusters, on envlit's 49 K vertices: what the graph,
+/// port-type, editor tests and the benches' test mode run.
+pub fn test_size(kind: &str) -> &'static [(&'static str, &'static str)] {
+    match kind {
+        "EnvLighting" => &[("side", "8"), ("supersample", "2")],
+        "VertexVisibility" => &[("side", "8"), ("coarse", "2")],
+        "BrdfTensor" => &[("disk", "6"), ("samples", "12")],
+        "BrdfSpaceSample" => &[("n_theta_i", "8"), ("n_theta_o", "8"), ("n_phi", "16"), ("samples", "21")],
+        "CtaCompress" => &[("clusters", "64"), ("eigenvectors", "8"), ("lighting", "8"), ("cpca_iterations", "2")],
+        "TransferT0" => &[("terms", "16"), ("lobe_side", "2")],
+        "TransferT1" => &[("rays_side", "2")],
+        "TransferT2" => &[("side", "1"), ("rays_side", "2")],
+        "VertexPathTrace" => &[("spp", "4")],
+        "RasterizeVertexColors" => &[("spp", "2")],
+        _ => &[],
+    }
+}
+
 #[cfg(test)]
 pub(crate) mod test_support;
