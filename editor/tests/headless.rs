@@ -194,6 +194,23 @@ fn frames_until_refreshed(ctx: &egui::Context, app: &mut EditorApp) {
 /// Opens a shipped graph in a fresh editor, copied into `dir` with its scenes reached from
 /// `graphs/`, at a smaller size than shipped (`params`: node, parameter, value) so the test is
 /// quick; the wiring is the file's.
+/// Each edit (node, parameter, value, the nodes it must re-run): the viewed image comes first,
+/// from exactly those nodes, and differs from the one before; then the rest runs.
+fn edits_update_the_image(ctx: &egui::Context, app: &mut EditorApp, edits: Vec<(&str, &str, ParamValue, &[&str])>) {
+    let mut img = app.viewer.image().expect("the image is shown").clone();
+    for (node, param, value, reran) in edits {
+        app.set_param(node, param, value).unwrap();
+        frames_until_refreshed(ctx, app);
+        let mut ran = app.report.as_ref().unwrap().ran_ids();
+        ran.sort();
+        assert_eq!(ran, reran, "{node}.{param}");
+        let now = app.viewer.image().unwrap().clone();
+        assert!(!std::sync::Arc::ptr_eq(&img, &now) && img.pixels != now.pixels, "{node}.{param}: the viewer shows the edit");
+        img = now;
+        until_idle(ctx, app);
+    }
+}
+
 fn open_shipped(dir: &Path, name: &str, params: &[(&str, &str, ParamValue)]) -> EditorApp {
     let mut app = app();
     let path = dir.join(name);
@@ -384,25 +401,14 @@ fn orbiting_moving_the_light_and_painting_on_refract_glass_update_the_image() {
     assert_eq!(app.view_target.as_deref(), Some("image"));
     let ctx = egui::Context::default();
     first_run(&ctx, &mut app);
-    let mut img = app.viewer.image().expect("the render is shown").clone();
     let vec3 = |x: f64, y: f64, z: f64| ParamValue::Tuple(vec![ParamValue::Float(x), ParamValue::Float(y), ParamValue::Float(z)]);
     // Each edit: the image first, from exactly the nodes the edit reaches on its way there.
-    let edits: [(&str, &str, ParamValue, &[&str]); 3] = [
+    let edits: Vec<(&str, &str, ParamValue, &[&str])> = vec![
         ("camera", "azimuth", ParamValue::Float(25.0), &["camera", "paths", "render"]),
         ("light", "translation", vec3(0.3, 0.0, 0.0), &["bvh", "emit", "light", "march", "render"]),
         ("paint", "weight", ParamValue::Float(0.3), &["emit", "march", "octree", "paint", "paths", "render"]),
     ];
-    for (node, param, value, reran) in edits {
-        app.set_param(node, param, value).unwrap();
-        frames_until_refreshed(&ctx, &mut app);
-        let mut ran = app.report.as_ref().unwrap().ran_ids();
-        ran.sort();
-        assert_eq!(ran, reran, "{node}.{param}");
-        let now = app.viewer.image().unwrap().clone();
-        assert!(!std::sync::Arc::ptr_eq(&img, &now) && img.pixels != now.pixels, "{node}.{param}: the viewer shows the edit");
-        img = now;
-        until_idle(&ctx, &mut app);
-    }
+    edits_update_the_image(&ctx, &mut app, edits);
 }
 
 #[test]
@@ -443,22 +449,11 @@ fn turning_the_sky_changing_the_material_and_orbiting_on_ptt_envlit_update_the_i
     assert_eq!(app.view_target.as_deref(), Some("image"));
     let ctx = egui::Context::default();
     first_run(&ctx, &mut app);
-    let mut img = app.viewer.image().expect("the relit image is shown").clone();
     // Each edit: the image first, from exactly the nodes the edit reaches on its way there.
-    let edits: [(&str, &str, ParamValue, &[&str]); 3] = [
+    let edits: Vec<(&str, &str, ParamValue, &[&str])> = vec![
         ("turn", "rotation_deg", ParamValue::Float(60.0), &["env", "incident", "raster", "relight", "turn"]),
         ("project", "s", ParamValue::Float(80.0), &["incident", "project", "raster", "relight"]),
         ("camera", "azimuth", ParamValue::Float(25.0), &["camera", "raster", "relight"]),
     ];
-    for (node, param, value, reran) in edits {
-        app.set_param(node, param, value).unwrap();
-        frames_until_refreshed(&ctx, &mut app);
-        let mut ran = app.report.as_ref().unwrap().ran_ids();
-        ran.sort();
-        assert_eq!(ran, reran, "{node}.{param}");
-        let now = app.viewer.image().unwrap().clone();
-        assert!(!std::sync::Arc::ptr_eq(&img, &now) && img.pixels != now.pixels, "{node}.{param}: the viewer shows the edit");
-        img = now;
-        until_idle(&ctx, &mut app);
-    }
+    edits_update_the_image(&ctx, &mut app, edits);
 }
