@@ -14,9 +14,9 @@ fn small_ptt() -> Graph {
             ("scene.width", "24"),
             ("scene.height", "24"),
             ("reference.spp", "4"),
-            ("raster.spp", "2"),
+            ("hits.spp", "2"),
             ("vertex_reference.spp", "2"),
-            ("vertex_raster.spp", "2"),
+            ("ref_hits.spp", "2"),
         ],
     );
     for n in g.nodes.clone() {
@@ -40,8 +40,9 @@ fn view_material_and_sky_edits_rerun_only_what_they_reach_never_the_transfer() {
         g.set_param_text(&reg, param, value).unwrap();
         ran(&e.run(&g, &RunOptions::default()).unwrap().report)
     };
-    // Orbiting: the camera, the shading and the rasteriser (the reference keeps the scene's view).
-    assert_eq!(rerun("camera.azimuth", "20"), ["camera", "error", "method_error", "raster", "relight"]);
+    // Orbiting: the camera, what it sees, the shading and the rasteriser (the reference keeps
+    // the scene's view).
+    assert_eq!(rerun("camera.azimuth", "20"), ["camera", "error", "hits", "method_error", "raster", "relight"]);
     // The bunny's material: its projection, the incident light (the bounces carry it), the
     // shading onward, and the reference with the new material.
     let references = ["interpolation_error", "method_error", "reference", "vertex_raster", "vertex_reference"];
@@ -51,6 +52,10 @@ fn view_material_and_sky_edits_rerun_only_what_they_reach_never_the_transfer() {
         v
     };
     assert_eq!(rerun("project.s", "60"), with(&["apply", "error", "incident", "project", "raster", "relight"]));
-    // Turning the sky: the environment's cube map and what reads it, never the transfer.
-    assert_eq!(rerun("turn.rotation_deg", "45"), with(&["apply", "env", "error", "incident", "raster", "relight", "turn"]));
+    // Turning the sky: the environment's cube map and what reads it (the hits hold the
+    // background), never the transfer.
+    assert_eq!(
+        rerun("turn.rotation_deg", "45"),
+        with(&["apply", "env", "error", "hits", "incident", "raster", "ref_hits", "relight", "turn"])
+    );
 }

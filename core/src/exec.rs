@@ -167,6 +167,13 @@ impl Engine {
     pub fn disk_policy(&self) -> DiskPolicy {
         self.disk_policy
     }
+    /// Stops reading and writing the disk cache, keeping what memory holds: a bench warms
+    /// the engine from disk, then times edits that neither find earlier runs' results on
+    /// disk nor pay for writing their own.
+    pub fn without_disk_cache(mut self) -> Self {
+        self.disk = None;
+        self
+    }
     /// Drops every in-memory result.
     pub fn clear_memory(&self) {
         self.memory.lock().unwrap().clear();

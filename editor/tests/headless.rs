@@ -441,9 +441,9 @@ fn turning_the_sky_changing_the_material_and_orbiting_on_ptt_envlit_update_the_i
             ("t2", "side", i(1)),
             ("t2", "rays_side", i(2)),
             ("reference", "spp", i(4)),
-            ("raster", "spp", i(2)),
+            ("hits", "spp", i(2)),
             ("vertex_reference", "spp", i(2)),
-            ("vertex_raster", "spp", i(2)),
+            ("ref_hits", "spp", i(2)),
         ],
     );
     assert_eq!(app.view_target.as_deref(), Some("image"));
@@ -451,9 +451,9 @@ fn turning_the_sky_changing_the_material_and_orbiting_on_ptt_envlit_update_the_i
     first_run(&ctx, &mut app);
     // Each edit: the image first, from exactly the nodes the edit reaches on its way there.
     let edits: Vec<(&str, &str, ParamValue, &[&str])> = vec![
-        ("turn", "rotation_deg", ParamValue::Float(60.0), &["env", "incident", "raster", "relight", "turn"]),
+        ("turn", "rotation_deg", ParamValue::Float(60.0), &["env", "hits", "incident", "raster", "relight", "turn"]),
         ("project", "s", ParamValue::Float(80.0), &["incident", "project", "raster", "relight"]),
-        ("camera", "azimuth", ParamValue::Float(25.0), &["camera", "raster", "relight"]),
+        ("camera", "azimuth", ParamValue::Float(25.0), &["camera", "hits", "raster", "relight"]),
     ];
     edits_update_the_image(&ctx, &mut app, edits);
 }

@@ -7,6 +7,7 @@
 
 pub mod bounce;
 pub mod brdf;
+pub mod camera_hits;
 pub mod channels;
 pub mod cta_compress;
 pub mod env_lighting;
@@ -14,6 +15,7 @@ pub mod incident_projection;
 pub mod ptt_incident;
 pub mod ptt_relight;
 pub mod rasterize_vertex_colors;
+pub mod screen_hits;
 pub mod transfer_t0;
 pub mod transfer_t1;
 pub mod transfer_t2;
@@ -35,6 +37,7 @@ pub fn register(reg: &mut Registry) {
     reg.add::<incident_projection::IncidentProjection>();
     reg.add::<ptt_incident::PttIncident>();
     reg.add::<ptt_relight::PttRelight>();
+    reg.add::<camera_hits::CameraHits>();
     reg.add::<rasterize_vertex_colors::RasterizeVertexColors>();
     reg.add::<vertex_path_trace::VertexPathTrace>();
     brdf::register(reg);
@@ -54,7 +57,7 @@ pub fn test_size(kind: &str) -> &'static [(&'static str, &'static str)] {
         "TransferT1" => &[("rays_side", "2")],
         "TransferT2" => &[("side", "1"), ("rays_side", "2")],
         "VertexPathTrace" => &[("spp", "4")],
-        "RasterizeVertexColors" => &[("spp", "2")],
+        "CameraHits" => &[("spp", "2")],
         _ => &[],
     }
 }

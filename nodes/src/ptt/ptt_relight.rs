@@ -4,6 +4,7 @@ use super::bounce::SH;
 use super::brdf::types::{Blend, MaterialParam, SpecularLobes, TuckerBrdf, MAX_LOBES};
 use super::incident_projection::{vertex_objects, ShColumns, NO_SLOT};
 use super::ptt_incident::VertexIncident;
+use super::screen_hits::ScreenHits;
 use super::transfer_t0::LobeVisibility;
 use super::types::{EnvLight, VertexColors, Visibility};
 use super::vertices::vertex_frame;
@@ -14,8 +15,9 @@ use glam::Vec3;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 use std::f32::consts::PI;
 
-/// Shades every vertex toward the camera from the light that reaches it ([S] 5-5, 5-6; the
-/// view-dependent half of the relighting): a fixed object's vertex (Lambertian) as
+/// Shades the vertices the camera sees (`hits`, from `CameraHits`; the others stay black,
+/// as no pixel reads them) toward the camera from the light that reaches them ([S] 5-5,
+/// 5-6; the view-dependent half of the relighting): a fixed object's vertex (Lambertian) as
 /// ρ/π · E; a dynamic object's as Kd/π · E (the diffuse term, shaded outside the tensor,
 /// [S] 5.3.3.1) plus Ks times the specular part: the Tucker-decomposed residual
 /// f_r, u_o(ωo) · (D ×_h u_h(s)) · U^I with ωo the view direction in the vertex frame
@@ -30,7 +32,7 @@ use std::f32::consts::PI;
 /// or lighting change; the view is `camera` (`OrbitCamera`), so that orbiting reaches this
 /// node and not what reads the scene.
 ///
-/// Metrics: vertices, vertices shaded with the tensor, the mean luminance of the diffuse and
+/// Metrics: vertices, vertices seen, vertices shaded with the tensor, the mean luminance of the diffuse and
 /// specular parts over the shaded vertices.
 #[derive(Params)]
 pub struct PttRelight {}
@@ -38,6 +40,7 @@ pub struct PttRelight {}
 inputs!(pub PttRelightIn {
     scene: Scene,
     camera: Camera,
+    hits: ScreenHits,
     visibility: Visibility,
     projection: ShColumns,
     incident: VertexIncident,
@@ -150,14 +153,15 @@ impl PttRelight {
         let scene = i.scene;
         let n = scene.positions.len();
         let (p, inc) = (i.projection, i.incident);
-        if p.normals.len() != n || inc.irradiance.len() != n || i.visibility.vertices() != n {
+        if p.normals.len() != n || inc.irradiance.len() != n || i.visibility.vertices() != n || i.hits.vertices as usize != n {
             return Err(NodeError::input(
                 "incident",
                 format!(
-                    "the scene has {n} vertices, the projection {}, the incident light {} and the visibility {}: they must come from the same scene",
+                    "the scene has {n} vertices, the projection {}, the incident light {}, the visibility {} and the camera's hits {}: they must come from the same scene",
                     p.normals.len(),
                     inc.irradiance.len(),
-                    i.visibility.vertices()
+                    i.visibility.vertices(),
+                    i.hits.vertices
                 ),
             ));
         }
@@ -175,7 +179,9 @@ impl PttRelight {
         let bits = CubeMap::constant(i.visibility.n as usize, Vec3::ZERO);
         let (eye, cols) = (i.camera.origin, p.columns as usize);
         cx.check()?;
-        let per = cx.par_map(n, |v| {
+        let seen = &i.hits.seen;
+        let per = cx.par_map(seen.len(), |k| {
+            let v = seen[k] as usize;
             let Some(o) = owner[v] else { return (Vec3::ZERO, Vec3::ZERO) };
             let e = inc.irradiance[v];
             let Some(sh) = &shadings[o as usize] else {
@@ -227,19 +233,17 @@ impl PttRelight {
             (diffuse, sh.ks * spec.max(Vec3::ZERO))
         })?;
         let (mut dsum, mut ssum, mut shaded) = (0.0, 0.0, 0usize);
-        let colors = per
-            .iter()
-            .enumerate()
-            .map(|(v, (d, s))| {
-                if p.slot[v] != NO_SLOT {
-                    shaded += 1;
-                    dsum += lum(*d);
-                    ssum += lum(*s);
-                }
-                *d + *s
-            })
-            .collect();
+        let mut colors = vec![Vec3::ZERO; n];
+        for (&v, (d, s)) in seen.iter().zip(&per) {
+            if p.slot[v as usize] != NO_SLOT {
+                shaded += 1;
+                dsum += lum(*d);
+                ssum += lum(*s);
+            }
+            colors[v as usize] = *d + *s;
+        }
         cx.metric("vertices", n as f64);
+        cx.metric("seen", seen.len() as f64);
         cx.metric("shaded", shaded as f64);
         cx.metric("diffuse_mean", dsum / shaded.max(1) as f64);
         cx.metric("specular_mean", ssum / shaded.max(1) as f64);

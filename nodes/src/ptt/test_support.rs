@@ -7,6 +7,7 @@ use super::env_lighting::EnvLighting;
 use super::incident_projection::IncidentProjection;
 use super::ptt_incident::{PttIncident, VertexIncident};
 use super::ptt_relight::PttRelight;
+use super::screen_hits::ScreenHits;
 use super::transfer_t0::TransferT0;
 use super::transfer_t1::TransferT1;
 use super::transfer_t2::TransferT2;
@@ -136,6 +137,7 @@ impl Chain {
         vec![
             Value::new(scene.clone()),
             Value::new(scene.camera.clone()),
+            Value::new(sees_all(scene)),
             Value::new(self.vis.clone()),
             self.get("projection"),
             Value::new(incident.clone()),
@@ -153,5 +155,21 @@ impl Chain {
         let inc = self.incident(&self.env, &m, bounces);
         let c: VertexColors = first(&run_on::<PttRelight>(params, self.relight_inputs(&self.scene, &inc, &self.env, &m)).expect("relight"));
         c.colors
+    }
+}
+
+/// Hits of a one-pixel camera that lists every vertex of `scene` as seen: `PttRelight` then
+/// shades them all.
+pub fn sees_all(scene: &Scene) -> ScreenHits {
+    let n = scene.positions.len() as u32;
+    ScreenHits {
+        width: 1,
+        height: 1,
+        vertices: n,
+        offsets: vec![0, 0],
+        vertex: vec![],
+        weight: vec![],
+        background: vec![Vec3::ZERO],
+        seen: (0..n).collect(),
     }
 }

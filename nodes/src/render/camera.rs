@@ -33,6 +33,19 @@ impl CameraRays {
         let ny = (1.0 - 2.0 * y / self.height) * self.sy;
         (self.origin, (self.forward + self.right * nx + self.up * ny).normalize())
     }
+
+    /// A world point in camera coordinates: (along right, along up, depth along forward).
+    pub fn to_camera(&self, p: Vec3) -> Vec3 {
+        let v = p - self.origin;
+        Vec3::new(v.dot(self.right), v.dot(self.up), v.dot(self.forward))
+    }
+
+    /// The image position (pixels, as `ray` takes them) of a camera-space point in front of
+    /// the eye (depth > 0): `ray` at that position passes through the point.
+    pub fn to_pixel(&self, c: Vec3) -> (f64, f64) {
+        let (nx, ny) = (c.x as f64 / (c.z as f64 * self.sx as f64), c.y as f64 / (c.z as f64 * self.sy as f64));
+        ((nx + 1.0) * 0.5 * self.width as f64, (1.0 - ny) * 0.5 * self.height as f64)
+    }
 }
 
 #[cfg(test)]
@@ -47,5 +60,23 @@ mod tests {
         let top = r.ray(100.0, 0.0).1;
         assert!((top.y.atan2(-top.z).to_degrees() - 20.0).abs() < 1e-3, "half the fov on the shorter (vertical) axis");
         assert!(r.ray(200.0, 50.0).1.x > 0.0, "image right is world +x for a camera looking down -z");
+    }
+
+    #[test]
+    fn projecting_a_point_gives_the_position_whose_ray_passes_through_it() {
+        let c = Camera {
+            origin: Vec3::new(0.3, 1.0, 3.9),
+            target: Vec3::new(0.1, 0.0, 0.0),
+            up: Vec3::Y,
+            fov_deg: 55.0,
+            width: 120,
+            height: 90,
+        };
+        let r = CameraRays::new(&c);
+        for p in [Vec3::new(0.5, 0.2, -0.4), Vec3::new(-1.0, 0.7, 1.0), Vec3::new(0.0, -0.3, 0.2)] {
+            let (x, y) = r.to_pixel(r.to_camera(p));
+            let (o, d) = r.ray(x as f32, y as f32);
+            assert!((p - o).normalize().dot(d) > 1.0 - 1e-6, "{p}");
+        }
     }
 }

@@ -7,6 +7,8 @@
 //! - `lights`: choosing and sampling lights for next-event estimation.
 //! - `surface`: the surface point a ray hit (position, normals, object).
 //! - `integrator`: the unidirectional path tracer (`Tracer::radiance`) and its settings.
+//! - `zbuffer`: the primary hits of a pinhole camera by projecting triangles instead of
+//!   tracing rays (a sample pattern, near clipping, perspective-correct barycentrics).
 //! - `film`: per-pixel loops over an image (rows in parallel, with progress and
 //!   cancellation) and the accumulation of progressive passes into mean and variance.
 
@@ -15,3 +17,4 @@ pub mod film;
 pub mod integrator;
 pub mod lights;
 pub mod surface;
+pub mod zbuffer;

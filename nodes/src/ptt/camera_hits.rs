@@ -1,0 +1,237 @@
+//! CameraHits node.
+
+use super::screen_hits::ScreenHits;
+use crate::render::camera::CameraRays;
+use crate::render::zbuffer::{Rasterizer, MISS};
+use crate::types::{Camera, Scene};
+use glam::Vec3;
+use relume_core::memory::fmt_bytes;
+use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+
+/// What the camera sees of the scene's mesh, as weights on its vertices ([S] chapter 5
+/// shades vertices and lets the rasteriser interpolate them): `spp` samples per pixel at
+/// fixed positions (a rotated Hammersley set, the same in every pixel; `seed` rotates it),
+/// each finding its nearest triangle by z-buffer rasterisation (`render::zbuffer`: near
+/// clipping, perspective-correct barycentrics, both faces, the same hits as camera rays up
+/// to ties on shared edges) and adding its triangle's corners, weighted by its barycentrics
+/// over `spp`, to its pixel; the samples that hit nothing add the environment (black with
+/// `background` off), read once per pixel in their mean direction: the sky does not change
+/// across a pixel as geometry does. Runs when the camera or the scene changes, not
+/// when the colours do: `RasterizeVertexColors` then costs one weighted sum per pixel, and
+/// `PttRelight` shades only the vertices listed as seen. The bytes are the same on any
+/// thread count (bands of rows, triangles in index order, nearest then lowest index).
+///
+/// Metrics: samples per pixel, triangles drawn after clipping, the fraction of samples that
+/// hit geometry, vertices seen, weights per pixel.
+#[derive(Params)]
+pub struct CameraHits {
+    /// samples per pixel (box filter)
+    #[param(default = 16, range = 1..=1024, unit = "samples/pixel")]
+    pub spp: u32,
+    /// rotates the in-pixel sample pattern
+    #[param(default = 0, range = 0..=u32::MAX)]
+    pub seed: u64,
+    /// samples that miss the geometry see the environment (else black)
+    #[param(default = true)]
+    pub background: bool,
+}
+
+inputs!(pub CameraHitsIn { scene: Scene, camera: Camera });
+outputs!(pub CameraHitsOut { hits: ScreenHits });
+
+/// Bytes per sample of a band's z-buffer (the hit and its depth).
+const SAMPLE_BYTES: u64 = 20;
+
+/// One band's pixels: entries per pixel, the entries, the background.
+type Band = (Vec<u32>, Vec<(u32, f32)>, Vec<Vec3>, u64);
+
+#[node(category = "ptt")]
+impl CameraHits {
+    fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
+        let hits = inputs[1].and_then(|s| s.dims).map(|[w, h]| {
+            let px = (w * h) as u64;
+            PortSize::bytes(ScreenHits::bytes(px, px * 3 * self.spp.min(4) as u64, px * 3))
+        });
+        MemoryEstimate { outputs: vec![hits], working: 0 }
+    }
+
+    fn run(&self, i: CameraHitsIn, cx: &RunCtx) -> Result<CameraHitsOut, NodeError> {
+        let (scene, cam) = (i.scene, i.camera);
+        let (w, h) = (cam.width, cam.height);
+        let pixels = (w * h) as u64;
+        let spp = self.spp as usize;
+        // The projected triangles and every band's z-buffer, as if all were held at once.
+        let need = scene.triangles.len() as u64 * 2 * 200 + pixels * spp as u64 * SAMPLE_BYTES + ScreenHits::bytes(pixels, pixels * 3, 0);
+        if need > cx.memory_budget() {
+            return Err(NodeError::over_limit(format!(
+                "rasterising {w} × {h} pixels at {spp} samples each needs about {}, over the {} budget",
+                fmt_bytes(need),
+                fmt_bytes(cx.memory_budget())
+            )));
+        }
+        let raster = Rasterizer::new(scene, cam, self.spp, self.seed);
+        cx.check()?;
+        let rays = CameraRays::new(cam);
+        let inv = 1.0 / spp as f32;
+        let bands: Vec<Band> = cx.par_map(raster.bands(), |b| {
+            let rows = raster.band_rows(b);
+            let hits = raster.band(b);
+            let (mut counts, mut entries, mut background, mut covered) = (vec![], vec![], vec![], 0u64);
+            let mut tris: Vec<(u32, Vec3)> = Vec::with_capacity(spp);
+            for (p, samples) in hits.chunks(spp).enumerate() {
+                let (x, y) = (p % w, rows.start + p / w);
+                let start = entries.len();
+                let (mut missed, mut dir) = (0u32, Vec3::ZERO);
+                // The pixel's triangles with their summed barycentrics, in order of first hit.
+                tris.clear();
+                for (s, hit) in samples.iter().enumerate() {
+                    if hit.tri == MISS {
+                        let (ox, oy) = raster.pattern()[s];
+                        dir += rays.ray(x as f32 + ox, y as f32 + oy).1;
+                        missed += 1;
+                        continue;
+                    }
+                    covered += 1;
+                    let b = Vec3::new(1.0 - hit.b1 - hit.b2, hit.b1, hit.b2);
+                    match tris.iter_mut().find(|t: &&mut (u32, Vec3)| t.0 == hit.tri) {
+                        Some(t) => t.1 += b,
+                        None => tris.push((hit.tri, b)),
+                    }
+                }
+                for &(t, b) in &tris {
+                    for (v, wt) in scene.triangles[t as usize].into_iter().zip(b.to_array()) {
+                        match entries[start..].iter_mut().find(|e: &&mut (u32, f32)| e.0 == v) {
+                            Some(e) => e.1 += wt * inv,
+                            None => entries.push((v, wt * inv)),
+                        }
+                    }
+                }
+                counts.push((entries.len() - start) as u32);
+                let seen_env = self.background && missed > 0;
+                background.push(if seen_env { scene.environment_radiance(dir.normalize()) * (missed as f32 * inv) } else { Vec3::ZERO });
+            }
+            (counts, entries, background, covered)
+        })?;
+        let total: usize = bands.iter().map(|b| b.1.len()).sum();
+        let mut out = ScreenHits {
+            width: w as u32,
+            height: h as u32,
+            vertices: scene.positions.len() as u32,
+            offsets: Vec::with_capacity(w * h + 1),
+            vertex: Vec::with_capacity(total),
+            weight: Vec::with_capacity(total),
+            background: Vec::with_capacity(w * h),
+            seen: vec![],
+        };
+        out.offsets.push(0);
+        let mut covered = 0;
+        let mut seen = vec![false; scene.positions.len()];
+        for (counts, entries, background, c) in bands {
+            for n in counts {
+                out.offsets.push(out.offsets.last().unwrap() + n);
+            }
+            for (v, wt) in entries {
+                seen[v as usize] = true;
+                out.vertex.push(v);
+                out.weight.push(wt);
+            }
+            out.background.extend(background);
+            covered += c;
+        }
+        out.seen = (0..seen.len() as u32).filter(|&v| seen[v as usize]).collect();
+        cx.metric("spp", spp as f64);
+        cx.metric("triangles", raster.triangles() as f64);
+        cx.metric("covered_fraction", covered as f64 / (pixels * spp as u64) as f64);
+        cx.metric("seen", out.seen.len() as f64);
+        cx.metric("weights_per_pixel", total as f64 / pixels as f64);
+        Ok(CameraHitsOut { hits: out })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::builder::SceneBuilder;
+    use crate::testing::{cancels_midway, first, i, run_on};
+    use crate::types::{Environment, Material};
+    use relume_core::{ParamValue, PortValue, Value};
+
+    const SKY: Vec3 = Vec3::new(0.2, 0.3, 0.4);
+    const GREY: Material = Material::Lambert { albedo: Vec3::splat(0.5) };
+
+    fn ball() -> Scene {
+        SceneBuilder::new(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 40.0, 32, 24)
+            .environment(Environment::Constant(SKY))
+            .sphere("ball", Vec3::ZERO, 0.6, GREY, Vec3::ZERO, false)
+            .quad("far", Vec3::new(-9.0, -9.0, -20.0), Vec3::new(18.0, 0.0, 0.0), Vec3::new(0.0, 3.0, 0.0), GREY, Vec3::ZERO)
+            .build()
+    }
+
+    fn hits(s: &Scene, params: &[(&str, ParamValue)]) -> ScreenHits {
+        first(&run_on::<CameraHits>(params, vec![Value::new(s.clone()), Value::new(s.camera.clone())]).expect("runs"))
+    }
+
+    #[test]
+    fn every_pixel_sums_to_one_over_its_hits_and_misses() {
+        let s = ball();
+        let h = hits(&s, &[("spp", i(8))]);
+        assert_eq!(h.offsets.len(), 32 * 24 + 1);
+        let (mut full, mut empty, mut mixed) = (0, 0, 0);
+        for p in 0..32 * 24 {
+            let r = h.offsets[p] as usize..h.offsets[p + 1] as usize;
+            let w: f32 = h.weight[r.clone()].iter().sum();
+            // The background is SKY times the fraction of samples that missed.
+            let miss = h.background[p].x / SKY.x;
+            assert!((w + miss - 1.0).abs() < 1e-5, "pixel {p}: hits {w} + misses {miss}");
+            assert!((h.background[p] - SKY * miss).abs().max_element() < 1e-6);
+            match (w > 0.999, w < 1e-6) {
+                (true, _) => full += 1,
+                (_, true) => empty += 1,
+                _ => mixed += 1,
+            }
+            // No vertex twice in a pixel.
+            let mut vs: Vec<u32> = h.vertex[r].to_vec();
+            vs.sort();
+            assert!(vs.windows(2).all(|w| w[0] < w[1]));
+        }
+        assert!(full > 100 && empty > 100 && mixed > 10, "{full} {empty} {mixed}");
+        // Seen: exactly the vertices with a weight, ascending, all on the ball or the far quad.
+        let mut want: Vec<u32> = h.vertex.clone();
+        want.sort();
+        want.dedup();
+        assert_eq!(h.seen, want);
+        assert!(h.seen.len() < s.positions.len(), "the ball's back is not seen");
+        let no_bg = hits(&s, &[("spp", i(8)), ("background", ParamValue::Bool(false))]);
+        assert!(no_bg.background.iter().all(|b| *b == Vec3::ZERO));
+        assert_eq!(no_bg.weight, h.weight);
+    }
+
+    #[test]
+    fn bytes_do_not_depend_on_threads_and_the_seed_moves_the_samples() {
+        let s = ball();
+        let a = hits(&s, &[("spp", i(4)), ("seed", i(3))]);
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let b = one.install(|| hits(&s, &[("spp", i(4)), ("seed", i(3))]));
+        assert_eq!(a.encode(), b.encode());
+        assert_ne!(hits(&s, &[("spp", i(4)), ("seed", i(4))]).weight, a.weight);
+    }
+
+    #[test]
+    fn an_empty_scene_is_all_background_and_huge_images_are_refused() {
+        let s = SceneBuilder::new(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 40.0, 8, 8).environment(Environment::Constant(SKY)).build();
+        let h = hits(&s, &[("spp", i(2))]);
+        assert!(h.vertex.is_empty() && h.seen.is_empty());
+        assert!(h.background.iter().all(|b| (*b - SKY).abs().max_element() < 1e-6));
+        let mut big = ball();
+        big.camera.width = 16384;
+        big.camera.height = 16384;
+        let e = run_on::<CameraHits>(&[("spp", i(1024))], vec![Value::new(big.clone()), Value::new(big.camera.clone())]).unwrap_err();
+        assert!(e.to_string().contains("budget"), "{e}");
+    }
+
+    #[test]
+    fn cancels() {
+        let s = ball();
+        cancels_midway::<CameraHits>(&[("spp", i(64))], vec![Value::new(s.clone()), Value::new(s.camera.clone())]);
+    }
+}
