@@ -56,6 +56,6 @@ fn view_material_and_sky_edits_rerun_only_what_they_reach_never_the_transfer() {
     // background), never the transfer.
     assert_eq!(
         rerun("turn.rotation_deg", "45"),
-        with(&["apply", "env", "error", "hits", "incident", "raster", "ref_hits", "relight", "turn"])
+        with(&["apply", "direct", "env", "error", "hits", "incident", "raster", "ref_hits", "relight", "turn"])
     );
 }

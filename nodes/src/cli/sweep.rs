@@ -433,6 +433,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "SceneMaterials" => &["dynamic_objects"],
         "EnvLighting" => &["radiance_max", "luminance_integral", "haar_nonzero", "energy_share_top96", "bytes"],
         "VertexVisibility" => &["vertices", "visible_fraction", "bytes"],
+        "PttDirect" => &["vertices", "slots", "e0_mean", "bytes"],
         "CameraHits" => &["spp", "triangles", "covered_fraction", "seen", "weights_per_pixel"],
         "RasterizeVertexColors" => &["weights"],
         "TransferT0" => &["vertices", "columns", "terms_mean", "energy_kept", "lobe_maps", "bytes"],

@@ -12,6 +12,7 @@ pub mod channels;
 pub mod cta_compress;
 pub mod env_lighting;
 pub mod incident_projection;
+pub mod ptt_direct;
 pub mod ptt_incident;
 pub mod ptt_relight;
 pub mod rasterize_vertex_colors;
@@ -35,6 +36,7 @@ pub fn register(reg: &mut Registry) {
     reg.add::<transfer_t1::TransferT1>();
     reg.add::<transfer_t2::TransferT2>();
     reg.add::<incident_projection::IncidentProjection>();
+    reg.add::<ptt_direct::PttDirect>();
     reg.add::<ptt_incident::PttIncident>();
     reg.add::<ptt_relight::PttRelight>();
     reg.add::<camera_hits::CameraHits>();

@@ -2,7 +2,7 @@
 
 use super::bounce::SH;
 use super::incident_projection::{ShColumns, NO_SLOT};
-use super::transfer_t0::DirectTransfer;
+use super::ptt_direct::DirectLight;
 use super::transfer_t1::BounceTransfer;
 use super::transfer_t2::TwoBounce;
 use super::types::EnvLight;
@@ -62,9 +62,8 @@ impl PortValue for VertexIncident {
 }
 
 /// The light arriving at every vertex under the current environment and materials ([S] 5-5,
-/// 5-6; the view-independent half of the relighting): per vertex, the direct light from the
-/// environment's Haar coefficients against `TransferT0`'s kept terms (its diffuse column
-/// gives E⁰, its tensor columns U^{I0}); with `bounces` ≥ 1 the one-bounce light, the
+/// 5-6; the view-independent half of the relighting): per vertex, the direct light E⁰ and
+/// U^{I0} (`PttDirect`, which a material edit does not re-run); with `bounces` ≥ 1 the one-bounce light, the
 /// environment box-averaged to `TransferT1`'s lighting bases (`CubeMap::box_downsample`)
 /// contracted with each cluster's compressed transfer and the channels weighted by the
 /// dynamic objects' basis coefficients (`MaterialProject`; fixed channels weigh 1): 4-band SH
@@ -85,7 +84,7 @@ pub struct PttIncident {
 
 inputs!(pub PttIncidentIn {
     env: EnvLight,
-    direct: DirectTransfer,
+    direct: DirectLight,
     bounce: BounceTransfer,
     two: TwoBounce,
     projection: ShColumns,
@@ -137,29 +136,28 @@ impl PttIncident {
     fn check(&self, i: &PttIncidentIn) -> Result<usize, NodeError> {
         let n = i.projection.normals.len();
         let (d, p) = (i.direct, i.projection);
-        if d.vertices() != n || i.bounce.plan.vertices() != n || (i.two.stride() > 0 && i.two.values.len() / i.two.stride() != n) {
+        if d.irradiance.len() != n || i.bounce.plan.vertices() != n || (i.two.stride() > 0 && i.two.values.len() / i.two.stride() != n) {
             return Err(NodeError::input(
                 "direct",
                 format!(
-                    "the transfers hold {} (direct), {} (one bounce), {} (two bounces) vertices and the projection {n}: they must come from the same scene",
-                    d.vertices(),
+                    "the direct light holds {} vertices, the transfers {} (one bounce) and {} (two bounces), the projection {n}: they must come from the same scene",
+                    d.irradiance.len(),
                     i.bounce.plan.vertices(),
                     i.two.values.len() / i.two.stride().max(1)
                 ),
             ));
         }
-        if d.columns != p.columns + 1 {
+        if d.columns != p.columns || d.tensor.len() != p.slots() * p.columns as usize {
             return Err(NodeError::input(
                 "projection",
                 format!(
-                    "projects {} columns but the direct transfer has {} tensor columns: they must come from the same BRDF tensor",
+                    "projects {} columns on {} slots but the direct light has {} columns and {} values: they must come from the same BRDF tensor",
                     p.columns,
-                    d.columns - 1
+                    p.slots(),
+                    d.columns,
+                    d.tensor.len()
                 ),
             ));
-        }
-        if d.n != i.env.n {
-            return Err(NodeError::input("env", format!("the environment's side is {} but the direct transfer's {}", i.env.n, d.n)));
         }
         if i.two.channels as usize != i.bounce.channels() {
             return Err(NodeError::input(
@@ -248,9 +246,7 @@ impl PttIncident {
         let zonal: [f32; SH] = std::array::from_fn(|q| clamped_cosine_zonal((q as f64).sqrt() as usize));
         cx.check()?;
         let per = cx.par_map(n, |v| {
-            let mut cols0 = vec![Vec3::ZERO; cols + 1];
-            i.direct.apply_into(v, &i.env.haar, &mut cols0);
-            let e0 = cols0[cols];
+            let e0 = i.direct.irradiance[v];
             let nv = p.normals[v];
             let (mut c, mut e1, mut i2) = ([Vec3::ZERO; SH], Vec3::ZERO, Vec3::ZERO);
             if self.bounces >= 1 && nv != Vec3::ZERO {
@@ -266,6 +262,7 @@ impl PttIncident {
                 NO_SLOT => (vec![], vec![]),
                 t => {
                     let pv = p.of(t as usize);
+                    let cols0 = &i.direct.tensor[t as usize * cols..(t as usize + 1) * cols];
                     let mut total = c;
                     total[0] += i2 / Y00;
                     let tensor = (0..cols)
@@ -363,13 +360,13 @@ mod tests {
         let c = Chain::new(plane(lambert(), false, Environment::Constant(Vec3::ONE)));
         let m = c.materials();
         let mut inputs = c.incident_inputs(&c.env, &m);
-        let small = EnvLight { n: 8, map: vec![Vec3::ONE; 384], haar: vec![Vec3::ZERO; 384], ..c.env.clone() };
-        inputs[0] = Value::new(small);
+        let odd = EnvLight { n: 3, map: vec![Vec3::ONE; 54], haar: vec![Vec3::ZERO; 54], ..c.env.clone() };
+        inputs[0] = Value::new(odd);
         let e = run_on::<PttIncident>(&[("bounces", i(2))], inputs).expect_err("other side");
         assert!(e.to_string().contains("side"), "{e}");
         let other = Chain::new(floor_and_tiled_roof(0.5));
         let mut inputs = c.incident_inputs(&c.env, &m);
-        inputs[1] = other.get("direct");
+        inputs[1] = Value::new(other.direct_light(&other.env));
         let e = run_on::<PttIncident>(&[], inputs).expect_err("other scene");
         assert!(e.to_string().contains("same scene"), "{e}");
     }

@@ -5,6 +5,7 @@ use super::brdf::test_support::small_brdf;
 use super::cta_compress::CtaCompress;
 use super::env_lighting::EnvLighting;
 use super::incident_projection::IncidentProjection;
+use super::ptt_direct::{DirectLight, PttDirect};
 use super::ptt_incident::{PttIncident, VertexIncident};
 use super::ptt_relight::PttRelight;
 use super::screen_hits::ScreenHits;
@@ -114,11 +115,16 @@ impl Chain {
         self.get("materials").get::<ObjectMaterials>().expect("materials").clone()
     }
 
+    /// `PttDirect` under `env`.
+    pub fn direct_light(&self, env: &EnvLight) -> DirectLight {
+        first(&run_on::<PttDirect>(&[], vec![Value::new(env.clone()), self.get("direct"), self.get("projection")]).expect("direct light"))
+    }
+
     /// `PttIncident`'s inputs with `env` and `materials`.
     pub fn incident_inputs(&self, env: &EnvLight, materials: &ObjectMaterials) -> Vec<Value> {
         vec![
             Value::new(env.clone()),
-            self.get("direct"),
+            Value::new(self.direct_light(env)),
             self.get("bounce"),
             self.get("two"),
             self.get("projection"),
