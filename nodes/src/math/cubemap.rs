@@ -173,18 +173,49 @@ impl CubeMap {
         let omega: Vec<f32> = (0..self.texels.len()).map(|k| self.solid_angle(k)).collect();
         let reach = (4.0 * sigma).min(std::f32::consts::PI);
         let cos_reach = reach.cos();
+        // Tiles of b × b texels with a bounding cone (axis, half-angle): a tile wholly beyond
+        // the reach of an output direction is skipped; the others are summed row by row in
+        // texel order, as a loop over every texel would.
+        let b = (self.n / 8).max(1);
+        let tiles = self.n.div_ceil(b);
+        let cones: Vec<(Vec3, f32)> = (0..6 * tiles * tiles)
+            .map(|t| {
+                let (face, tj, ti) = (t / (tiles * tiles), t / tiles % tiles, t % tiles);
+                let ks: Vec<usize> = (tj * b..((tj + 1) * b).min(self.n))
+                    .flat_map(|j| (ti * b..((ti + 1) * b).min(self.n)).map(move |i| (face * self.n + j) * self.n + i))
+                    .collect();
+                let axis = ks.iter().map(|&k| dirs[k]).sum::<Vec3>().normalize();
+                // The texels' centres, widened by a texel's half-diagonal.
+                let half = ks.iter().map(|&k| axis.dot(dirs[k]).clamp(-1.0, 1.0).acos()).fold(0.0f32, f32::max);
+                (axis, half + std::f32::consts::PI / self.n as f32)
+            })
+            .collect();
         let texels = (0..out.texels.len())
             .into_par_iter()
             .map(|k| {
                 let d = out.direction(k);
                 let (mut sum, mut w) = (Vec3::ZERO, 0.0f64);
-                for ((t, e), o) in self.texels.iter().zip(&dirs).zip(&omega) {
-                    let c = d.dot(*e);
-                    if c >= cos_reach || reach >= std::f32::consts::PI {
-                        let theta = c.clamp(-1.0, 1.0).acos();
-                        let g = (-(theta * theta) / (2.0 * sigma * sigma)).exp() * o;
-                        sum += *t * g;
-                        w += g as f64;
+                let near: Vec<bool> = cones
+                    .iter()
+                    .map(|(a, h)| reach >= std::f32::consts::PI || reach + h >= std::f32::consts::PI || d.dot(*a) >= (reach + h).cos())
+                    .collect();
+                for face in 0..6 {
+                    for j in 0..self.n {
+                        for ti in 0..tiles {
+                            if !near[(face * tiles + j / b) * tiles + ti] {
+                                continue;
+                            }
+                            for i in ti * b..((ti + 1) * b).min(self.n) {
+                                let t = (face * self.n + j) * self.n + i;
+                                let c = d.dot(dirs[t]);
+                                if c >= cos_reach || reach >= std::f32::consts::PI {
+                                    let theta = c.clamp(-1.0, 1.0).acos();
+                                    let g = (-(theta * theta) / (2.0 * sigma * sigma)).exp() * omega[t];
+                                    sum += self.texels[t] * g;
+                                    w += g as f64;
+                                }
+                            }
+                        }
                     }
                 }
                 if w > 0.0 {
@@ -304,6 +335,40 @@ mod tests {
         // ∫ (d · z)² dω = 4π/3.
         let m = CubeMap::from_fn(32, 2, |d| Vec3::splat(d.z * d.z));
         assert!((m.integral().x as f64 / (SPHERE / 3.0) - 1.0).abs() < 1e-3);
+    }
+
+    #[test]
+    fn skipping_tiles_beyond_the_reach_gives_the_bytes_of_the_full_sum() {
+        // The full sum over every texel, in texel order: what the tiles must reproduce.
+        let full = |m: &CubeMap, sigma: f32, n: usize| {
+            let out = CubeMap::constant(n, Vec3::ZERO);
+            let reach = (4.0 * sigma).min(std::f32::consts::PI);
+            (0..out.texels.len())
+                .map(|k| {
+                    let d = out.direction(k);
+                    let (mut sum, mut w) = (Vec3::ZERO, 0.0f64);
+                    for t in 0..m.texels.len() {
+                        let c = d.dot(m.direction(t));
+                        if c >= reach.cos() || reach >= std::f32::consts::PI {
+                            let theta = c.clamp(-1.0, 1.0).acos();
+                            let g = (-(theta * theta) / (2.0 * sigma * sigma)).exp() * m.solid_angle(t);
+                            sum += m.texels[t] * g;
+                            w += g as f64;
+                        }
+                    }
+                    if w > 0.0 {
+                        sum / w as f32
+                    } else {
+                        m.texels[m.texel_of(d)]
+                    }
+                })
+                .collect::<Vec<Vec3>>()
+        };
+        let m = CubeMap::from_fn(16, 1, |d| Vec3::new(d.x.max(0.0).powi(8) * 50.0, (3.0 * d.y).sin() + 1.0, d.z * d.z));
+        for (sigma_deg, n) in [(3.0f32, 16), (7.0, 8), (21.0, 4), (60.0, 8)] {
+            let got = m.gaussian_prefilter(sigma_deg.to_radians(), n);
+            assert_eq!(got.texels, full(&m, sigma_deg.to_radians(), n), "σ = {sigma_deg}°");
+        }
     }
 
     #[test]
