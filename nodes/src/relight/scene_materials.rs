@@ -30,7 +30,7 @@ pub fn scene_materials(scene: &Scene) -> Result<ObjectMaterials, String> {
                 ))
             }
         };
-        out.push(ObjectMaterial { name, kd, ks, s, coefficients: vec![], maps: (*o.maps).clone() });
+        out.push(ObjectMaterial { name, kd, ks, s, coefficients: vec![], maps: (*o.maps).clone(), specular: Default::default() });
     }
     Ok(ObjectMaterials(out))
 }
