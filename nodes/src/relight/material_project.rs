@@ -309,16 +309,7 @@ mod tests {
         assert_eq!(reported, 100.0 * err);
         // The fit is the least-squares one: its residual is orthogonal to every specular
         // basis under the projected solid angle.
-        let w: Vec<f64> = b
-            .grid
-            .weights()
-            .iter()
-            .enumerate()
-            .map(|(l, w)| {
-                let [ti, to, _] = b.grid.centre(l);
-                w * ti.cos() * to.cos()
-            })
-            .collect();
+        let w = b.grid.projected_weights();
         let residual: Vec<f64> = (0..b.grid.cells())
             .map(|l| ct(b.grid.centre(l)) - c.iter().enumerate().map(|(k, ck)| ck * b.table(k + 1)[l] as f64).sum::<f64>())
             .collect();

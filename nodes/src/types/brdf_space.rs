@@ -130,6 +130,18 @@ impl BrdfGrid {
         w
     }
 
+    /// [`BrdfGrid::weights`] times cos θi cos θo at each cell's centre: the projected solid
+    /// angle (`BrdfBasis::fit_specular` weighs by it).
+    pub fn projected_weights(&self) -> Vec<f64> {
+        let w = self.weights();
+        (0..self.cells())
+            .map(|c| {
+                let [ti, to, _] = self.centre(c);
+                w[c] * ti.cos() * to.cos()
+            })
+            .collect()
+    }
+
     /// (ωi, ωo) in the local frame (+z the normal) for angles (θi, θo, φ): ωo in the xz-plane
     /// at azimuth 0, ωi at azimuth φ.
     pub fn directions(theta_i: f64, theta_o: f64, phi: f64) -> (DVec3, DVec3) {
@@ -339,16 +351,7 @@ impl BrdfBasis {
     /// while the same lobe times cos θi cos θo fits within 5 %.
     pub fn fit_specular(&self, f: impl Fn([f64; 3]) -> f64) -> (Vec<f64>, f64) {
         let (k, cells) = (self.bases() - 1, self.grid.cells());
-        let w: Vec<f64> = self
-            .grid
-            .weights()
-            .iter()
-            .enumerate()
-            .map(|(c, w)| {
-                let [ti, to, _] = self.grid.centre(c);
-                w * ti.cos() * to.cos()
-            })
-            .collect();
+        let w = self.grid.projected_weights();
         let values: Vec<f64> = (0..cells).map(|c| f(self.grid.centre(c))).collect();
         let table = |b: usize| &self.tables[(b + 1) * cells..(b + 2) * cells];
         let mut gram = vec![0.0; k * k];
