@@ -79,7 +79,7 @@ fn specular_coefficients(basis: &BrdfBasis, m: &ObjectMaterial) -> Result<(Vec<f
     }
 }
 
-#[node(category = "relight")]
+#[node(category = "relight", version = 2)]
 impl MaterialProject {
     fn run(&self, i: MaterialProjectIn, cx: &RunCtx) -> Result<MaterialProjectOut, NodeError> {
         let mut out = i.materials.clone();
