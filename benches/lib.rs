@@ -82,6 +82,7 @@ pub fn graph_edits() -> Vec<GraphEdit> {
         ("pbgi_vs_reference.ron", "fpbgi.epsilon", |k| format!("{}", 1.0 + k as f64 * 1e-6)),
         ("ptt_precompute.ron", "turn.rotation_deg", |k| format!("{}", 30.0 + k as f64 * 1e-6)),
         ("ptt_envlit.ron", "camera.azimuth", |k| format!("{}", 10.0 + k as f64 * 1e-6)),
+        ("ptt_envlit_ct.ron", "project.m", |k| format!("{}", 0.3 + k as f64 * 1e-6)),
     ]
 }
 

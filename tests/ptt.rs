@@ -5,11 +5,11 @@ use relume_core::{Engine, Graph, RunOptions};
 use relume_nodes::types::Image;
 use relume_tests::{load_graph, ptt_test_size, ran};
 
-/// `ptt_envlit.ron` at test size.
-fn small_ptt() -> Graph {
+/// A pipeline-2 graph (`ptt_envlit.ron` or its Cook-Torrance variant) at test size.
+fn small_ptt(name: &str) -> Graph {
     let reg = relume_nodes::registry();
     let mut g = load_graph(
-        "ptt_envlit.ron",
+        name,
         &[
             ("scene.width", "24"),
             ("scene.height", "24"),
@@ -27,11 +27,12 @@ fn small_ptt() -> Graph {
     g
 }
 
-#[test]
-fn view_material_and_sky_edits_rerun_only_what_they_reach_never_the_transfer() {
+/// Runs `name` at test size, then orbits, edits the bunny's material with `material` (a
+/// `node.param` and its value) and turns the sky, asserting what each edit re-runs.
+fn edits_rerun_only_what_they_reach(name: &str, material: (&str, &str)) {
     let reg = relume_nodes::registry();
     let e = Engine::new(relume_nodes::registry());
-    let mut g = small_ptt();
+    let mut g = small_ptt(name);
     let r = e.run(&g, &RunOptions::default()).unwrap();
     let img = r.output("image").unwrap().get::<Image>().unwrap().clone();
     assert_eq!((img.width, img.height, img.nonfinite_pixels()), (24, 24, 0));
@@ -51,11 +52,21 @@ fn view_material_and_sky_edits_rerun_only_what_they_reach_never_the_transfer() {
         v.sort();
         v
     };
-    assert_eq!(rerun("project.s", "60"), with(&["apply", "error", "incident", "project", "raster", "relight"]));
+    assert_eq!(rerun(material.0, material.1), with(&["apply", "error", "incident", "project", "raster", "relight"]), "{name}");
     // Turning the sky: the environment's cube map and what reads it (the hits hold the
     // background), never the transfer.
     assert_eq!(
         rerun("turn.rotation_deg", "45"),
         with(&["apply", "direct", "env", "error", "hits", "incident", "raster", "ref_hits", "relight", "turn"])
     );
+}
+
+#[test]
+fn view_material_and_sky_edits_rerun_only_what_they_reach_never_the_transfer() {
+    edits_rerun_only_what_they_reach("ptt_envlit.ron", ("project.s", "60"));
+}
+
+#[test]
+fn the_cook_torrance_variant_reruns_the_same_nodes_for_a_roughness_edit() {
+    edits_rerun_only_what_they_reach("ptt_envlit_ct.ron", ("project.m", "0.4"));
 }

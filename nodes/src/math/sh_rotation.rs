@@ -34,8 +34,9 @@ fn spread(n: usize) -> Vec<Vec3> {
         .collect()
 }
 
-/// Solves `a` x = `b` (n × n, n × k, row-major) by Gaussian elimination with partial pivoting.
-fn solve(mut a: Vec<f64>, mut b: Vec<f64>, n: usize, k: usize) -> Vec<f64> {
+/// Solves `a` x = `b` (n × n, n × k, row-major) by Gaussian elimination with partial pivoting
+/// (a zero pivot gives 0 in its row).
+pub fn solve(mut a: Vec<f64>, mut b: Vec<f64>, n: usize, k: usize) -> Vec<f64> {
     for col in 0..n {
         let p = (col..n).max_by(|&x, &y| a[x * n + col].abs().total_cmp(&a[y * n + col].abs())).unwrap_or(col);
         for c in 0..n {

@@ -52,7 +52,7 @@ pub fn test_size(kind: &str) -> &'static [(&'static str, &'static str)] {
     match kind {
         "EnvLighting" => &[("side", "8"), ("supersample", "2")],
         "VertexVisibility" => &[("side", "8"), ("coarse", "2")],
-        "BrdfTensor" => &[("disk", "6"), ("samples", "12")],
+        "BrdfTensor" => &[("disk", "6"), ("samples", "12"), ("m_count", "3"), ("f0_count", "2")],
         "BrdfSpaceSample" => &[("n_theta_i", "8"), ("n_theta_o", "8"), ("n_phi", "16"), ("samples", "21")],
         "CtaCompress" => &[("clusters", "64"), ("eigenvectors", "8"), ("lighting", "8"), ("cpca_iterations", "2")],
         "TransferT0" => &[("terms", "16"), ("lobe_side", "2")],

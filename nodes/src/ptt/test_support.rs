@@ -2,6 +2,7 @@
 //! nodes' unit tests.
 
 use super::brdf::test_support::small_brdf;
+use super::brdf::types::{SpecularLobes, TuckerBrdf};
 use super::cta_compress::CtaCompress;
 use super::env_lighting::EnvLighting;
 use super::incident_projection::IncidentProjection;
@@ -64,9 +65,15 @@ impl Chain {
     /// The precompute of `scene` at small sizes (visibility 16 / coarse 2, full-rank clusters,
     /// bounce rays 6 × 8², the test BRDF tensor).
     pub fn new(scene: Scene) -> Chain {
+        Chain::with(scene, small_brdf(), &[])
+    }
+
+    /// [`Chain::new`] with the BRDF tensor and lobes `brdf` and the materials edited by a
+    /// `MaterialProject` with `edit`.
+    pub fn with(scene: Scene, brdf: &(TuckerBrdf, SpecularLobes), edit: &[(&str, ParamValue)]) -> Chain {
         let accel = Value::new(Accel::build(&scene, BuildQuality::Fast));
         let vis = visibility(&scene, 16, 2);
-        let (brdf, lobes) = small_brdf().clone();
+        let (brdf, lobes) = brdf.clone();
         let basis = crate::relight::test_support::basis(&crate::relight::test_support::space(6, 6, 12, 12, 1.0, 100.0), 3).0;
         let sv = Value::new(scene.clone());
         let plan: Value = run_on::<CtaCompress>(
@@ -90,7 +97,7 @@ impl Chain {
         let t0 = run_on::<TransferT0>(&[], vec![Value::new(vis.clone()), Value::new(brdf.clone()), Value::new(lobes.clone())]).expect("t0");
         let env: EnvLight = first(&run_on::<EnvLighting>(&[("side", i(16))], vec![sv.clone()]).expect("env"));
         let mats = run_on::<SceneMaterials>(&[], vec![sv.clone()]).expect("materials").remove(0);
-        let mats = run_on::<MaterialProject>(&[], vec![Value::new(basis), mats]).expect("projected").remove(0);
+        let mats = run_on::<MaterialProject>(edit, vec![Value::new(basis), mats]).expect("projected").remove(0);
         let proj = run_on::<IncidentProjection>(&[], vec![sv.clone(), Value::new(vis.clone()), Value::new(brdf.clone())])
             .expect("projection")
             .remove(0);

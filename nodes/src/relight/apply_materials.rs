@@ -1,11 +1,12 @@
 //! ApplyMaterials node.
 
-use crate::types::{Material, ObjectMaterials, Scene};
+use crate::types::{Material, ObjectMaterials, Scene, Specular};
 use glam::Vec3;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
 /// The scene with its dynamic objects' materials replaced by `materials` (Blinn-Phong (Kd, Ks,
-/// s) and its texture maps per dynamic object, every member of a group alike): what a path tracer renders to compare
+/// s), or Cook-Torrance (Kd, Ks, m, F0) for a material whose specular lobe is Cook-Torrance,
+/// and its texture maps per dynamic object, every member of a group alike): what a path tracer renders to compare
 /// with a relit image after a material edit, so that the error figures follow the edit. Objects
 /// that are not dynamic are untouched. Materials of other objects than the scene's dynamic ones
 /// are an input error.
@@ -26,7 +27,11 @@ pub fn apply_materials(scene: &Scene, materials: &ObjectMaterials) -> Result<Sce
     let mut out = scene.clone();
     for ((_, members), m) in groups.iter().zip(&materials.0) {
         for &o in members {
-            out.objects[o as usize].material = Material::BlinnPhong { kd: Vec3::from(m.kd), ks: Vec3::from(m.ks), exponent: m.s };
+            let (kd, ks) = (Vec3::from(m.kd), Vec3::from(m.ks));
+            out.objects[o as usize].material = match m.specular {
+                Specular::BlinnPhong => Material::BlinnPhong { kd, ks, exponent: m.s },
+                Specular::CookTorrance { m, f0 } => Material::CookTorrance { kd, ks, roughness: m, f0 },
+            };
             *out.objects[o as usize].maps = m.maps.clone();
         }
     }
@@ -68,6 +73,12 @@ mod tests {
         for k in 2..s.objects.len() {
             assert_eq!(out.objects[k].material, s.objects[k].material, "{}", s.objects[k].name);
         }
+        // A Cook-Torrance material (the transfer tensors' edit) reaches the scene as one.
+        let mut ct = scene_materials(&s).unwrap();
+        ct.0[0].specular = Specular::CookTorrance { m: 0.3, f0: 0.5 };
+        let out = apply_materials(&s, &ct).unwrap();
+        let want = Material::CookTorrance { kd: Vec3::from(ct.0[0].kd), ks: Vec3::from(ct.0[0].ks), roughness: 0.3, f0: 0.5 };
+        assert_eq!((out.objects[0].material, out.objects[1].material), (want, want));
     }
 
     #[test]

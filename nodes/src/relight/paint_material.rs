@@ -76,7 +76,7 @@ pub fn paint(t: &mut Texture, p: &PaintMaterial) -> usize {
     changed
 }
 
-#[node(category = "relight")]
+#[node(category = "relight", version = 2)]
 impl PaintMaterial {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let made = self.size as u64 * self.size as u64 * 12;

@@ -290,6 +290,7 @@ mod tests {
             s: 1.0,
             coefficients: vec![[0.5, 0.25, 0.0], [2.0, 2.0, 4.0]],
             maps: Default::default(),
+            specular: Default::default(),
         }]);
         let img = relight(&t, &m, None).unwrap();
         // Class 0 (fixed): merged image × 1, no specular term.

@@ -30,12 +30,12 @@ pub fn scene_materials(scene: &Scene) -> Result<ObjectMaterials, String> {
                 ))
             }
         };
-        out.push(ObjectMaterial { name, kd, ks, s, coefficients: vec![], maps: (*o.maps).clone() });
+        out.push(ObjectMaterial { name, kd, ks, s, coefficients: vec![], maps: (*o.maps).clone(), specular: Default::default() });
     }
     Ok(ObjectMaterials(out))
 }
 
-#[node(category = "relight")]
+#[node(category = "relight", version = 2)]
 impl SceneMaterials {
     fn run(&self, i: SceneMaterialsIn, cx: &RunCtx) -> Result<SceneMaterialsOut, NodeError> {
         let materials = scene_materials(i.scene).map_err(|m| NodeError::input("scene", m))?;

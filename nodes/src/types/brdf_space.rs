@@ -130,6 +130,18 @@ impl BrdfGrid {
         w
     }
 
+    /// [`BrdfGrid::weights`] times cos θi cos θo at each cell's centre: the projected solid
+    /// angle (`BrdfBasis::fit_specular` weighs by it).
+    pub fn projected_weights(&self) -> Vec<f64> {
+        let w = self.weights();
+        (0..self.cells())
+            .map(|c| {
+                let [ti, to, _] = self.centre(c);
+                w[c] * ti.cos() * to.cos()
+            })
+            .collect()
+    }
+
     /// (ωi, ωo) in the local frame (+z the normal) for angles (θi, θo, φ): ωo in the xz-plane
     /// at azimuth 0, ωi at azimuth φ.
     pub fn directions(theta_i: f64, theta_o: f64, phi: f64) -> (DVec3, DVec3) {
@@ -326,6 +338,39 @@ impl BrdfBasis {
     pub fn project(&self, kd: f64, ks: f64, s: f64) -> Result<Vec<f64>, String> {
         let spec = if ks == 0.0 { vec![0.0; self.bases() - 1] } else { self.specular_coefficients(s)? };
         Ok(std::iter::once(kd).chain(spec.iter().map(|c| ks * c)).collect())
+    }
+
+    /// The least-squares coefficients on bases 1.. of a specular BRDF `f(θi, θo, φ)` outside
+    /// the sampled family (a Cook-Torrance lobe, ks = 1), and the fit's relative L2 error
+    /// ‖f − f̂‖ / ‖f‖ (0 for f = 0). Cells weigh by their projected solid angle, the solid
+    /// angle times cos θi cos θo, the measure reflected light integrates the BRDF against
+    /// (cos θi) as seen from ωo (cos θo), which keeps a microfacet BRDF's 1/(cos θi cos θo)
+    /// growth toward grazing from ruling the fit as much as it would under the plain solid
+    /// angle. Blinn-Phong bases cannot hold that growth: a Cook-Torrance lobe of m 0.3 fits
+    /// them with 79.5 % error (91 % under the solid angle), nearly all of it in grazing cells,
+    /// while the same lobe times cos θi cos θo fits within 5 %.
+    pub fn fit_specular(&self, f: impl Fn([f64; 3]) -> f64) -> (Vec<f64>, f64) {
+        let (k, cells) = (self.bases() - 1, self.grid.cells());
+        let w = self.grid.projected_weights();
+        let values: Vec<f64> = (0..cells).map(|c| f(self.grid.centre(c))).collect();
+        let table = |b: usize| &self.tables[(b + 1) * cells..(b + 2) * cells];
+        let mut gram = vec![0.0; k * k];
+        for a in 0..k {
+            for b in a..k {
+                let g = crate::math::pca::weighted_dot(table(a), &w, table(b));
+                (gram[a * k + b], gram[b * k + a]) = (g, g);
+            }
+        }
+        let rhs: Vec<f64> = (0..k).map(|a| crate::math::pca::weighted_dot(table(a), &w, &values)).collect();
+        let c = crate::math::sh_rotation::solve(gram, rhs, k, 1);
+        let (mut err, mut norm) = (0.0, 0.0);
+        for (l, v) in values.iter().enumerate() {
+            let fit: f64 = c.iter().enumerate().map(|(b, cb)| cb * table(b)[l] as f64).sum();
+            err += w[l] * (v - fit).powi(2);
+            norm += w[l] * v * v;
+        }
+        let rel = if norm > 0.0 { (err / norm).sqrt() } else { 0.0 };
+        (c, rel)
     }
 
     /// Σ_k c_k basis_k at (ωi, ωo): the material with coefficients `c` (one per basis).

@@ -32,7 +32,7 @@ pub use receivers::{PointRadiance, Receivers};
 pub use scene::{Camera, EnvMap, Environment, Light, Object, Scene};
 pub use sv_transfer::{SparsePlane, SvBlock, SvTransfer};
 pub use texture::{MaterialMaps, Texture};
-pub use transfer::{floats_and_stride, ObjectMaterial, ObjectMaterials, PathCounts, Transfer, TransferRows, MAX_TRANSFER_BYTES};
+pub use transfer::{floats_and_stride, ObjectMaterial, ObjectMaterials, PathCounts, Specular, Transfer, TransferRows, MAX_TRANSFER_BYTES};
 pub use view_paths::ViewPaths;
 pub use volume::{Sampler, Volume, MAX_VOLUME_BYTES};
 

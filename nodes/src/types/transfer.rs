@@ -149,13 +149,15 @@ impl PortValue for TransferRows {
     relume_core::serde_codec!();
 }
 
-/// One dynamic object's Blinn-Phong material (ρ = Kd/π + Ks (s+2)/(8π) cos^s δ) and its
-/// coefficients on a BRDF basis per colour channel: basis 0 (diffuse) Kd, basis k Ks · c_k(s).
+/// One dynamic object's material, Kd/π + Ks × (its `specular` lobe: Blinn-Phong
+/// (s+2)/(8π) cos^s δ by default, or Cook-Torrance), and its coefficients on a BRDF basis per
+/// colour channel: basis 0 (diffuse) Kd, basis k Ks · c_k (c(s) for Blinn-Phong).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ObjectMaterial {
     pub name: String,
     pub kd: [f32; 3],
     pub ks: [f32; 3],
+    /// The Blinn-Phong exponent (unused when `specular` is Cook-Torrance).
     pub s: f32,
     /// Empty until projected (`MaterialProject`); then one RGB triple per basis.
     pub coefficients: Vec<[f64; 3]>,
@@ -163,6 +165,19 @@ pub struct ObjectMaterial {
     /// extension, [S] 4.2; `PaintMaterial` edits them). None by default.
     #[serde(default)]
     pub maps: MaterialMaps,
+    /// The specular model; absent in materials written before Cook-Torrance (Blinn-Phong).
+    #[serde(default)]
+    pub specular: Specular,
+}
+
+/// The specular lobe of an [`ObjectMaterial`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub enum Specular {
+    /// Normalised Blinn-Phong with the material's exponent s.
+    #[default]
+    BlinnPhong,
+    /// Cook-Torrance (`brdf/cook_torrance.rs`): Beckmann roughness m, Schlick F0.
+    CookTorrance { m: f32, f0: f32 },
 }
 
 /// The materials of a scene's dynamic objects, in `Scene::dynamic_groups` order.
@@ -209,6 +224,7 @@ mod tests {
             s: 3.0,
             coefficients: vec![[1.0, -0.5, 0.0]],
             maps: Default::default(),
+            specular: Specular::CookTorrance { m: 0.3, f0: 0.5 },
         }]);
         assert_eq!(ObjectMaterials::decode(&m.encode()).unwrap(), m);
     }

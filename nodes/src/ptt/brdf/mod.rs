@@ -50,6 +50,28 @@ pub(crate) mod test_support {
         })
     }
 
+    /// The Cook-Torrance family the tests shade with (m 0.1, 0.3, 0.5 × F0 0.2, 0.5, 0.8, disk
+    /// 16), separated like [`small_brdf`] and its residual decomposed at ranks (4, 8, 8), the
+    /// thesis' n_h for Cook-Torrance; built once per test binary.
+    pub fn small_ct_brdf() -> &'static (TuckerBrdf, SpecularLobes) {
+        use crate::testing::{f, i, id};
+        static B: std::sync::OnceLock<(TuckerBrdf, SpecularLobes)> = std::sync::OnceLock::new();
+        B.get_or_init(|| {
+            let t = tensor(&[
+                ("model", id("CookTorrance")),
+                ("disk", i(16)),
+                ("m_count", i(3)),
+                ("m_min", f(0.1)),
+                ("m_max", f(0.5)),
+                ("f0_count", i(3)),
+                ("f0_min", f(0.2)),
+                ("f0_max", f(0.8)),
+            ]);
+            let (residual, lobes, _) = separate(&t, &[]);
+            (decompose(&residual, &[("n_h", i(4))]).0, lobes)
+        })
+    }
+
     /// `TuckerDecompose` of `t`: the decomposition and its metrics.
     pub fn decompose(t: &BrdfTensorTable, p: &[(&str, ParamValue)]) -> (TuckerBrdf, Metrics) {
         let out = run_on::<super::tucker_decompose::TuckerDecompose>(p, vec![Value::new(t.clone())]).unwrap();

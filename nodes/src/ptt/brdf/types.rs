@@ -30,7 +30,7 @@
 //! the nodes compute in f64 and accessors sum in f64.
 
 use crate::brdf::{blinn_phong, cook_torrance};
-use crate::types::{pod_vec, Material};
+use crate::types::{pod_vec, Material, ObjectMaterial, Specular};
 use glam::{DVec3, Vec3};
 use relume_core::{codec, PortValue};
 use serde::{Deserialize, Serialize};
@@ -263,6 +263,22 @@ impl MaterialParam {
             Material::BlinnPhong { exponent, .. } => Some(MaterialParam::BlinnPhong { s: exponent as f64 }),
             Material::CookTorrance { roughness, f0, .. } => Some(MaterialParam::CookTorrance { m: roughness as f64, f0: f0 as f64 }),
             _ => None,
+        }
+    }
+
+    /// The parameter of a dynamic object's (edited) material.
+    pub fn of_object(m: &ObjectMaterial) -> MaterialParam {
+        match m.specular {
+            Specular::BlinnPhong => MaterialParam::BlinnPhong { s: m.s as f64 },
+            Specular::CookTorrance { m, f0 } => MaterialParam::CookTorrance { m: m as f64, f0: f0 as f64 },
+        }
+    }
+
+    /// The model's name, for messages.
+    pub fn model(&self) -> &'static str {
+        match self {
+            MaterialParam::BlinnPhong { .. } => "Blinn-Phong",
+            MaterialParam::CookTorrance { .. } => "Cook-Torrance",
         }
     }
 }
