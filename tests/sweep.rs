@@ -265,3 +265,81 @@ fn the_baseline_can_plot_its_own_error_node_and_an_unknown_one_exits_2() {
     ]);
     assert_eq!(bad, 2);
 }
+
+/// `relume sweep filters.ron EXTRA… --csv CSV --no-disk-cache -q`.
+fn sweep_filters(csv: &Path, extra: &[&str]) -> i32 {
+    let g = filters();
+    let mut args = vec!["sweep", g.as_str()];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--csv", csv.to_str().unwrap(), "--no-disk-cache", "-q"]);
+    relume(&args)
+}
+
+#[test]
+fn x_and_series_plot_one_line_per_value_of_a_varied_parameter_against_another() {
+    let dir = tempfile::tempdir().unwrap();
+    let (csv, plot) = (dir.path().join("s.csv"), dir.path().join("s.png"));
+    let (vary_r, vary_s) = ("median.radius=1,2", "blur.sigma=0.5,1,2");
+    let extra = ["--vary", vary_r, "--vary", vary_s, "--x", "blur.sigma", "--series", "median.radius", "--plot", plot.to_str().unwrap()];
+    assert_eq!(sweep_filters(&csv, &extra), 0);
+    let (header, rows) = read_csv(&csv);
+    assert_eq!(rows.len(), 6);
+    let (radius, sigma) = (col(&header, "median.radius"), col(&header, "blur.sigma"));
+    let pairs: Vec<(&str, f64)> = rows.iter().map(|r| (r[radius].as_str(), num(&r[sigma]))).collect();
+    assert_eq!(pairs, [("1", 0.5), ("1", 1.0), ("1", 2.0), ("2", 0.5), ("2", 1.0), ("2", 2.0)]);
+    // Two lines in the first two colours of the palette, no baseline (red).
+    let img = image::open(&plot).unwrap().to_rgb8();
+    assert!(img.pixels().any(|p| p.0 == [31, 119, 180]), "the line of median.radius = 1");
+    assert!(img.pixels().any(|p| p.0 == [255, 127, 14]), "the line of median.radius = 2");
+    assert!(!img.pixels().any(|p| p.0 == [214, 39, 40]), "no baseline");
+
+    // A metric as the x axis: error against the error's own PSNR also plots.
+    let (csv2, plot2) = (dir.path().join("m.csv"), dir.path().join("m.png"));
+    assert_eq!(sweep_filters(&csv2, &["--vary", "blur.sigma=0.5,1", "--x", "error.psnr_db", "--plot", plot2.to_str().unwrap()]), 0);
+    assert!(plot2.is_file());
+}
+
+#[test]
+fn parameters_joined_by_plus_take_each_value_together() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("s.csv");
+    // The two patterns must keep the same size for `sum` to combine them.
+    assert_eq!(sweep_filters(&csv, &["--vary", "clean.width+noisy.width=32,48"]), 0);
+    let (header, rows) = read_csv(&csv);
+    assert_eq!(rows.len(), 2);
+    let (a, b) = (col(&header, "clean.width"), col(&header, "noisy.width"));
+    let widths: Vec<(&str, &str)> = rows.iter().map(|r| (r[a].as_str(), r[b].as_str())).collect();
+    assert_eq!(widths, [("32", "32"), ("48", "48")]);
+    assert_eq!(rows[0][1], "clean.width=32 noisy.width=32");
+}
+
+#[test]
+fn an_output_named_as_node_port_stops_the_sweep_at_that_node() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("s.csv");
+    // `error.metrics` is a port, not one of the graph's outputs (those are `image`, `metrics`).
+    assert_eq!(sweep_filters(&csv, &["--vary", "blur.sigma=0.5,1", "--output", "error.metrics"]), 0);
+    let (header, rows) = read_csv(&csv);
+    assert_eq!(rows.len(), 2);
+    col(&header, "ms:blur");
+    assert!(!header.iter().any(|h| h == "ms:tonemap"), "nothing past the error ran: {header:?}");
+}
+
+#[test]
+fn an_x_axis_series_or_port_output_that_does_not_exist_exits_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("s.csv");
+    for extra in [
+        ["--x", "nosuch"],
+        ["--x", "blur.nosuch"],
+        ["--x", "error.nosuch"],
+        ["--x", "median.radius"],
+        ["--series", "median.radius"],
+        ["--output", "blur.nosuch"],
+        ["--output", "nosuch.image"],
+        ["--vary", "median.radius+nodot=1,2"],
+    ] {
+        assert_eq!(sweep_filters(&csv, &[&["--vary", "blur.sigma=1,2"], &extra[..]].concat()), 2, "{extra:?}");
+    }
+    assert!(!csv.exists(), "nothing written");
+}

@@ -1,14 +1,19 @@
 //! `relume sweep`: runs a graph once per combination of parameter values, all through one
 //! engine so every variant reuses what earlier ones computed, and writes error against time
 //! as CSV and as a log-log plot, optionally next to a baseline's convergence curve (an integer
-//! parameter such as a path tracer's samples per pixel at 1, 2, 4, …).
+//! parameter such as a path tracer's samples per pixel at 1, 2, 4, …). `--x` plots against a
+//! varied parameter or a metric instead of time and `--series` draws one line per value of a
+//! varied parameter (`axes.rs`), so error-against-rank and error-against-bytes figures come
+//! from the same sweep.
+
+mod axes;
 
 use super::interrupt::Watch;
-use super::plot::{plot_log_log, Axes, Curve};
+use super::plot::{plot_log_log, Axes};
 use super::run::{refuse_writes, run_error};
 use super::{prepare_file, prepare_out_dir, progress::Bars, CliError, GraphArgs};
 use clap::Args;
-use plotters::style::RGBColor;
+use relume_core::graph::{Output, PortRef};
 use relume_core::{make_plan, Graph, Observer, ParamKind, Registry, RunOptions, RunReport};
 use std::collections::BTreeSet;
 use std::path::PathBuf;
@@ -19,6 +24,8 @@ pub(crate) struct SweepArgs {
     g: GraphArgs,
     /// Values to sweep: --vary node.param=a,b,c (repeatable; every combination runs, the first
     /// --vary changing slowest). Tuples keep their commas: --vary clean.color=(1,0,0),(0,1,0).
+    /// Several parameters joined by `+` take the same values together:
+    /// --vary tucker.n_wi+tucker.n_wo=4,8.
     #[arg(long = "vary", value_name = "NODE.PARAM=A,B,..", required_unless_present = "baseline")]
     varies: Vec<String>,
     /// Also run this integer parameter at 1, 2, 4, … up to --baseline-max (the --vary
@@ -52,6 +59,15 @@ pub(crate) struct SweepArgs {
     /// `ran` = the wall time of the nodes that ran in the variant (cached nodes cost 0).
     #[arg(long, value_enum, default_value = "pipeline")]
     time: TimeAxis,
+    /// x axis of the plot instead of time: a CSV column, i.e. a varied parameter
+    /// (`tucker.n_wi`), a metric as `node.metric` (`t1.compressed_bytes`), or `time_ms` /
+    /// `pipeline_ms`.
+    #[arg(long = "x", value_name = "COLUMN")]
+    x: Option<String>,
+    /// One line per value of this varied parameter (the method's rows), in the order of its
+    /// --vary list, instead of one line for all of them.
+    #[arg(long, value_name = "NODE.PARAM")]
+    series: Option<String>,
     /// No progress bars and no table.
     #[arg(long, short)]
     quiet: bool,
@@ -112,6 +128,8 @@ struct Variant {
     label: String,
     /// The values changed (for the plot's point labels).
     short: String,
+    /// The value of each --vary, as given (empty for the baseline).
+    values: Vec<String>,
     graph: Graph,
 }
 
@@ -120,6 +138,8 @@ struct Row {
     series: Series,
     label: String,
     short: String,
+    /// The value of each --vary, as given (empty for the baseline).
+    values: Vec<String>,
     /// Value of each parameter column, as canonical RON text.
     params: Vec<String>,
     time_ms: f64,
@@ -128,17 +148,20 @@ struct Row {
     report: RunReport,
 }
 
-/// `--vary node.param=a,b,c` split up.
+/// `--vary node.param=a,b,c` (or `a.p+b.q=…`) split up.
 struct Vary {
-    target: String,
+    /// The parameters set, each to the same value.
+    targets: Vec<String>,
     values: Vec<String>,
 }
 
 pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
-    let base = a.g.load(reg)?;
+    let mut base = a.g.load(reg)?;
+    add_port_outputs(reg, &mut base, &a.g.outputs)?;
     let varies = a.varies.iter().map(|s| parse_vary(s)).collect::<Result<Vec<_>, _>>()?;
     let mut variants = method_variants(reg, &base, &varies)?;
-    let mut columns: Vec<String> = varies.iter().map(|v| v.target.clone()).collect();
+    let mut columns: Vec<String> = varies.iter().flat_map(|v| v.targets.iter().cloned()).collect();
+    let vary_columns = columns.len();
     if let Some(b) = &a.baseline {
         variants.extend(baseline_variants(reg, &base, b, a.baseline_max)?);
         if !columns.contains(b) {
@@ -155,6 +178,8 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
     // Everything checkable is checked before the first variant runs: the metric, the
     // folders and files the sweep writes, and where the graph's own output files go.
     check_metric(reg, &base, &a.metric, a.error_node.as_deref(), a.g.requested().as_deref())?;
+    let x_axis = axes::XAxis::parse(a.x.as_deref(), a.time, &columns, &base, reg)?;
+    let series = a.series.as_deref().map(|s| axes::series_vary(s, &varies)).transpose()?;
     if let Some(id) = &a.baseline_error_node {
         if base.node(id).is_none() {
             let ids: Vec<&str> = base.nodes.iter().map(|n| n.id.as_str()).collect();
@@ -210,7 +235,16 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
         }
         let params = columns.iter().map(|c| param_text(reg, &v.graph, c)).collect();
         let time_ms = result.report.nodes.iter().filter(|n| n.status == "ran").fold(0.0, |t, n| t + n.wall_ms);
-        rows.push(Row { series: v.series, label: v.label, short: v.short, params, time_ms, pipeline_ms: 0.0, report: result.report });
+        rows.push(Row {
+            series: v.series,
+            label: v.label,
+            short: v.short,
+            values: v.values,
+            params,
+            time_ms,
+            pipeline_ms: 0.0,
+            report: result.report,
+        });
     }
     let error_node = error_node.expect("a sweep runs at least one variant");
     if watch.interrupted() {
@@ -225,7 +259,6 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
         let nodes = if r.series == Series::Baseline { &baseline_cost } else { &method_cost };
         r.pipeline_ms = r.report.nodes.iter().filter(|n| nodes.contains(&n.id)).map(|n| n.compute_ms).sum();
     }
-    let x_of = |r: &Row| if a.time == TimeAxis::Ran { r.time_ms } else { r.pipeline_ms };
     let csv = write_csv(&base, &columns, &rows);
     if let Some(dir) = csv_path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| CliError::run(format!("cannot create {}: {e}", dir.display())))?;
@@ -233,38 +266,19 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
     relume_core::graph::write_atomic(&csv_path, csv.as_bytes())
         .map_err(|e| CliError::run(format!("cannot write {}: {e}", csv_path.display())))?;
 
-    let metric_of = |r: &Row| {
-        let node = if r.series == Series::Baseline { &baseline_node } else { &error_node };
-        r.report.node(node).and_then(|n| n.metrics.get(&a.metric).copied()).unwrap_or(f64::NAN)
-    };
-    let curve = |series: Series, name: String, color: RGBColor| Curve {
-        name,
-        color,
-        points: rows.iter().filter(|r| r.series == series).map(|r| (x_of(r), metric_of(r), r.short.clone())).collect(),
-    };
-    let mut curves = Vec::new();
-    if !varies.is_empty() {
-        let name = format!("method ({})", columns[..varies.len()].join(", "));
-        curves.push(curve(Series::Method, name, RGBColor(31, 119, 180)));
-    }
+    let plotted = axes::Plotted { x: &x_axis, series, varies: &varies, columns: &columns[..vary_columns] };
+    let mut curves = plotted.method_curves(&rows, &error_node, &a.metric);
     if let Some(b) = &a.baseline {
         let of = if baseline_node != error_node { format!(", error of \"{baseline_node}\"") } else { String::new() };
-        curves.push(curve(Series::Baseline, format!("baseline ({b} = 1, 2, 4, …{of})"), RGBColor(214, 39, 40)));
+        curves.push(plotted.baseline_curve(&rows, &baseline_node, &a.metric, format!("baseline ({b} = 1, 2, 4, …{of})")));
     }
     let title = a.g.graph.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_else(|| a.g.graph.display().to_string());
-    let axes = Axes {
-        title,
-        x_label: match a.time {
-            TimeAxis::Ran => "time (ms): wall time of the nodes that ran, cached nodes cost 0".into(),
-            TimeAxis::Pipeline => "time (ms): compute time of the pipeline that made the image (reference excluded)".into(),
-        },
-        y_label: format!("{}{} of node \"{error_node}\"", a.metric, unit_of(&a.metric)),
-    };
+    let axes = Axes { title, x_label: x_axis.label(), y_label: format!("{}{} of node \"{error_node}\"", a.metric, unit_of(&a.metric)) };
     let warnings = plot_log_log(&plot_path, &axes, &curves).map_err(CliError::run)?;
     for w in warnings {
         eprintln!("warning: {w}");
     }
-    if a.time == TimeAxis::Ran && rows.iter().any(|r| r.time_ms <= 0.0) && !a.quiet {
+    if x_axis == axes::XAxis::Time(TimeAxis::Ran) && rows.iter().any(|r| r.time_ms <= 0.0) && !a.quiet {
         eprintln!(
             "note: variants whose nodes all came from the cache cost 0 ms; to time every variant from scratch use --no-disk-cache or a fresh --cache folder"
         );
@@ -281,10 +295,11 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
 /// Splits `node.param=a,b,c` at commas outside brackets and quotes.
 fn parse_vary(s: &str) -> Result<Vary, CliError> {
     let (target, list) = s.split_once('=').ok_or_else(|| CliError::graph(format!("--vary {s}: expected node.param=a,b,c")))?;
-    let target = target.trim();
-    if !target.contains('.') {
-        return Err(CliError::graph(format!("--vary {s}: `{target}` is not of the form node.param")));
+    let targets: Vec<String> = target.split('+').map(|t| t.trim().to_string()).collect();
+    if let Some(t) = targets.iter().find(|t| !t.contains('.')) {
+        return Err(CliError::graph(format!("--vary {s}: `{t}` is not of the form node.param")));
     }
+    let target = target.trim();
     let values = split_top_level(list);
     if values.iter().all(|v| v.is_empty()) {
         return Err(CliError::graph(format!("--vary {s}: no values given (expected {target}=a,b,c)")));
@@ -292,7 +307,7 @@ fn parse_vary(s: &str) -> Result<Vary, CliError> {
     if values.iter().any(|v| v.is_empty()) {
         return Err(CliError::graph(format!("--vary {s}: an empty value in the list")));
     }
-    Ok(Vary { target: target.to_string(), values })
+    Ok(Vary { targets, values })
 }
 
 fn split_top_level(list: &str) -> Vec<String> {
@@ -335,11 +350,14 @@ fn method_variants(reg: &Registry, base: &Graph, varies: &[Vary]) -> Result<Vec<
         let (mut label, mut short) = (Vec::new(), Vec::new());
         for (v, &i) in varies.iter().zip(&idx) {
             let value = &v.values[i];
-            graph.set_param_text(reg, &v.target, value).map_err(|e| CliError::graph(format!("--vary {}={value}: {e}", v.target)))?;
-            label.push(format!("{}={value}", v.target));
+            for t in &v.targets {
+                graph.set_param_text(reg, t, value).map_err(|e| CliError::graph(format!("--vary {t}={value}: {e}")))?;
+                label.push(format!("{t}={value}"));
+            }
             short.push(value.clone());
         }
-        out.push(Variant { series: Series::Method, label: label.join(" "), short: short.join(", "), graph });
+        let values = short.clone();
+        out.push(Variant { series: Series::Method, label: label.join(" "), short: short.join(", "), values, graph });
         // Odometer: the last list turns fastest.
         let mut k = varies.len();
         loop {
@@ -379,7 +397,7 @@ fn baseline_variants(reg: &Registry, base: &Graph, target: &str, max: i64) -> Re
         graph
             .set_param_text(reg, target, &n.to_string())
             .map_err(|e| CliError::graph(format!("{flag} at {n}: {e} (lower --baseline-max)")))?;
-        out.push(Variant { series: Series::Baseline, label: format!("{target}={n}"), short: n.to_string(), graph });
+        out.push(Variant { series: Series::Baseline, label: format!("{target}={n}"), short: n.to_string(), values: Vec::new(), graph });
         n = match n.checked_mul(2) {
             Some(m) => m,
             None => break,
@@ -396,6 +414,26 @@ fn param_text(reg: &Registry, graph: &Graph, target: &str) -> String {
         return v.to_text();
     }
     reg.node(&node.kind).and_then(|k| k.schema().get(name)).and_then(|s| s.default.as_ref()).map(|v| v.to_text()).unwrap_or_default()
+}
+
+/// Adds `--output node.port` for a port the graph does not name as an output, so that a sweep
+/// can stop at an intermediate node (a precompute's metrics) without running what follows.
+fn add_port_outputs(reg: &Registry, g: &mut Graph, requested: &[String]) -> Result<(), CliError> {
+    for name in requested {
+        if g.outputs.iter().any(|o| &o.name == name) {
+            continue;
+        }
+        let Some((id, port)) = name.split_once('.') else { continue }; // the planner lists the outputs
+        let node = g.node(id).ok_or_else(|| CliError::graph(format!("--output {name}: no output and no node \"{id}\" of that name")))?;
+        let kind = reg.node(&node.kind).ok_or_else(|| CliError::graph(format!("--output {name}: unknown node kind \"{}\"", node.kind)))?;
+        let ports: Vec<&str> = kind.ports().outputs.iter().map(|p| p.name).collect();
+        if !ports.contains(&port) {
+            return Err(CliError::graph(format!("--output {name}: {} has no output `{port}` (it has: {})", node.kind, ports.join(", "))));
+        }
+        let port = PortRef { node: id.to_string(), port: port.to_string() };
+        g.outputs.push(Output { name: name.clone(), port, pos: Default::default() });
+    }
+    Ok(())
 }
 
 /// The metrics each node kind reports (what its `cx.metric` calls record), known before it
