@@ -41,7 +41,9 @@ fn graph_and_engine() -> (Graph, Engine) {
 }
 
 /// The edits of each kind: (node.param, the k-th value).
-const KINDS: &[&str] = &["view", "view+brdf", "view+brdf+lighting"];
+/// "view@1spp" is an orbit with one camera sample per pixel (`hits.spp` 1, as a GPU
+/// rasteriser without multisampling draws; the others keep the graph's 16).
+const KINDS: &[&str] = &["view", "view@1spp", "view+brdf", "view+brdf+lighting"];
 
 /// The values of the k-th edit of `kind`: (node.param, value), new each time and different
 /// between kinds, so that no edit finds a result another kind's edit left in the cache.
@@ -50,10 +52,11 @@ fn edits(kind: &str, k: u64) -> Vec<(&'static str, String)> {
     let view = ("camera.azimuth", format!("{}", (k % 360) as f64 + 0.5 + salt));
     let brdf = ("project.s", format!("{}", 20.0 + (k % 100) as f64 + 0.25 + salt));
     let light = ("turn.rotation_deg", format!("{}", (k % 360) as f64 + 0.75 + salt));
+    let spp = ("hits.spp", if kind == "view@1spp" { "1" } else { "16" }.to_string());
     match kind {
-        "view" => vec![view],
-        "view+brdf" => vec![view, brdf],
-        _ => vec![view, brdf, light],
+        "view" | "view@1spp" => vec![spp, view],
+        "view+brdf" => vec![spp, view, brdf],
+        _ => vec![spp, view, brdf, light],
     }
 }
 
