@@ -472,6 +472,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "EnvLighting" => &["radiance_max", "luminance_integral", "haar_nonzero", "energy_share_top96", "bytes"],
         "VertexVisibility" => &["vertices", "visible_fraction", "bytes"],
         "PttDirect" => &["vertices", "slots", "e0_mean", "bytes"],
+        "MaterialProject" => &["ct_fit_error_max_pct"],
         "CameraHits" => &["spp", "triangles", "covered_fraction", "seen", "weights_per_pixel"],
         "RasterizeVertexColors" => &["weights"],
         "TransferT0" => &["vertices", "columns", "terms_mean", "energy_kept", "lobe_maps", "bytes"],
@@ -480,7 +481,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "TransferT2" => &["bytes", "channels", "lighting_bases"],
         "IncidentProjection" => &["slots", "columns", "bytes"],
         "PttIncident" => &["vertices", "slots", "bounces", "e0_mean", "e1_mean", "e2_mean", "bytes"],
-        "PttRelight" => &["vertices", "shaded", "diffuse_mean", "specular_mean"],
+        "PttRelight" => &["vertices", "seen", "shaded", "diffuse_mean", "specular_mean"],
         "VertexPathTrace" => &["vertices", "rays"],
         "TransferT1" => &["rays", "raw_bytes", "compressed_bytes", "relative_error", "channels", "lighting_bases"],
         "SpecularSeparation" => &[
