@@ -286,6 +286,27 @@ impl<'a> RunCtx<'a> {
         self.par_try_map(n, |i| Ok(f(i)))
     }
 
+    /// As `par_map`, with scratch space per rayon thread made by `init` (rayon's `map_init`):
+    /// buffers a task overwrites and reuses, never state that carries from one item to the
+    /// next, so the results are the same bytes on any thread count.
+    pub fn par_map_init<T: Send, S>(
+        &self,
+        n: usize,
+        init: impl Fn() -> S + Sync + Send,
+        f: impl Fn(&mut S, usize) -> T + Sync + Send,
+    ) -> Result<Vec<T>, NodeError> {
+        let done = AtomicU64::new(0);
+        (0..n)
+            .into_par_iter()
+            .map_init(init, |scratch, i| {
+                self.check()?;
+                let r = f(scratch, i);
+                self.progress(done.fetch_add(1, Ordering::Relaxed) + 1, n as u64);
+                Ok(r)
+            })
+            .collect()
+    }
+
     /// As `par_map` for work that can fail: the first error rayon meets stops the run.
     pub fn par_try_map<T: Send>(&self, n: usize, f: impl Fn(usize) -> Result<T, NodeError> + Sync + Send) -> Result<Vec<T>, NodeError> {
         let done = AtomicU64::new(0);

@@ -72,7 +72,11 @@ impl Hasher {
     }
     /// Raw bytes without a length prefix (for streaming large payloads whose length was hashed).
     pub fn raw(&mut self, b: &[u8]) -> &mut Self {
-        self.0.update(b);
+        if b.len() >= 1 << 20 {
+            self.0.update_rayon(b);
+        } else {
+            self.0.update(b);
+        }
         self
     }
     pub fn u64(&mut self, v: u64) -> &mut Self {

@@ -39,6 +39,54 @@ pub mod codec {
     pub fn to_bytes<T: serde::Serialize>(v: &T) -> Vec<u8> {
         postcard::to_stdvec(v).expect("port values serialise to memory")
     }
+    /// The fingerprint `PortValue::fingerprint` gives by default — the hash of the type name
+    /// and the encoding — without building the encoding: one pass counts its bytes (the
+    /// hash takes the length first), a second streams them into the hasher. The same hash,
+    /// no copy of a large value into fresh memory.
+    pub fn fingerprint<T: serde::Serialize>(name: &str, v: &T) -> crate::hash::Hash {
+        let len = postcard::serialize_with_flavor(v, Count(0)).expect("port values serialise");
+        let mut h = crate::hash::Hasher::new();
+        h.str(name).u64(len as u64);
+        postcard::serialize_with_flavor(v, Stream(&mut h)).expect("port values serialise");
+        h.finish()
+    }
+
+    /// Counts the bytes of an encoding.
+    struct Count(usize);
+
+    impl postcard::ser_flavors::Flavor for Count {
+        type Output = usize;
+        fn try_extend(&mut self, data: &[u8]) -> postcard::Result<()> {
+            self.0 += data.len();
+            Ok(())
+        }
+        fn try_push(&mut self, _: u8) -> postcard::Result<()> {
+            self.0 += 1;
+            Ok(())
+        }
+        fn finalize(self) -> postcard::Result<usize> {
+            Ok(self.0)
+        }
+    }
+
+    /// Feeds an encoding into a hasher as it is written.
+    struct Stream<'a>(&'a mut crate::hash::Hasher);
+
+    impl postcard::ser_flavors::Flavor for Stream<'_> {
+        type Output = ();
+        fn try_extend(&mut self, data: &[u8]) -> postcard::Result<()> {
+            self.0.raw(data);
+            Ok(())
+        }
+        fn try_push(&mut self, b: u8) -> postcard::Result<()> {
+            self.0.raw(&[b]);
+            Ok(())
+        }
+        fn finalize(self) -> postcard::Result<()> {
+            Ok(())
+        }
+    }
+
     /// Decodes a value; `None` for malformed or trailing bytes.
     pub fn from_bytes<T: serde::de::DeserializeOwned>(b: &[u8]) -> Option<T> {
         match postcard::take_from_bytes(b) {
@@ -59,6 +107,9 @@ macro_rules! serde_codec {
         fn decode(bytes: &[u8]) -> Option<Self> {
             $crate::codec::from_bytes(bytes)
         }
+        fn fingerprint(&self) -> $crate::Hash {
+            $crate::codec::fingerprint(Self::NAME, self)
+        }
     };
     // Decoding keeps only values that pass `$check` (`fn(&Self) -> bool`): a loader that
     // never hands on an inconsistent value.
@@ -68,6 +119,9 @@ macro_rules! serde_codec {
         }
         fn decode(bytes: &[u8]) -> Option<Self> {
             $crate::codec::from_bytes::<Self>(bytes).filter($check)
+        }
+        fn fingerprint(&self) -> $crate::Hash {
+            $crate::codec::fingerprint(Self::NAME, self)
         }
     };
 }
@@ -244,4 +298,36 @@ macro_rules! outputs {
             }
         }
     };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde::{Deserialize, Serialize};
+
+    #[derive(Serialize, Deserialize)]
+    struct Sample {
+        name: String,
+        big: Vec<u8>,
+        small: Vec<f32>,
+    }
+
+    impl PortValue for Sample {
+        const NAME: &'static str = "Sample";
+        const COLOR: [u8; 3] = [0, 0, 0];
+        fn byte_size(&self) -> usize {
+            self.big.len() + self.small.len() * 4
+        }
+        crate::serde_codec!();
+    }
+
+    #[test]
+    fn the_streamed_fingerprint_is_the_hash_of_the_encoding() {
+        // Small and large (the hasher goes parallel from 1 MiB) payloads.
+        for n in [0usize, 7, 3 << 20] {
+            let v = Sample { name: "x".repeat(n % 5), big: (0..n).map(|k| (k * 31 % 251) as u8).collect(), small: vec![1.5, -0.0] };
+            let want = Hasher::new().str(Sample::NAME).bytes(&v.encode()).finish();
+            assert_eq!(v.fingerprint(), want, "{n} bytes");
+        }
+    }
 }
