@@ -15,7 +15,7 @@ use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, Port
 /// clipping, perspective-correct barycentrics, both faces, the same hits as camera rays up
 /// to ties on shared edges) and adding its triangle's corners, weighted by its barycentrics
 /// over `spp`, to its pixel; the samples that hit nothing add the environment (black with
-/// `background` off), read once per pixel in their mean direction: the sky does not change
+/// `background` off), read once per pixel through their mean position: the sky does not change
 /// across a pixel as geometry does. Runs when the camera or the scene changes, not
 /// when the colours do: `RasterizeVertexColors` then costs one weighted sum per pixel, and
 /// `PttRelight` shades only the vertices listed as seen. The bytes are the same on any
@@ -73,22 +73,24 @@ impl CameraHits {
         cx.check()?;
         let rays = CameraRays::new(cam);
         let inv = 1.0 / spp as f32;
-        let bands: Vec<Band> = cx.par_map(raster.bands(), |b| {
+        // Per thread: the band's hits and z-buffer, and a pixel's triangles, reused.
+        let scratch = || (Vec::new(), Vec::new(), Vec::<(u32, Vec3)>::with_capacity(spp));
+        let bands: Vec<Band> = cx.par_map_init(raster.bands(), scratch, |(hits, depth, tris), b| {
             let rows = raster.band_rows(b);
-            let hits = raster.band(b);
+            raster.band_into(b, hits, depth);
             let (mut counts, mut entries, mut background, mut covered) = (vec![], vec![], vec![], 0u64);
-            let mut tris: Vec<(u32, Vec3)> = Vec::with_capacity(spp);
+            counts.reserve(rows.len() * w);
+            background.reserve(rows.len() * w);
             for (p, samples) in hits.chunks(spp).enumerate() {
                 let (x, y) = (p % w, rows.start + p / w);
                 let start = entries.len();
-                let (mut missed, mut dir) = (0u32, Vec3::ZERO);
+                let (mut missed, mut ox, mut oy) = (0u32, 0.0f32, 0.0f32);
                 // The pixel's triangles with their summed barycentrics, in order of first hit.
                 tris.clear();
                 for (s, hit) in samples.iter().enumerate() {
                     if hit.tri == MISS {
-                        let (ox, oy) = raster.pattern()[s];
-                        dir += rays.ray(x as f32 + ox, y as f32 + oy).1;
-                        missed += 1;
+                        let (sx, sy) = raster.pattern()[s];
+                        (ox, oy, missed) = (ox + sx, oy + sy, missed + 1);
                         continue;
                     }
                     covered += 1;
@@ -98,7 +100,7 @@ impl CameraHits {
                         None => tris.push((hit.tri, b)),
                     }
                 }
-                for &(t, b) in &tris {
+                for &(t, b) in tris.iter() {
                     for (v, wt) in scene.triangles[t as usize].into_iter().zip(b.to_array()) {
                         match entries[start..].iter_mut().find(|e: &&mut (u32, f32)| e.0 == v) {
                             Some(e) => e.1 += wt * inv,
@@ -108,7 +110,13 @@ impl CameraHits {
                 }
                 counts.push((entries.len() - start) as u32);
                 let seen_env = self.background && missed > 0;
-                background.push(if seen_env { scene.environment_radiance(dir.normalize()) * (missed as f32 * inv) } else { Vec3::ZERO });
+                background.push(if seen_env {
+                    // The ray through the missed samples' mean position.
+                    let m = missed as f32;
+                    scene.environment_radiance(rays.ray(x as f32 + ox / m, y as f32 + oy / m).1) * (m * inv)
+                } else {
+                    Vec3::ZERO
+                });
             }
             (counts, entries, background, covered)
         })?;

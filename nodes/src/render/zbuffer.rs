@@ -50,7 +50,7 @@ pub fn sample_pattern(spp: u32, seed: u64) -> Vec<(f32, f32)> {
 /// (x0 + x, y0 + y), (x0, y0) the first pixel of its bounding box, is a[k] x + b[k] y + c[k]
 /// (set up in f64 about that corner, evaluated in f32); `inv_z` the corners' inverse camera
 /// depths; `attr` the corners' (b1, b2) on the scene triangle `tri` (a clipped corner lies
-/// inside it).
+/// inside it); the box is columns x0..x1, rows y0..y1.
 struct ScreenTri {
     tri: u32,
     a: [f32; 3],
@@ -58,8 +58,10 @@ struct ScreenTri {
     c: [f32; 3],
     inv_z: [f32; 3],
     attr: [[f32; 2]; 3],
-    x: Range<usize>,
-    y: Range<usize>,
+    x0: u32,
+    x1: u32,
+    y0: u32,
+    y1: u32,
 }
 
 impl ScreenTri {
@@ -68,12 +70,14 @@ impl ScreenTri {
         [0, 1, 2].map(|k| self.a[k] * x + self.b[k] * y + self.c[k])
     }
 
-    /// Whether no point of the pixel square at (x, y) (from the box's first pixel) can be inside.
-    fn misses_pixel(&self, x: f32, y: f32) -> bool {
-        let beta = self.beta(x, y);
+    /// Whether no point of the pixel square whose corner has barycentrics `beta` can be inside.
+    fn misses_pixel(&self, beta: &[f32; 3]) -> bool {
         (0..3).any(|k| beta[k] + self.a[k].max(0.0) + self.b[k].max(0.0) < 0.0)
     }
 }
+
+/// Samples tested together: a block of the pattern, one bit each in a mask.
+const LANES: usize = 16;
 
 /// A scene's triangles set up for one camera and sample pattern; `band(i)` rasterises the
 /// rows [i·BAND_ROWS, …).
@@ -81,8 +85,14 @@ pub struct Rasterizer {
     width: usize,
     height: usize,
     pattern: Vec<(f32, f32)>,
-    tris: Vec<ScreenTri>,
-    bins: Vec<Vec<u32>>,
+    /// The pattern in blocks of `LANES` (x offsets, y offsets, the mask of real samples).
+    blocks: Vec<([f32; LANES], [f32; LANES], u32)>,
+    /// The set-up triangles in chunks of `SETUP_CHUNK` scene triangles.
+    chunks: Vec<Vec<ScreenTri>>,
+    /// Band i's triangles are `bin_tris[bin_start[i]..bin_start[i + 1]]`, in index order,
+    /// each as (chunk << CHUNK_BITS) | place in the chunk.
+    bin_start: Vec<u32>,
+    bin_tris: Vec<u32>,
 }
 
 /// A camera-space corner: (right, up, forward) coordinates and its (b1, b2) on the triangle.
@@ -112,6 +122,14 @@ fn clip_near(poly: &[Corner; 3], near: f32) -> ([Corner; 4], usize) {
     (out, n)
 }
 
+/// The corners' (b1, b2) on their own triangle.
+const CORNER_ATTR: [[f64; 2]; 3] = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+
+/// Triangles set up per parallel task.
+const SETUP_CHUNK: usize = 4096;
+/// Bits of a place in a chunk (clipping makes at most two triangles of one).
+const CHUNK_BITS: usize = 13;
+
 impl Rasterizer {
     /// Projects and bins `scene`'s triangles for `camera` with `spp` samples per pixel.
     pub fn new(scene: &Scene, camera: &Camera, spp: u32, seed: u64) -> Rasterizer {
@@ -119,60 +137,109 @@ impl Rasterizer {
         let rays = CameraRays::new(camera);
         // Nearer than this, geometry is cut: a hundred-thousandth of the distance to the target.
         let near = (camera.target - camera.origin).length() * 1e-5;
-        let setup_one = |t: usize| {
-            let corners = scene.triangles[t];
-            let p = corners.map(|i| rays.to_camera(scene.positions[i as usize]));
-            let poly = [(p[0], [0.0, 0.0]), (p[1], [1.0, 0.0]), (p[2], [0.0, 1.0])];
+        // Every vertex projected once: camera coordinates, and pixel position when in front.
+        let verts: Vec<(Vec3, [f64; 2])> = scene
+            .positions
+            .par_iter()
+            .map(|&p| {
+                let c = rays.to_camera(p);
+                let (x, y) = if c.z >= near { rays.to_pixel(c) } else { (0.0, 0.0) };
+                (c, [x, y])
+            })
+            .collect();
+        let setup_one = |t: usize, out: &mut Vec<ScreenTri>| {
+            let corners = scene.triangles[t].map(|i| verts[i as usize]);
+            if corners.iter().all(|c| c.0.z >= near) {
+                let xy = corners.map(|c| c.1);
+                out.extend(Self::setup(t as u32, xy, corners.map(|c| c.0.z), CORNER_ATTR, width, height));
+                return;
+            }
+            let poly = [0, 1, 2].map(|k| (corners[k].0, CORNER_ATTR[k]));
             let (clipped, n) = clip_near(&poly, near);
             // A fan over the clipped polygon: none, one or two triangles.
-            (1..n.max(2) - 1).filter_map(move |k| Self::setup(&rays, t as u32, [clipped[0], clipped[k], clipped[k + 1]], width, height))
+            for k in 1..n.max(2) - 1 {
+                let c = [clipped[0], clipped[k], clipped[k + 1]];
+                let xy = c.map(|(p, _)| {
+                    let (x, y) = rays.to_pixel(p);
+                    [x, y]
+                });
+                out.extend(Self::setup(t as u32, xy, c.map(|(p, _)| p.z), c.map(|(_, at)| at), width, height));
+            }
         };
         // In chunks of triangles on rayon's threads, concatenated in triangle order.
-        let chunks: Vec<Vec<ScreenTri>> = (0..scene.triangles.len().div_ceil(4096))
+        let chunks: Vec<Vec<ScreenTri>> = (0..scene.triangles.len().div_ceil(SETUP_CHUNK))
             .into_par_iter()
-            .map(|c| (c * 4096..((c + 1) * 4096).min(scene.triangles.len())).flat_map(setup_one).collect())
+            .map(|c| {
+                let mut out = Vec::with_capacity(SETUP_CHUNK);
+                (c * SETUP_CHUNK..((c + 1) * SETUP_CHUNK).min(scene.triangles.len())).for_each(|t| setup_one(t, &mut out));
+                out
+            })
             .collect();
-        let tris: Vec<ScreenTri> = chunks.into_iter().flatten().collect();
-        let mut bins = vec![vec![]; height.div_ceil(BAND_ROWS)];
-        for (i, t) in tris.iter().enumerate() {
-            for bin in &mut bins[t.y.start / BAND_ROWS..t.y.end.div_ceil(BAND_ROWS)] {
-                bin.push(i as u32);
+        // Bins as one array: counted, then filled in triangle order (chunk, then place in
+        // it: `id` packs both; the chunks are never copied into one).
+        let bands = height.div_ceil(BAND_ROWS);
+        let span = |t: &ScreenTri| t.y0 as usize / BAND_ROWS..(t.y1 as usize).div_ceil(BAND_ROWS);
+        let mut bin_start = vec![0u32; bands + 1];
+        for t in chunks.iter().flatten() {
+            span(t).for_each(|b| bin_start[b + 1] += 1);
+        }
+        for b in 0..bands {
+            bin_start[b + 1] += bin_start[b];
+        }
+        let mut fill: Vec<u32> = bin_start[..bands].to_vec();
+        let mut bin_tris = vec![0u32; bin_start[bands] as usize];
+        for (c, chunk) in chunks.iter().enumerate() {
+            for (k, t) in chunk.iter().enumerate() {
+                for b in span(t) {
+                    bin_tris[fill[b] as usize] = ((c << CHUNK_BITS) | k) as u32;
+                    fill[b] += 1;
+                }
             }
         }
-        Rasterizer { width, height, pattern: sample_pattern(spp, seed), tris, bins }
+        let pattern = sample_pattern(spp, seed);
+        let blocks = pattern
+            .chunks(LANES)
+            .map(|c| {
+                let (mut x, mut y) = ([0.0; LANES], [0.0; LANES]);
+                for (s, &(ox, oy)) in c.iter().enumerate() {
+                    (x[s], y[s]) = (ox, oy);
+                }
+                (x, y, if c.len() == LANES { u32::MAX >> (32 - LANES) } else { (1u32 << c.len()) - 1 })
+            })
+            .collect();
+        Rasterizer { width, height, pattern, blocks, chunks, bin_start, bin_tris }
     }
 
-    fn setup(rays: &CameraRays, tri: u32, c: [Corner; 3], width: usize, height: usize) -> Option<ScreenTri> {
-        let xy = c.map(|(p, _)| {
-            let (x, y) = rays.to_pixel(p);
-            [x, y]
-        });
+    /// A projected triangle with corners at pixel positions `xy`, camera depths `z` and
+    /// scene-triangle barycentrics `attr`; none when degenerate or off the image.
+    fn setup(tri: u32, xy: [[f64; 2]; 3], z: [f32; 3], attr: [[f64; 2]; 3], width: usize, height: usize) -> Option<ScreenTri> {
         let area = (xy[1][0] - xy[0][0]) * (xy[2][1] - xy[0][1]) - (xy[1][1] - xy[0][1]) * (xy[2][0] - xy[0][0]);
         if !area.is_finite() || area.abs() < 1e-12 {
             return None;
         }
-        let lo = |d: usize| xy.iter().map(|p| p[d]).fold(f64::INFINITY, f64::min);
-        let hi = |d: usize| xy.iter().map(|p| p[d]).fold(f64::NEG_INFINITY, f64::max);
-        let span = |l: f64, h: f64, n: usize| (l.floor().clamp(0.0, n as f64) as usize)..(h.ceil().clamp(0.0, n as f64) as usize);
-        let (x, y) = (span(lo(0), hi(0), width), span(lo(1), hi(1), height));
-        if x.is_empty() || y.is_empty() {
+        let lo = |d: usize| xy[0][d].min(xy[1][d]).min(xy[2][d]);
+        let hi = |d: usize| xy[0][d].max(xy[1][d]).max(xy[2][d]);
+        let span = |l: f64, h: f64, n: usize| (l.floor().clamp(0.0, n as f64) as u32, h.ceil().clamp(0.0, n as f64) as u32);
+        let ((x0, x1), (y0, y1)) = (span(lo(0), hi(0), width), span(lo(1), hi(1), height));
+        if x0 >= x1 || y0 >= y1 {
             return None;
         }
-        let (x0, y0) = (x.start as f64, y.start as f64);
+        let (fx0, fy0) = (x0 as f64, y0 as f64);
+        let inv_area = 1.0 / area;
         let (mut a, mut b, mut cc) = ([0.0; 3], [0.0; 3], [0.0; 3]);
         for k in 0..3 {
             // The barycentric of corner k: the edge function of the opposite edge over the area.
             let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-            let (ak, bk) = (-(xy[j][1] - xy[i][1]) / area, (xy[j][0] - xy[i][0]) / area);
-            (a[k], b[k], cc[k]) = (ak as f32, bk as f32, (ak * (x0 - xy[i][0]) + bk * (y0 - xy[i][1])) as f32);
+            let (ak, bk) = (-(xy[j][1] - xy[i][1]) * inv_area, (xy[j][0] - xy[i][0]) * inv_area);
+            (a[k], b[k], cc[k]) = (ak as f32, bk as f32, (ak * (fx0 - xy[i][0]) + bk * (fy0 - xy[i][1])) as f32);
         }
-        let attr = c.map(|(_, at)| [at[0] as f32, at[1] as f32]);
-        Some(ScreenTri { tri, a, b, c: cc, inv_z: c.map(|(p, _)| 1.0 / p.z), attr, x, y })
+        let attr = attr.map(|at| [at[0] as f32, at[1] as f32]);
+        Some(ScreenTri { tri, a, b, c: cc, inv_z: z.map(|z| 1.0 / z), attr, x0, x1, y0, y1 })
     }
 
     /// Bands of `BAND_ROWS` rows in the image.
     pub fn bands(&self) -> usize {
-        self.bins.len()
+        self.bin_start.len() - 1
     }
 
     /// Rows of band `i`.
@@ -187,43 +254,63 @@ impl Rasterizer {
 
     /// Triangles (after clipping) that reach the image.
     pub fn triangles(&self) -> usize {
-        self.tris.len()
+        self.chunks.iter().map(Vec::len).sum()
     }
 
     /// The hits of band `i`: row-major over its pixels, `spp` samples each.
     pub fn band(&self, i: usize) -> Vec<SampleHit> {
+        let (mut hits, mut depth) = (vec![], vec![]);
+        self.band_into(i, &mut hits, &mut depth);
+        hits
+    }
+
+    /// As `band`, into `hits`, with `inv_depth` as the z-buffer: both overwritten, their
+    /// allocations reused from band to band.
+    pub fn band_into(&self, i: usize, hits: &mut Vec<SampleHit>, inv_depth: &mut Vec<f32>) {
         let rows = self.band_rows(i);
         let spp = self.pattern.len();
-        let mut hits = vec![NO_HIT; rows.len() * self.width * spp];
+        let n = rows.len() * self.width * spp;
+        hits.clear();
+        hits.resize(n, NO_HIT);
         // Inverse depths: the nearest sample has the largest; 0 is nothing yet.
-        let mut inv_depth = vec![0.0f32; hits.len()];
-        for &t in &self.bins[i] {
-            let t = &self.tris[t as usize];
-            for py in t.y.start.max(rows.start)..t.y.end.min(rows.end) {
-                let fy = (py - t.y.start) as f32;
-                for px in t.x.clone() {
-                    let fx = (px - t.x.start) as f32;
-                    if t.misses_pixel(fx, fy) {
+        inv_depth.clear();
+        inv_depth.resize(n, 0.0);
+        let bin = &self.bin_tris[self.bin_start[i] as usize..self.bin_start[i + 1] as usize];
+        for &t in bin {
+            let t = &self.chunks[t as usize >> CHUNK_BITS][t as usize & ((1 << CHUNK_BITS) - 1)];
+            for py in (t.y0 as usize).max(rows.start)..(t.y1 as usize).min(rows.end) {
+                let fy = (py - t.y0 as usize) as f32;
+                for px in t.x0 as usize..t.x1 as usize {
+                    let corner = t.beta((px - t.x0 as usize) as f32, fy);
+                    if t.misses_pixel(&corner) {
                         continue;
                     }
                     let base = ((py - rows.start) * self.width + px) * spp;
-                    for (s, &(ox, oy)) in self.pattern.iter().enumerate() {
-                        let beta = t.beta(fx + ox, fy + oy);
-                        if beta[0] < 0.0 || beta[1] < 0.0 || beta[2] < 0.0 {
-                            continue;
+                    for (block, (ox, oy, valid)) in self.blocks.iter().enumerate() {
+                        // The barycentrics at each sample, offsets from the pixel's corner.
+                        let at = |s: usize, k: usize| corner[k] + t.a[k] * ox[s] + t.b[k] * oy[s];
+                        // Branch-free over the block, so that it vectorises.
+                        let mut inside = [0u32; LANES];
+                        for (s, v) in inside.iter_mut().enumerate() {
+                            *v = ((at(s, 0) >= 0.0) & (at(s, 1) >= 0.0) & (at(s, 2) >= 0.0)) as u32;
                         }
-                        let w = [beta[0] * t.inv_z[0], beta[1] * t.inv_z[1], beta[2] * t.inv_z[2]];
-                        let iz = w[0] + w[1] + w[2];
-                        if iz > inv_depth[base + s] {
-                            inv_depth[base + s] = iz;
-                            let at = |d: usize| (w[0] * t.attr[0][d] + w[1] * t.attr[1][d] + w[2] * t.attr[2][d]) / iz;
-                            hits[base + s] = SampleHit { tri: t.tri, b1: at(0), b2: at(1) };
+                        let mut mask = inside.iter().enumerate().fold(0u32, |m, (s, &v)| m | v << s) & valid;
+                        while mask != 0 {
+                            let s = mask.trailing_zeros() as usize;
+                            mask &= mask - 1;
+                            let w = [0, 1, 2].map(|k| at(s, k) * t.inv_z[k]);
+                            let iz = w[0] + w[1] + w[2];
+                            let slot = base + block * LANES + s;
+                            if iz > inv_depth[slot] {
+                                inv_depth[slot] = iz;
+                                let attr = |d: usize| (w[0] * t.attr[0][d] + w[1] * t.attr[1][d] + w[2] * t.attr[2][d]) / iz;
+                                hits[slot] = SampleHit { tri: t.tri, b1: attr(0), b2: attr(1) };
+                            }
                         }
                     }
                 }
             }
         }
-        hits
     }
 }
 
