@@ -88,7 +88,7 @@ pub fn sh_basis_into(dir: Vec3, out: &mut [f32]) {
                 q_prev = q;
                 q = next;
             }
-            let k = norm(l, m);
+            let k = norm_cached(l, m);
             if m == 0 {
                 out[sh_index(l, 0)] = (k * q) as f32;
             } else {
@@ -97,6 +97,19 @@ pub fn sh_basis_into(dir: Vec3, out: &mut [f32]) {
                 out[sh_index(l, -(m as i32))] = (s * im) as f32;
             }
         }
+    }
+}
+
+/// Bands whose K_l^m are tabled (computed once by `norm`, the same bits).
+const TABLED: usize = 8;
+
+/// K_l^m from the table below `TABLED` bands, else computed.
+fn norm_cached(l: usize, m: usize) -> f64 {
+    static TABLE: std::sync::OnceLock<[[f64; TABLED]; TABLED]> = std::sync::OnceLock::new();
+    if l < TABLED {
+        TABLE.get_or_init(|| std::array::from_fn(|l| std::array::from_fn(|m| if m <= l { norm(l, m) } else { 0.0 })))[l][m]
+    } else {
+        norm(l, m)
     }
 }
 
