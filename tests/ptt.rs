@@ -57,7 +57,7 @@ fn edits_rerun_only_what_they_reach(name: &str, material: (&str, &str)) {
     // background), never the transfer.
     assert_eq!(
         rerun("turn.rotation_deg", "45"),
-        with(&["apply", "direct", "env", "error", "hits", "incident", "raster", "ref_hits", "relight", "turn"])
+        with(&["apply", "bounced", "direct", "env", "error", "hits", "incident", "raster", "ref_hits", "relight", "turn"])
     );
 }
 

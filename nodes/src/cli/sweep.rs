@@ -481,6 +481,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "TransferT2" => &["bytes", "channels", "lighting_bases"],
         "IncidentProjection" => &["slots", "columns", "bytes"],
         "PttIncident" => &["vertices", "slots", "bounces", "e0_mean", "e1_mean", "e2_mean", "bytes"],
+        "PttBounceLight" => &["bounces", "clusters", "slots", "bytes"],
         "PttRelight" => &["vertices", "seen", "shaded", "diffuse_mean", "specular_mean"],
         "VertexPathTrace" => &["vertices", "rays"],
         "TransferT1" => &["rays", "raw_bytes", "compressed_bytes", "relative_error", "channels", "lighting_bases"],

@@ -12,6 +12,7 @@ pub mod channels;
 pub mod cta_compress;
 pub mod env_lighting;
 pub mod incident_projection;
+pub mod ptt_bounce_light;
 pub mod ptt_direct;
 pub mod ptt_incident;
 pub mod ptt_relight;
@@ -37,6 +38,7 @@ pub fn register(reg: &mut Registry) {
     reg.add::<transfer_t2::TransferT2>();
     reg.add::<incident_projection::IncidentProjection>();
     reg.add::<ptt_direct::PttDirect>();
+    reg.add::<ptt_bounce_light::PttBounceLight>();
     reg.add::<ptt_incident::PttIncident>();
     reg.add::<ptt_relight::PttRelight>();
     reg.add::<camera_hits::CameraHits>();

@@ -2,14 +2,15 @@
 
 use super::bounce::SH;
 use super::incident_projection::{ShColumns, NO_SLOT};
+use super::ptt_bounce_light::BounceLight;
 use super::ptt_direct::DirectLight;
 use super::transfer_t1::BounceTransfer;
-use super::transfer_t2::TwoBounce;
-use super::types::EnvLight;
-use crate::math::cubemap::CubeMap;
 use crate::math::sh::{clamped_cosine_zonal, sh_basis_into, Y00};
 use crate::types::{pod_vec, ObjectMaterials};
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatRef, Par};
 use glam::Vec3;
+use rayon::prelude::*;
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx};
 use serde::{Deserialize, Serialize};
@@ -62,31 +63,26 @@ impl PortValue for VertexIncident {
 }
 
 /// The light arriving at every vertex under the current environment and materials ([S] 5-5,
-/// 5-6; the view-independent half of the relighting): per vertex, the direct light E⁰ and
-/// U^{I0} (`PttDirect`, which a material edit does not re-run); with `bounces` ≥ 1 the one-bounce light, the
-/// environment box-averaged to `TransferT1`'s lighting bases (`CubeMap::box_downsample`)
-/// contracted with each cluster's compressed transfer and the channels weighted by the
-/// dynamic objects' basis coefficients (`MaterialProject`; fixed channels weigh 1): 4-band SH
-/// I¹ in world axes, giving E¹ = Σ_s c_s Â_l Y_s(n) and U^{I1}_k = Σ_s c_s P_k(s)
-/// (`IncidentProjection`); with `bounces` = 2 the two-bounce light I² (`TransferT2`: taken
-/// as uniform over the hemisphere, [S] 5.3.3.5, so E² = π I² and U^{I2}_k = I² ∫ U^ωi_k cos),
-/// each reflector pair weighted by both channels' coefficients. Re-runs on a lighting or
-/// material change; a view change does not reach it.
+/// 5-6; the view-independent half of the relighting, and the only part of it a material edit
+/// re-runs): per vertex, the direct light E⁰ and U^{I0} (`PttDirect`); with one bounce or
+/// more (`PttBounceLight`'s `bounces`), the one-bounce light from each cluster's
+/// lighting-contracted core with the reflector slots weighted by the dynamic objects' basis
+/// coefficients (`MaterialProject`; the fixed objects' slot weighs 1), expanded per vertex
+/// by the cluster's vertex factors (one matrix product): 4-band SH I¹ in world axes, giving
+/// E¹ = Σ_s c_s Â_l Y_s(n) and U^{I1}_k = Σ_s c_s P_k(s) (`IncidentProjection`); with two,
+/// the two-bounce light I² (taken as uniform over the hemisphere, [S] 5.3.3.5, so E² = π I²
+/// and U^{I2}_k = I² ∫ U^ωi_k cos), each reflector pair weighted by both slots'
+/// coefficients. A view change does not reach it.
 ///
 /// Metrics: vertices, slots, bounces, the mean luminance of E⁰, E¹ and E² over the vertices
 /// (how much each bounce adds), bytes.
 #[derive(Params)]
-pub struct PttIncident {
-    /// reflections carried: 0 direct only, 1 one bounce, 2 two bounces ([S] 5-5)
-    #[param(default = 2, range = 0..=2)]
-    pub bounces: usize,
-}
+pub struct PttIncident {}
 
 inputs!(pub PttIncidentIn {
-    env: EnvLight,
     direct: DirectLight,
     bounce: BounceTransfer,
-    two: TwoBounce,
+    light: BounceLight,
     projection: ShColumns,
     materials: ObjectMaterials,
 });
@@ -96,26 +92,22 @@ fn lum(v: Vec3) -> f64 {
     v.dot(Vec3::new(0.2126, 0.7152, 0.0722)) as f64
 }
 
-/// The channel weights of the transfer for the dynamic objects' materials (in the transfer's
-/// group order, matched by name).
-fn channel_weights(t: &BounceTransfer, materials: &ObjectMaterials) -> Result<Vec<Vec3>, NodeError> {
-    let mut w = match t.fixed {
-        0 => vec![],
-        1 => vec![Vec3::ONE],
-        _ => vec![Vec3::X, Vec3::Y, Vec3::Z],
-    };
-    for g in &t.groups {
+/// The reflector slots' weights for the dynamic objects' materials: the fixed objects' slot
+/// 1, then each dynamic group's basis coefficients (in the light's group order, matched by name).
+fn slot_weights(light: &BounceLight, materials: &ObjectMaterials) -> Result<Vec<Vec3>, NodeError> {
+    let mut w = vec![Vec3::ONE];
+    for g in &light.groups {
         let m = materials.0.iter().find(|m| &m.name == g).ok_or_else(|| {
             NodeError::input("materials", format!("no material for the dynamic object \"{g}\" the transfer was traced for"))
         })?;
-        if m.coefficients.len() != t.bases as usize {
+        if m.coefficients.len() != light.bases as usize {
             return Err(NodeError::input(
                 "materials",
                 format!(
                     "\"{}\" has {} basis coefficients, the transfer {} bases (project the materials with MaterialProject on the transfer's basis)",
                     m.name,
                     m.coefficients.len(),
-                    t.bases
+                    light.bases
                 ),
             ));
         }
@@ -124,26 +116,21 @@ fn channel_weights(t: &BounceTransfer, materials: &ObjectMaterials) -> Result<Ve
     Ok(w)
 }
 
-/// The environment at side `m` as box-basis weights per colour (`CubeMap::box_downsample`).
-fn box_light(env: &EnvLight, m: usize) -> Result<Vec<Vec3>, NodeError> {
-    if m == 0 || !(env.n as usize).is_multiple_of(m) {
-        return Err(NodeError::input("env", format!("a cube map of side {} cannot be box-filtered to the transfer's side {m}", env.n)));
-    }
-    Ok(CubeMap { n: env.n as usize, texels: env.map.clone() }.box_downsample(m).texels)
-}
+/// Vertices per task of the per-vertex pass.
+const CHUNK: usize = 1024;
 
 impl PttIncident {
     fn check(&self, i: &PttIncidentIn) -> Result<usize, NodeError> {
         let n = i.projection.normals.len();
-        let (d, p) = (i.direct, i.projection);
-        if d.irradiance.len() != n || i.bounce.plan.vertices() != n || (i.two.stride() > 0 && i.two.values.len() / i.two.stride() != n) {
+        let (d, p, l) = (i.direct, i.projection, i.light);
+        let pairs = l.pairs.len() / (l.slots() * l.slots());
+        if d.irradiance.len() != n || i.bounce.plan.vertices() != n || (l.bounces == 2 && pairs != n) {
             return Err(NodeError::input(
                 "direct",
                 format!(
-                    "the direct light holds {} vertices, the transfers {} (one bounce) and {} (two bounces), the projection {n}: they must come from the same scene",
+                    "the direct light holds {} vertices, the transfer {} and the two-bounce light {pairs}, the projection {n}: they must come from the same scene",
                     d.irradiance.len(),
                     i.bounce.plan.vertices(),
-                    i.two.values.len() / i.two.stride().max(1)
                 ),
             ));
         }
@@ -159,21 +146,41 @@ impl PttIncident {
                 ),
             ));
         }
-        if i.two.channels as usize != i.bounce.channels() {
+        let same_clusters = l.bounces == 0
+            || (l.cores.len() == i.bounce.clusters.len()
+                && l.cores.iter().zip(&i.bounce.clusters).all(|(c, t)| c.rank_v == t.rank_v)
+                && l.slots() == 1 + i.bounce.channels() - i.bounce.fixed as usize);
+        if !same_clusters || l.groups != i.bounce.groups {
             return Err(NodeError::input(
-                "two",
-                format!(
-                    "has {} channels, the one-bounce transfer {}: they must come from the same scene and basis",
-                    i.two.channels,
-                    i.bounce.channels()
-                ),
+                "light",
+                "was lit from another transfer: the bounced light and the transfer must come from the same TransferT1",
             ));
         }
         Ok(n)
     }
+
+    /// Per cluster its vertices' one-bounce SH (16 RGB each, world axes; column k the
+    /// cluster's k-th member): the core folded with the slot weights `w`, then A (vertices ×
+    /// r_v) times it (r_v × 48) in one product, held transposed.
+    fn one_bounce(i: &PttIncidentIn, w: &[Vec3], cx: &RunCtx) -> Result<Vec<Mat<f32>>, NodeError> {
+        let slots = w.len();
+        cx.par_map(i.bounce.clusters.len(), |c| {
+            let (t, lit) = (&i.bounce.clusters[c], &i.light.cores[c]);
+            let rv = t.rank_v as usize;
+            let folded = Mat::<f32>::from_fn(rv, 3 * SH, |a, col| {
+                let (q, k) = (col / 3, col % 3);
+                (0..slots).map(|r| w[r][k] * lit.core[(a * slots + r) * SH + q][k]).sum()
+            });
+            // Transposed, (48 × vertices) = foldedᵀ Aᵀ, so that a vertex's 48 values are one column.
+            let mut out = Mat::<f32>::zeros(3 * SH, t.vertices as usize);
+            let a = MatRef::from_column_major_slice(&t.a, rv, t.vertices as usize);
+            matmul(out.as_mut(), Accum::Replace, folded.transpose(), a, 1.0f32, Par::Seq);
+            out
+        })
+    }
 }
 
-#[node(category = "ptt")]
+#[node(category = "ptt", version = 2)]
 impl PttIncident {
     fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
         MemoryEstimate { outputs: vec![None], working: 0 }
@@ -181,9 +188,9 @@ impl PttIncident {
 
     fn run(&self, i: PttIncidentIn, cx: &RunCtx) -> Result<PttIncidentOut, NodeError> {
         let n = self.check(&i)?;
-        let (p, cols) = (i.projection, i.projection.columns as usize);
+        let (p, cols, bounces) = (i.projection, i.projection.columns as usize, i.light.bounces);
         let slots = p.slots();
-        let bytes = VertexIncident::bytes_for(n as u64, slots as u64, cols as u64);
+        let bytes = VertexIncident::bytes_for(n as u64, slots as u64, cols as u64) + n as u64 * (SH as u64 * 12 + 8);
         if bytes > cx.memory_budget() {
             return Err(NodeError::over_limit(format!(
                 "the incident light of {n} vertices would hold {}, over the {} budget",
@@ -191,107 +198,88 @@ impl PttIncident {
                 fmt_bytes(cx.memory_budget())
             )));
         }
-        let w = channel_weights(i.bounce, i.materials)?;
-        // One bounce: per vertex its world SH (16 RGB), from each cluster's lighting-contracted core.
-        let mut sh1 = vec![[Vec3::ZERO; SH]; if self.bounces >= 1 { n } else { 0 }];
-        if self.bounces >= 1 {
-            let light = box_light(i.env, i.bounce.coarse as usize)?;
-            let per = cx.par_map(i.bounce.clusters.len(), |c| {
-                let t = &i.bounce.clusters[c];
-                let cores: Vec<Vec<f32>> = (0..3).map(|k| t.light_core(&light.iter().map(|l| l[k]).collect::<Vec<f32>>())).collect();
-                let (rv, s) = (t.rank_v as usize, t.columns as usize);
-                // Channels folded in: per vertex factor a, 16 RGB values.
-                let folded: Vec<[Vec3; SH]> = (0..rv)
-                    .map(|a| {
-                        let mut out = [Vec3::ZERO; SH];
-                        for (ch, wc) in w.iter().enumerate() {
-                            for (q, o) in out.iter_mut().enumerate() {
-                                let at = a * s + ch * SH + q;
-                                *o += *wc * Vec3::new(cores[0][at], cores[1][at], cores[2][at]);
-                            }
-                        }
-                        out
-                    })
-                    .collect();
-                (0..t.vertices as usize)
-                    .map(|k| {
-                        let mut out = [Vec3::ZERO; SH];
-                        for (a, f) in folded.iter().enumerate() {
-                            let x = t.a[k * rv + a];
-                            out.iter_mut().zip(f).for_each(|(o, f)| *o += *f * x);
-                        }
-                        out
-                    })
-                    .collect::<Vec<_>>()
-            })?;
-            for (members, rows) in i.bounce.plan.members.iter().zip(per) {
-                for (&v, row) in members.iter().zip(rows) {
-                    sh1[v as usize] = row;
-                }
+        let w = slot_weights(i.light, i.materials)?;
+        let sh1 = if bounces >= 1 { Self::one_bounce(&i, &w, cx)? } else { vec![] };
+        // Each vertex's cluster and row there.
+        let mut row_of = vec![(0u32, 0u32); if bounces >= 1 { n } else { 0 }];
+        for (c, members) in i.bounce.plan.members.iter().enumerate().filter(|_| bounces >= 1) {
+            for (k, &v) in members.iter().enumerate() {
+                row_of[v as usize] = (c as u32, k as u32);
             }
         }
-        // Two bounces: the weights of (l, c1, c2), RGB.
-        let w2: Vec<Vec3> = if self.bounces == 2 {
-            let light = box_light(i.env, i.two.side as usize)?;
-            let mut out = Vec::with_capacity(light.len() * w.len() * w.len());
-            for l in &light {
-                for a in &w {
-                    out.extend(w.iter().map(|b| *l * *a * *b));
-                }
-            }
-            out
-        } else {
-            vec![]
-        };
+        // Two bounces: the weights of each reflector pair.
+        let ww: Vec<Vec3> = w.iter().flat_map(|a| w.iter().map(move |b| *a * *b)).collect();
         let zonal: [f32; SH] = std::array::from_fn(|q| clamped_cosine_zonal((q as f64).sqrt() as usize));
+        // Vertex v's one-bounce SH (16 RGB) and two-bounce light.
+        let sh_of = |v: usize| -> [Vec3; SH] {
+            if bounces == 0 || p.normals[v] == Vec3::ZERO {
+                return [Vec3::ZERO; SH];
+            }
+            let m = sh1[row_of[v].0 as usize].col(row_of[v].1 as usize).try_as_col_major().expect("a column of a column-major matrix");
+            let x = m.as_slice();
+            std::array::from_fn(|q| Vec3::new(x[3 * q], x[3 * q + 1], x[3 * q + 2]))
+        };
+        let two_of = |v: usize| -> Vec3 {
+            if bounces < 2 {
+                return Vec3::ZERO;
+            }
+            i.light.pairs_of(v).iter().zip(&ww).map(|(t, w)| *w * *t).sum()
+        };
         cx.check()?;
-        let per = cx.par_map(n, |v| {
-            let e0 = i.direct.irradiance[v];
-            let nv = p.normals[v];
-            let (mut c, mut e1, mut i2) = ([Vec3::ZERO; SH], Vec3::ZERO, Vec3::ZERO);
-            if self.bounces >= 1 && nv != Vec3::ZERO {
-                c = sh1[v];
-                let mut y = [0.0f32; SH];
-                sh_basis_into(nv, &mut y);
-                e1 = c.iter().zip(y.iter().zip(&zonal)).map(|(c, (y, a))| *c * (y * a)).sum();
-            }
-            if self.bounces == 2 {
-                i2 = i.two.of(v).iter().zip(&w2).map(|(t, w)| *w * *t).sum();
-            }
-            let (tensor, bounce) = match p.slot[v] {
-                NO_SLOT => (vec![], vec![]),
-                t => {
-                    let pv = p.of(t as usize);
-                    let cols0 = &i.direct.tensor[t as usize * cols..(t as usize + 1) * cols];
-                    let mut total = c;
-                    total[0] += i2 / Y00;
-                    let tensor = (0..cols)
-                        .map(|k| cols0[k] + total.iter().zip(&pv[k * SH..(k + 1) * SH]).map(|(c, x)| *c * *x).sum::<Vec3>())
-                        .collect();
-                    (tensor, c.to_vec())
+        // The diffuse irradiance of every vertex, with the sums of each bounce's luminance.
+        let chunks: Vec<(Vec<Vec3>, [f64; 3])> = cx.par_map(n.div_ceil(CHUNK), |k| {
+            let range = k * CHUNK..((k + 1) * CHUNK).min(n);
+            let (mut irr, mut sums) = (Vec::with_capacity(range.len()), [0.0f64; 3]);
+            let mut y = [0.0f32; SH];
+            for v in range {
+                let e0 = i.direct.irradiance[v];
+                let mut e1 = Vec3::ZERO;
+                if bounces >= 1 && p.normals[v] != Vec3::ZERO {
+                    sh_basis_into(p.normals[v], &mut y);
+                    e1 = sh_of(v).iter().zip(y.iter().zip(&zonal)).map(|(c, (y, a))| *c * (y * a)).sum();
                 }
-            };
-            (e0, e1, PI * i2, tensor, bounce)
+                let e2 = PI * two_of(v);
+                irr.push(e0 + e1 + e2);
+                for (m, e) in sums.iter_mut().zip([e0, e1, e2]) {
+                    *m += lum(e);
+                }
+            }
+            (irr, sums)
         })?;
         let mut out = VertexIncident {
             columns: cols as u32,
-            bounces: self.bounces as u32,
+            bounces,
             irradiance: Vec::with_capacity(n),
-            tensor: Vec::with_capacity(slots * cols),
-            bounce: Vec::with_capacity(slots * SH),
+            tensor: vec![Vec3::ZERO; slots * cols],
+            bounce: vec![Vec3::ZERO; slots * SH],
         };
         let mut means = [0.0f64; 3];
-        for (e0, e1, e2, t, b) in per {
-            out.irradiance.push(e0 + e1 + e2);
-            out.tensor.extend(t);
-            out.bounce.extend(b);
-            for (m, e) in means.iter_mut().zip([e0, e1, e2]) {
-                *m += lum(e);
-            }
+        for (irr, sums) in chunks {
+            out.irradiance.extend(irr);
+            means.iter_mut().zip(sums).for_each(|(m, s)| *m += s);
         }
+        // The tensor-shaded vertices' columns and SH, written in place slot by slot.
+        let mut vertex_of = vec![0u32; slots];
+        for (v, &t) in p.slot.iter().enumerate().filter(|(_, &t)| t != NO_SLOT) {
+            vertex_of[t as usize] = v as u32;
+        }
+        out.tensor.par_chunks_mut(cols * CHUNK).zip(out.bounce.par_chunks_mut(SH * CHUNK)).enumerate().for_each(|(k, (tensor, bounce))| {
+            for ((j, tc), bc) in (k * CHUNK..).zip(tensor.chunks_exact_mut(cols)).zip(bounce.chunks_exact_mut(SH)) {
+                let v = vertex_of[j] as usize;
+                let c = sh_of(v);
+                let mut total = c;
+                total[0] += two_of(v) / Y00;
+                let (pv, cols0) = (p.of(j), &i.direct.tensor[j * cols..(j + 1) * cols]);
+                for (kk, o) in tc.iter_mut().enumerate() {
+                    *o = cols0[kk] + total.iter().zip(&pv[kk * SH..(kk + 1) * SH]).map(|(c, x)| *c * *x).sum::<Vec3>();
+                }
+                bc.copy_from_slice(&c);
+            }
+        });
+        cx.check()?;
         cx.metric("vertices", n as f64);
         cx.metric("slots", slots as f64);
-        cx.metric("bounces", self.bounces as f64);
+        cx.metric("bounces", bounces as f64);
         for (name, m) in ["e0_mean", "e1_mean", "e2_mean"].iter().zip(means) {
             cx.metric(name, m / n.max(1) as f64);
         }
@@ -304,8 +292,9 @@ impl PttIncident {
 mod tests {
     use super::*;
     use crate::ptt::test_support::{plane, Chain};
+    use crate::ptt::types::EnvLight;
     use crate::ptt::vertex_visibility::tests::floor_and_tiled_roof;
-    use crate::testing::{i, run_on};
+    use crate::testing::run_on;
     use crate::types::{Environment, Material};
     use relume_core::Value;
 
@@ -356,18 +345,17 @@ mod tests {
     }
 
     #[test]
-    fn inputs_from_other_scenes_or_sides_are_refused() {
+    fn inputs_from_other_scenes_are_refused() {
         let c = Chain::new(plane(lambert(), false, Environment::Constant(Vec3::ONE)));
         let m = c.materials();
-        let mut inputs = c.incident_inputs(&c.env, &m);
-        let odd = EnvLight { n: 3, map: vec![Vec3::ONE; 54], haar: vec![Vec3::ZERO; 54], ..c.env.clone() };
-        inputs[0] = Value::new(odd);
-        let e = run_on::<PttIncident>(&[("bounces", i(2))], inputs).expect_err("other side");
-        assert!(e.to_string().contains("side"), "{e}");
         let other = Chain::new(floor_and_tiled_roof(0.5));
         let mut inputs = c.incident_inputs(&c.env, &m);
-        inputs[1] = Value::new(other.direct_light(&other.env));
+        inputs[0] = Value::new(other.direct_light(&other.env));
         let e = run_on::<PttIncident>(&[], inputs).expect_err("other scene");
         assert!(e.to_string().contains("same scene"), "{e}");
+        let mut inputs = c.incident_inputs(&c.env, &m);
+        inputs[2] = Value::new(other.bounce_light(&other.env, 1));
+        let e = run_on::<PttIncident>(&[], inputs).expect_err("other transfer");
+        assert!(e.to_string().contains("same TransferT1"), "{e}");
     }
 }

@@ -6,6 +6,7 @@ use super::brdf::types::{SpecularLobes, TuckerBrdf};
 use super::cta_compress::CtaCompress;
 use super::env_lighting::EnvLighting;
 use super::incident_projection::IncidentProjection;
+use super::ptt_bounce_light::{BounceLight, PttBounceLight};
 use super::ptt_direct::{DirectLight, PttDirect};
 use super::ptt_incident::{PttIncident, VertexIncident};
 use super::ptt_relight::PttRelight;
@@ -127,21 +128,35 @@ impl Chain {
         first(&run_on::<PttDirect>(&[], vec![Value::new(env.clone()), self.get("direct"), self.get("projection")]).expect("direct light"))
     }
 
-    /// `PttIncident`'s inputs with `env` and `materials`.
-    pub fn incident_inputs(&self, env: &EnvLight, materials: &ObjectMaterials) -> Vec<Value> {
+    /// `PttBounceLight`'s inputs under `env`.
+    pub fn bounce_light_inputs(&self, env: &EnvLight) -> Vec<Value> {
+        vec![Value::new(env.clone()), self.get("bounce"), self.get("two")]
+    }
+
+    /// `PttBounceLight` under `env` with `bounces`.
+    pub fn bounce_light(&self, env: &EnvLight, bounces: i64) -> BounceLight {
+        first(&run_on::<PttBounceLight>(&[("bounces", i(bounces))], self.bounce_light_inputs(env)).expect("bounce light"))
+    }
+
+    /// `PttIncident`'s inputs with `env`, `materials` and `bounces`.
+    pub fn incident_inputs_with(&self, env: &EnvLight, materials: &ObjectMaterials, bounces: i64) -> Vec<Value> {
         vec![
-            Value::new(env.clone()),
             Value::new(self.direct_light(env)),
             self.get("bounce"),
-            self.get("two"),
+            Value::new(self.bounce_light(env, bounces)),
             self.get("projection"),
             Value::new(materials.clone()),
         ]
     }
 
+    /// `PttIncident`'s inputs with `env` and `materials`, two bounces.
+    pub fn incident_inputs(&self, env: &EnvLight, materials: &ObjectMaterials) -> Vec<Value> {
+        self.incident_inputs_with(env, materials, 2)
+    }
+
     /// `PttIncident` with `bounces`.
     pub fn incident(&self, env: &EnvLight, materials: &ObjectMaterials, bounces: i64) -> VertexIncident {
-        first(&run_on::<PttIncident>(&[("bounces", i(bounces))], self.incident_inputs(env, materials)).expect("incident"))
+        first(&run_on::<PttIncident>(&[], self.incident_inputs_with(env, materials, bounces)).expect("incident"))
     }
 
     /// `PttRelight`'s inputs for `scene` (its camera and objects), the incident light and
