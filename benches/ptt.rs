@@ -4,7 +4,8 @@
 //! the workspace's disk cache (`.relume-cache/`, filled by the first run: several minutes of
 //! visibility and transfer tracing on 2 cores). In test mode (`-- --test`, as CI runs every
 //! bench once) the graph runs at test size instead, in a cache of its own.
-//! `cargo bench -p relume-benches --bench ptt`.
+//! `cargo bench -p relume-benches --bench ptt`; `PTT_BENCH_NODES=1` prints each edit's node
+//! times, `PTT_BENCH_KINDS=view,view+brdf` times only those kinds (to profile one).
 
 use relume_benches::graphs_dir;
 use relume_core::{Engine, Graph, RunOptions};
@@ -74,6 +75,11 @@ fn warmed() -> &'static std::sync::Mutex<(Graph, Engine)> {
 
 #[divan::bench(args = KINDS, sample_count = 10, sample_size = 1)]
 fn edit(bencher: divan::Bencher, kind: &str) {
+    // `PTT_BENCH_KINDS=view+brdf,view` times only those kinds (the others time nothing), to
+    // profile one kind of edit.
+    if std::env::var("PTT_BENCH_KINDS").is_ok_and(|only| !only.split(',').any(|x| x == kind)) {
+        return bencher.bench_local(|| 0);
+    }
     let opts = RunOptions { outputs: Some(vec!["image".into()]), ..Default::default() };
     let k = AtomicU64::new(1);
     let mut guard = warmed().lock().unwrap();

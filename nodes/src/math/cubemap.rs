@@ -111,6 +111,9 @@ impl CubeMap {
         let s = s.max(1);
         let m = n * s;
         let e = |t: usize| -1.0 + 2.0 * t as f64 / m as f64;
+        // The sub-texels' solid angles are the same on every face: computed once (four arc
+        // tangents each), not six times.
+        let dws: Vec<f64> = (0..m * m).into_par_iter().map(|k| rect_solid_angle(e(k % m), e(k % m + 1), e(k / m), e(k / m + 1))).collect();
         let texels = (0..6 * n * n)
             .into_par_iter()
             .map(|k| {
@@ -118,7 +121,7 @@ impl CubeMap {
                 let (mut sum, mut w) = (Vec3::ZERO, 0.0f64);
                 for b in j * s..(j + 1) * s {
                     for a in i * s..(i + 1) * s {
-                        let dw = rect_solid_angle(e(a), e(a + 1), e(b), e(b + 1));
+                        let dw = dws[b * m + a];
                         let (u, v) = (((e(a) + e(a + 1)) / 2.0) as f32, ((e(b) + e(b + 1)) / 2.0) as f32);
                         sum += f(face_point(face, u, v).normalize()) * dw as f32;
                         w += dw;
@@ -188,7 +191,11 @@ impl CubeMap {
                 let axis = ks.iter().map(|&k| dirs[k]).sum::<Vec3>().normalize();
                 // The texels' centres, widened by a texel's half-diagonal.
                 let half = ks.iter().map(|&k| axis.dot(dirs[k]).clamp(-1.0, 1.0).acos()).fold(0.0f32, f32::max);
-                (axis, half + std::f32::consts::PI / self.n as f32)
+                let h = half + std::f32::consts::PI / self.n as f32;
+                // Whether every direction is near (the cone and the reach cover the sphere),
+                // else the least cosine to the axis of a direction within reach of the tile.
+                let all = reach >= std::f32::consts::PI || reach + h >= std::f32::consts::PI;
+                (axis, if all { f32::NEG_INFINITY } else { (reach + h).cos() })
             })
             .collect();
         let texels = (0..out.texels.len())
@@ -196,10 +203,7 @@ impl CubeMap {
             .map(|k| {
                 let d = out.direction(k);
                 let (mut sum, mut w) = (Vec3::ZERO, 0.0f64);
-                let near: Vec<bool> = cones
-                    .iter()
-                    .map(|(a, h)| reach >= std::f32::consts::PI || reach + h >= std::f32::consts::PI || d.dot(*a) >= (reach + h).cos())
-                    .collect();
+                let near: Vec<bool> = cones.iter().map(|(a, least)| d.dot(*a) >= *least).collect();
                 for face in 0..6 {
                     for j in 0..self.n {
                         for ti in 0..tiles {

@@ -185,8 +185,8 @@ impl PttBounceLight {
             // Each channel pair's slot pair and colour weight.
             let pair: Vec<(usize, Vec3)> =
                 slot.iter().flat_map(|&(r1, w1)| slot.iter().map(move |&(r2, w2)| (r1 * slots + r2, w1 * w2))).collect();
-            let chunks = cx.par_map(n.div_ceil(CHUNK), |k| {
-                let mut pairs = vec![Vec3::ZERO; (CHUNK.min(n - k * CHUNK)) * slots * slots];
+            out.pairs = vec![Vec3::ZERO; n * slots * slots];
+            cx.par_chunks_mut(&mut out.pairs, CHUNK * slots * slots, |k, pairs| {
                 // Per colour, Σ_l light_l T²(l, ·): contiguous rows, so that it vectorises.
                 let mut acc = [vec![0.0f32; ch * ch], vec![0.0f32; ch * ch], vec![0.0f32; ch * ch]];
                 for (v, dst) in (k * CHUNK..).zip(pairs.chunks_mut(slots * slots)) {
@@ -200,9 +200,7 @@ impl PttBounceLight {
                         dst[d] += w * Vec3::new(acc[0][c], acc[1][c], acc[2][c]);
                     }
                 }
-                pairs
             })?;
-            out.pairs = chunks.concat();
         }
         cx.metric("bounces", self.bounces as f64);
         cx.metric("clusters", out.cores.len() as f64);

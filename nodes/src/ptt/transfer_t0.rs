@@ -66,7 +66,17 @@ impl DirectTransfer {
         let offs = &self.offsets[v * c..=(v + 1) * c];
         for (o, w) in out.iter_mut().zip(offs.windows(2)) {
             let r = w[0] as usize..w[1] as usize;
-            *o = self.index[r.clone()].iter().zip(&self.value[r]).fold(Vec3::ZERO, |s, (&i, &t)| s + env_haar[i as usize] * t);
+            let (index, value) = (&self.index[r.clone()], &self.value[r]);
+            // Four running sums, so that the adds do not wait on each other; a fixed order.
+            let mut acc = [Vec3::ZERO; 4];
+            let (i4, v4) = (index.chunks_exact(4), value.chunks_exact(4));
+            let tail = i4.remainder().iter().zip(v4.remainder()).fold(Vec3::ZERO, |s, (&i, &t)| s + env_haar[i as usize] * t);
+            for (i, t) in i4.zip(v4) {
+                for q in 0..4 {
+                    acc[q] += env_haar[i[q] as usize] * t[q];
+                }
+            }
+            *o = (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail;
         }
     }
 
