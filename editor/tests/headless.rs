@@ -451,7 +451,7 @@ fn turning_the_sky_changing_the_material_and_orbiting_on_ptt_envlit_update_the_i
     first_run(&ctx, &mut app);
     // Each edit: the image first, from exactly the nodes the edit reaches on its way there.
     let edits: Vec<(&str, &str, ParamValue, &[&str])> = vec![
-        ("turn", "rotation_deg", ParamValue::Float(60.0), &["bounced", "direct", "env", "hits", "incident", "raster", "relight", "turn"]),
+        ("turn", "rotation_deg", ParamValue::Float(60.0), &["bounced", "direct", "env", "incident", "raster", "relight", "turn"]),
         ("project", "s", ParamValue::Float(80.0), &["incident", "project", "raster", "relight"]),
         ("camera", "azimuth", ParamValue::Float(25.0), &["camera", "hits", "raster", "relight"]),
     ];

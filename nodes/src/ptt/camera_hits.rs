@@ -14,9 +14,11 @@ use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, Port
 /// each finding its nearest triangle by z-buffer rasterisation (`render::zbuffer`: near
 /// clipping, perspective-correct barycentrics, both faces, the same hits as camera rays up
 /// to ties on shared edges) and adding its triangle's corners, weighted by its barycentrics
-/// over `spp`, to its pixel; the samples that hit nothing add the environment (black with
-/// `background` off), read once per pixel through their mean position: the sky does not change
-/// across a pixel as geometry does. Runs when the camera or the scene changes, not
+/// over `spp`, to its pixel; for the samples that hit nothing it keeps their fraction and
+/// the direction through their mean position, where `RasterizeVertexColors` reads the
+/// environment once per pixel (the sky does not change across a pixel as geometry does).
+/// Only the geometry and the camera reach it: wire the scene as loaded, not the turned
+/// sky, and a sky edit leaves it alone. Runs when the camera or the geometry changes, not
 /// when the colours do: `RasterizeVertexColors` then costs one weighted sum per pixel, and
 /// `PttRelight` shades only the vertices listed as seen. The bytes are the same on any
 /// thread count (bands of rows, triangles in index order, nearest then lowest index).
@@ -31,9 +33,6 @@ pub struct CameraHits {
     /// rotates the in-pixel sample pattern
     #[param(default = 0, range = 0..=u32::MAX)]
     pub seed: u64,
-    /// samples that miss the geometry see the environment (else black)
-    #[param(default = true)]
-    pub background: bool,
 }
 
 inputs!(pub CameraHitsIn { scene: Scene, camera: Camera });
@@ -42,10 +41,10 @@ outputs!(pub CameraHitsOut { hits: ScreenHits });
 /// Bytes per sample of a band's z-buffer (the hit and its depth).
 const SAMPLE_BYTES: u64 = 20;
 
-/// One band's pixels: entries per pixel, the entries, the background.
-type Band = (Vec<u32>, Vec<(u32, f32)>, Vec<Vec3>, u64);
+/// One band's pixels: entries per pixel, the entries, the missed fraction and direction.
+type Band = (Vec<u32>, Vec<(u32, f32)>, Vec<(f32, Vec3)>, u64);
 
-#[node(category = "ptt")]
+#[node(category = "ptt", version = 2)]
 impl CameraHits {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         let hits = inputs[1].and_then(|s| s.dims).map(|[w, h]| {
@@ -109,13 +108,12 @@ impl CameraHits {
                     }
                 }
                 counts.push((entries.len() - start) as u32);
-                let seen_env = self.background && missed > 0;
-                background.push(if seen_env {
+                background.push(if missed > 0 {
                     // The ray through the missed samples' mean position.
                     let m = missed as f32;
-                    scene.environment_radiance(rays.ray(x as f32 + ox / m, y as f32 + oy / m).1) * (m * inv)
+                    (m * inv, rays.ray(x as f32 + ox / m, y as f32 + oy / m).1)
                 } else {
-                    Vec3::ZERO
+                    (0.0, Vec3::ZERO)
                 });
             }
             (counts, entries, background, covered)
@@ -128,7 +126,8 @@ impl CameraHits {
             offsets: Vec::with_capacity(w * h + 1),
             vertex: Vec::with_capacity(total),
             weight: Vec::with_capacity(total),
-            background: Vec::with_capacity(w * h),
+            miss: Vec::with_capacity(w * h),
+            miss_dir: Vec::with_capacity(w * h),
             seen: vec![],
         };
         out.offsets.push(0);
@@ -143,7 +142,10 @@ impl CameraHits {
                 out.vertex.push(v);
                 out.weight.push(wt);
             }
-            out.background.extend(background);
+            for (m, d) in background {
+                out.miss.push(m);
+                out.miss_dir.push(d);
+            }
             covered += c;
         }
         out.seen = (0..seen.len() as u32).filter(|&v| seen[v as usize]).collect();
@@ -188,10 +190,18 @@ mod tests {
         for p in 0..32 * 24 {
             let r = h.offsets[p] as usize..h.offsets[p + 1] as usize;
             let w: f32 = h.weight[r.clone()].iter().sum();
-            // The background is SKY times the fraction of samples that missed.
-            let miss = h.background[p].x / SKY.x;
+            // The samples that missed and those that hit make the whole pixel; a miss looks
+            // through the pixel.
+            let miss = h.miss[p];
             assert!((w + miss - 1.0).abs() < 1e-5, "pixel {p}: hits {w} + misses {miss}");
-            assert!((h.background[p] - SKY * miss).abs().max_element() < 1e-6);
+            assert_eq!(miss > 0.0, h.miss_dir[p] != Vec3::ZERO, "pixel {p}");
+            if miss > 0.0 {
+                let (x, y) = ((p % 32) as f32, (p / 32) as f32);
+                let rays = CameraRays::new(&s.camera);
+                let corners = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)].map(|(dx, dy)| rays.ray(x + dx, y + dy).1);
+                let inside = corners.iter().map(|c| c.dot(h.miss_dir[p])).fold(f32::INFINITY, f32::min);
+                assert!(inside > 0.999, "pixel {p}: the miss looks outside the pixel");
+            }
             match (w > 0.999, w < 1e-6) {
                 (true, _) => full += 1,
                 (_, true) => empty += 1,
@@ -209,9 +219,6 @@ mod tests {
         want.dedup();
         assert_eq!(h.seen, want);
         assert!(h.seen.len() < s.positions.len(), "the ball's back is not seen");
-        let no_bg = hits(&s, &[("spp", i(8)), ("background", ParamValue::Bool(false))]);
-        assert!(no_bg.background.iter().all(|b| *b == Vec3::ZERO));
-        assert_eq!(no_bg.weight, h.weight);
     }
 
     #[test]
@@ -229,7 +236,7 @@ mod tests {
         let s = SceneBuilder::new(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 40.0, 8, 8).environment(Environment::Constant(SKY)).build();
         let h = hits(&s, &[("spp", i(2))]);
         assert!(h.vertex.is_empty() && h.seen.is_empty());
-        assert!(h.background.iter().all(|b| (*b - SKY).abs().max_element() < 1e-6));
+        assert!(h.miss.iter().all(|m| *m == 1.0));
         let mut big = ball();
         big.camera.width = 16384;
         big.camera.height = 16384;

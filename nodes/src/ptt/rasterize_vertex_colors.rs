@@ -2,28 +2,35 @@
 
 use super::screen_hits::ScreenHits;
 use super::types::VertexColors;
-use crate::types::Image;
+use crate::types::{Image, Scene};
+use glam::Vec3;
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
 /// Renders per-vertex radiance to an image ([S] chapter 5: the transfer tensors relight the
-/// vertices, and each pixel interpolates them): each pixel is its background plus the
-/// vertices' colours weighted as `CameraHits` found them (the samples' barycentrics over
-/// the samples per pixel, antialiased with its box filter), summed in the hits' order: the
-/// same bytes on any thread count. The camera and the samples live in `hits`, so a colour
-/// edit re-runs only this weighted sum. Shading per vertex is the thesis' choice; what
+/// vertices, and each pixel interpolates them): each pixel is the environment of `scene`
+/// seen where its missing samples look, times their fraction (black with `background`
+/// off), plus the vertices' colours weighted as `CameraHits` found them (the samples'
+/// barycentrics over the samples per pixel, antialiased with its box filter), summed in the
+/// hits' order: the same bytes on any thread count. The camera and the samples live in
+/// `hits`, so a colour or sky edit re-runs only this weighted sum (wire the turned sky's
+/// scene here, the loaded one into `CameraHits`). Shading per vertex is the thesis' choice; what
 /// interpolation loses across shadow edges on coarse meshes is part of the method's error,
 /// measured against a vertex-sampled reference elsewhere. The image's bytes are checked
 /// against the budget before it is allocated.
 ///
 /// Metrics: the vertex weights summed.
 #[derive(Params)]
-pub struct RasterizeVertexColors {}
+pub struct RasterizeVertexColors {
+    /// samples that miss the geometry see the environment (else black)
+    #[param(default = true)]
+    pub background: bool,
+}
 
-inputs!(pub RasterizeVertexColorsIn { hits: ScreenHits, colors: VertexColors });
+inputs!(pub RasterizeVertexColorsIn { hits: ScreenHits, colors: VertexColors, scene: Scene });
 outputs!(pub RasterizeVertexColorsOut { image: Image });
 
-#[node(category = "ptt")]
+#[node(category = "ptt", version = 2)]
 impl RasterizeVertexColors {
     fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
         MemoryEstimate { outputs: vec![None], working: 0 }
@@ -51,7 +58,11 @@ impl RasterizeVertexColors {
             for (k, out) in px.iter_mut().enumerate() {
                 let p = band * w * 8 + k;
                 let r = hits.offsets[p] as usize..hits.offsets[p + 1] as usize;
-                let mut sum = hits.background[p];
+                let mut sum = if self.background && hits.miss[p] > 0.0 {
+                    i.scene.environment_radiance(hits.miss_dir[p]) * hits.miss[p]
+                } else {
+                    Vec3::ZERO
+                };
                 for (v, wt) in hits.vertex[r.clone()].iter().zip(&hits.weight[r]) {
                     sum += colors[*v as usize] * *wt;
                 }
@@ -93,8 +104,12 @@ mod tests {
         first(&run_on::<CameraHits>(params, vec![Value::new(s.clone()), Value::new(s.camera.clone())]).expect("hits"))
     }
 
+    /// The image of `colors` on `s`: `params` for `CameraHits`, except `background`, which
+    /// is the rasteriser's.
     fn raster(s: &Scene, colors: Vec<Vec3>, params: &[(&str, ParamValue)]) -> Image {
-        first(&run_on::<RasterizeVertexColors>(&[], vec![Value::new(hits(s, params)), Value::new(VertexColors { colors })]).expect("runs"))
+        let (own, hit): (Vec<_>, Vec<_>) = params.iter().cloned().partition(|(k, _)| *k == "background");
+        let inputs = vec![Value::new(hits(s, &hit)), Value::new(VertexColors { colors }), Value::new(s.clone())];
+        first(&run_on::<RasterizeVertexColors>(&own, inputs).expect("runs"))
     }
 
     fn close(a: [f32; 3], b: Vec3, tol: f32) -> bool {
@@ -213,11 +228,11 @@ mod tests {
         let s = right_of(0.0);
         let h = hits(&s, &[("spp", i(1))]);
         let colors = |n| Value::new(VertexColors { colors: vec![Vec3::ONE; n] });
-        let e = run_on::<RasterizeVertexColors>(&[], vec![Value::new(h.clone()), colors(3)]).expect_err("refused");
+        let e = run_on::<RasterizeVertexColors>(&[], vec![Value::new(h.clone()), colors(3), Value::new(s.clone())]).expect_err("refused");
         assert!(e.to_string().contains('3') && e.to_string().contains("4 vertices"), "{e}");
         let mut big = h;
         (big.width, big.height) = (1 << 20, 1 << 20);
-        let e = run_on::<RasterizeVertexColors>(&[], vec![Value::new(big), colors(4)]).expect_err("refused");
+        let e = run_on::<RasterizeVertexColors>(&[], vec![Value::new(big), colors(4), Value::new(s)]).expect_err("refused");
         assert!(e.is_over_limit() && e.to_string().contains("1048576 × 1048576"), "{e}");
     }
 
@@ -228,6 +243,34 @@ mod tests {
         let n = s.positions.len();
         let h = hits(&s, &[("spp", i(1))]);
         assert!(h.byte_size() > 0);
-        cancels_midway::<RasterizeVertexColors>(&[], vec![Value::new(h), Value::new(VertexColors { colors: vec![Vec3::ONE; n] })]);
+        cancels_midway::<RasterizeVertexColors>(
+            &[],
+            vec![Value::new(h), Value::new(VertexColors { colors: vec![Vec3::ONE; n] }), Value::new(s)],
+        );
+    }
+
+    #[test]
+    fn another_sky_on_the_same_hits_changes_only_what_the_misses_see() {
+        // The hits of the loaded scene, rasterised under a sky four times as bright with a
+        // blue band: covered samples keep their colours, the missed ones see the new sky.
+        let s = camera().sphere("ball", Vec3::ZERO, 0.6, BLACK, Vec3::ZERO, false).build();
+        let h = hits(&s, &[("spp", i(4))]);
+        let colors = vec![Vec3::new(1.0, 0.5, 0.25); s.positions.len()];
+        let with = |scene: &Scene| -> Image {
+            let inputs = vec![Value::new(h.clone()), Value::new(VertexColors { colors: colors.clone() }), Value::new(scene.clone())];
+            first(&run_on::<RasterizeVertexColors>(&[], inputs).expect("runs"))
+        };
+        let mut bright = s.clone();
+        bright.environment = Some(Environment::Constant(SKY * 4.0));
+        let (a, b) = (with(&s), with(&bright));
+        let mut mixed = 0;
+        for p in 0..32 * 32 {
+            let (x, y) = (p % 32, p / 32);
+            let (pa, pb) = (Vec3::from_array(a.get(x, y)), Vec3::from_array(b.get(x, y)));
+            // The difference is three times the old sky's share of the pixel.
+            assert!(((pb - pa) - SKY * 3.0 * h.miss[p]).abs().max_element() < 1e-5, "({x}, {y})");
+            mixed += (h.miss[p] > 0.0 && h.miss[p] < 1.0) as usize;
+        }
+        assert!(mixed > 10, "{mixed} pixels on the ball's edge");
     }
 }

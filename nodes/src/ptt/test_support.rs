@@ -197,7 +197,8 @@ pub fn sees_all(scene: &Scene) -> ScreenHits {
         offsets: vec![0, 0],
         vertex: vec![],
         weight: vec![],
-        background: vec![Vec3::ZERO],
+        miss: vec![0.0],
+        miss_dir: vec![Vec3::ZERO],
         seen: (0..n).collect(),
     }
 }
