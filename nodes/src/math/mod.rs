@@ -16,3 +16,18 @@ pub mod srgb;
 pub mod ssim;
 pub mod streamed_pca;
 pub mod tucker;
+
+/// Hints the processor to bring the cache line holding `x` into the cache (no effect on
+/// what any code computes; nothing off x86-64): for reads far apart in memory whose
+/// addresses are known a little before they are needed.
+#[inline(always)]
+pub fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch only hints the cache; it reads nothing and cannot fault, and `x` is a
+    // valid reference in any case.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch(x as *const T as *const i8, std::arch::x86_64::_MM_HINT_T0);
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
+}

@@ -56,6 +56,9 @@ inputs!(pub PttRelightIn {
 });
 outputs!(pub PttRelightOut { colors: VertexColors });
 
+/// How many seen vertices ahead the visibility reads are fetched.
+const PREFETCH_AHEAD: usize = 8;
+
 /// Where lobe k's light comes from: the map itself with the visibility bits (0°), or a
 /// prefiltered map with a visible-fraction map.
 enum LobeSource {
@@ -199,7 +202,25 @@ impl PttRelight {
         let (eye, cols) = (i.camera.origin, p.columns as usize);
         cx.check()?;
         let seen = &i.hits.seen;
+        // The mirror direction of the view about a tensor-shaded vertex's normal, where its
+        // lobes read the visibility (none when it has no specular part toward the eye).
+        let mirror = |v: usize| -> Option<Vec3> {
+            let sh = shadings[owner[v]? as usize].as_ref()?;
+            let (nv, wo) = (p.normals[v], (eye - scene.positions[v]).normalize_or_zero());
+            (p.slot[v] != NO_SLOT && sh.ks != Vec3::ZERO && nv.dot(wo) > 0.0).then(|| (2.0 * nv.dot(wo) * nv - wo).normalize_or_zero())
+        };
         let per = cx.par_map(seen.len(), |k| {
+            // The visibility a few vertices ahead is far apart in memory: fetch it early.
+            if let Some(&ahead) = seen.get(k + PREFETCH_AHEAD) {
+                if let Some(m) = mirror(ahead as usize) {
+                    crate::math::prefetch(&i.visibility.of(ahead as usize)[bits.texel_of(m) / 32]);
+                    for src in &sources {
+                        if let LobeSource::Wide { vis, .. } = src {
+                            i.lobe_visibility.prefetch(ahead as usize, *vis, m);
+                        }
+                    }
+                }
+            }
             let v = seen[k] as usize;
             let Some(o) = owner[v] else { return (Vec3::ZERO, Vec3::ZERO) };
             let e = inc.irradiance[v];

@@ -147,6 +147,23 @@ impl LobeVisibility {
     /// The visible fraction of lobe map `k` of vertex `v` around the world mirror direction
     /// `d` (bilinear between texel centres on its face, as `CubeMap::lookup`).
     pub fn lobe_visibility(&self, v: usize, k: usize, d: Vec3) -> f32 {
+        let (map, [r0, r1], [i0, i1], fx, fy) = self.taps(v, k, d);
+        let at = |r: usize, i: usize| map[r + i] as f32 / 255.0;
+        (at(r0, i0) * (1.0 - fx) + at(r0, i1) * fx) * (1.0 - fy) + (at(r1, i0) * (1.0 - fx) + at(r1, i1) * fx) * fy
+    }
+
+    /// Asks the processor to fetch the two texel rows `lobe_visibility(v, k, d)` reads (the
+    /// maps are read one vertex after another, far apart in memory: the fetch of the next
+    /// vertices' rows overlaps the shading of this one's).
+    pub fn prefetch(&self, v: usize, k: usize, d: Vec3) {
+        let (map, [r0, r1], [i0, _], _, _) = self.taps(v, k, d);
+        crate::math::prefetch(&map[r0 + i0]);
+        crate::math::prefetch(&map[r1 + i0]);
+    }
+
+    /// Map `k` of vertex `v` and where the bilinear lookup at `d` reads it: the two rows'
+    /// starts, the two columns, the weights toward the second of each.
+    fn taps(&self, v: usize, k: usize, d: Vec3) -> (&[u8], [usize; 2], [usize; 2], f32, f32) {
         let (m, t) = (self.side as usize, self.texels());
         let map = &self.maps[(v * self.sigmas.len() + k) * t..][..t];
         let (face, u, w) = locate(d);
@@ -154,9 +171,7 @@ impl LobeVisibility {
         let (x, y) = (g(u), g(w));
         let (i0, j0) = (x as usize, y as usize);
         let (i1, j1) = ((i0 + 1).min(m - 1), (j0 + 1).min(m - 1));
-        let (fx, fy) = (x - i0 as f32, y - j0 as f32);
-        let at = |i: usize, j: usize| map[(face * m + j) * m + i] as f32 / 255.0;
-        (at(i0, j0) * (1.0 - fx) + at(i1, j0) * fx) * (1.0 - fy) + (at(i0, j1) * (1.0 - fx) + at(i1, j1) * fx) * fy
+        (map, [(face * m + j0) * m, (face * m + j1) * m], [i0, i1], x - i0 as f32, y - j0 as f32)
     }
 
     /// Bytes held for `vertices` with `lobes` maps of side `side`.
