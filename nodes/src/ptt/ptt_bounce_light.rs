@@ -242,6 +242,33 @@ mod tests {
     }
 
     #[test]
+    fn a_zero_sky_gives_no_light_and_a_sun_ten_thousand_times_the_sky_stays_finite_and_linear() {
+        // QUALITY.md "lighting": a zero environment, and one texel 10⁴ times the rest.
+        let c = Chain::new(floor_and_tiled_roof(0.5));
+        let zero = EnvLight { map: vec![Vec3::ZERO; c.env.map.len()], ..c.env.clone() };
+        let l: BounceLight = first(&run_on::<PttBounceLight>(&[], c.bounce_light_inputs(&zero)).expect("runs"));
+        assert!(l.cores.iter().all(|k| k.core.iter().all(|v| *v == Vec3::ZERO)) && l.pairs.iter().all(|v| *v == Vec3::ZERO));
+        let sun_only = |scale: f32| {
+            let mut map = vec![Vec3::ZERO; c.env.map.len()];
+            map[c.env.map.len() / 3 + 7] = Vec3::splat(1.0e4 * scale);
+            EnvLight { map, ..c.env.clone() }
+        };
+        let sky = EnvLight { map: c.env.map.iter().zip(&sun_only(1.0).map).map(|(a, b)| *a + *b).collect(), ..c.env.clone() };
+        let (with_sun, sun): (BounceLight, BounceLight) = (
+            first(&run_on::<PttBounceLight>(&[], c.bounce_light_inputs(&sky)).expect("runs")),
+            first(&run_on::<PttBounceLight>(&[], c.bounce_light_inputs(&sun_only(1.0))).expect("runs")),
+        );
+        let base = light(&c, 2);
+        assert!(sun.pairs.iter().any(|v| v.max_element() > 0.0), "the sun reaches the two-bounce light");
+        assert!(with_sun.pairs.iter().chain(with_sun.cores.iter().flat_map(|k| &k.core)).all(|v| v.is_finite()));
+        // The sky plus the sun is the light of each, within f32 rounding at the sun's scale.
+        for ((w, s), b) in with_sun.pairs.iter().zip(&sun.pairs).zip(&base.pairs) {
+            let tol = 1e-5 * (s.abs().max_element() + b.abs().max_element()).max(1e-6);
+            assert!((*w - (*s + *b)).abs().max_element() <= tol, "{w} vs {s} + {b}");
+        }
+    }
+
+    #[test]
     fn the_bytes_do_not_depend_on_threads() {
         let c = Chain::new(floor_and_tiled_roof(0.5));
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool").install(|| light(&c, 2));
