@@ -387,7 +387,7 @@ fn build_rec(idx: &mut [u32], input: &Input, nodes: &mut [TreeNode], base: u32, 
 /// Sets `bound` and `slab` of `node` from the disks of its points `idx` (in f64, widened by a
 /// little for rounding). A disk of radius r, normal n, whose centre is at q from the node's
 /// centre reaches √((|q⊥| + r)² + (q·n)²) from it (q⊥: q in the disk's plane) and spans
-/// ± r √(1 − (a·n)²) along the axis a.
+/// ± r |a × n| along the axis a.
 fn tighten(node: &mut TreeNode, idx: &[u32], input: &Input) {
     let (c, a) = (node.center.as_dvec3(), node.cone_axis.as_dvec3());
     let (mut reach2, mut lo, mut hi) = (0.0f64, f64::INFINITY, f64::NEG_INFINITY);
@@ -397,7 +397,9 @@ fn tighten(node: &mut TreeNode, idx: &[u32], input: &Input) {
         let qn = q.dot(n);
         let q_plane = (q.length_squared() - qn * qn).max(0.0).sqrt();
         reach2 = reach2.max((q_plane + r) * (q_plane + r) + qn * qn);
-        let (along, spread) = (a.dot(q), r * (1.0 - a.dot(n).powi(2)).max(0.0).sqrt());
+        // |a × n̂| rather than √(1 − (a·n)²): the latter cancels when the normal is near the
+        // axis, and f32 rounding of a and n then shrinks the spread by several per cent.
+        let (along, spread) = (a.dot(q), r * a.cross(n.normalize_or_zero()).length());
         lo = lo.min(along - spread);
         hi = hi.max(along + spread);
     }
@@ -632,6 +634,43 @@ mod tests {
             .sum()
     }
 
+    /// Every disk point lies within its ancestors' tight bound and slab.
+    fn check_tight_bounds(n: usize, seed: u64, layout: Layout) -> Result<(), TestCaseError> {
+        let (pts, rad) = random_set(n, seed, layout);
+        let tree = PointTree::build(&pts, &rad);
+        let mut tighter = 0;
+        for (i, node) in tree.nodes.iter().enumerate() {
+            let slack = 1e-5 * (1.0 + node.center.abs().max_element() + node.radius);
+            prop_assert!(node.bound >= 0.0 && node.bound <= node.radius, "bound {} radius {}", node.bound, node.radius);
+            prop_assert!(node.slab[0] <= node.slab[1] + slack);
+            tighter += (node.bound < 0.99 * node.radius) as usize;
+            for p in leaves_under(&tree, i as u32) {
+                let (x, nr, r) = (pts.position[p as usize], pts.normal[p as usize].normalize(), pts.radius[p as usize]);
+                let f = Frame::from_normal(nr);
+                // The disk's centre and 16 points of its rim.
+                for k in 0..17 {
+                    let phi = k as f32 * std::f32::consts::TAU / 16.0;
+                    let y = if k == 16 { x } else { x + (f.s * phi.cos() + f.t * phi.sin()) * r };
+                    prop_assert!(y.distance(node.center) <= node.bound + slack, "node {}: disk point {} past bound {}", i, y.distance(node.center), node.bound);
+                    let along = node.cone_axis.dot(y - node.center);
+                    prop_assert!(along >= node.slab[0] - slack && along <= node.slab[1] + slack, "node {}: {} outside slab {:?}", i, along, node.slab);
+                }
+            }
+        }
+        // Spread-out sets nest loosely: the tight bound is the smaller one somewhere.
+        if matches!(layout, Layout::Free) && n > 8 {
+            prop_assert!(tighter > 0);
+        }
+        Ok(())
+    }
+
+    /// Coincident disks whose normals lie nearly along the axis: √(1 − (a·n)²) lost a few per
+    /// cent of the slab to f32 rounding here (found by the property test on CI).
+    #[test]
+    fn slabs_hold_normals_nearly_along_the_axis() {
+        check_tight_bounds(72, 5540366319547029002, Layout::Coincident).unwrap();
+    }
+
     fn cases() -> ProptestConfig {
         ProptestConfig::with_cases(if cfg!(debug_assertions) { 12 } else { 96 })
     }
@@ -747,31 +786,7 @@ mod tests {
         fn tight_bounds_and_slabs_hold_every_disk_below_and_are_no_looser_than_the_spheres(
             n in 1usize..200, seed in any::<u64>(), layout in layout()
         ) {
-            let (pts, rad) = random_set(n, seed, layout);
-            let tree = PointTree::build(&pts, &rad);
-            let mut tighter = 0;
-            for (i, node) in tree.nodes.iter().enumerate() {
-                let slack = 1e-5 * (1.0 + node.center.abs().max_element() + node.radius);
-                prop_assert!(node.bound >= 0.0 && node.bound <= node.radius, "bound {} radius {}", node.bound, node.radius);
-                prop_assert!(node.slab[0] <= node.slab[1] + slack);
-                tighter += (node.bound < 0.99 * node.radius) as usize;
-                for p in leaves_under(&tree, i as u32) {
-                    let (x, nr, r) = (pts.position[p as usize], pts.normal[p as usize].normalize(), pts.radius[p as usize]);
-                    let f = Frame::from_normal(nr);
-                    // The disk's centre and 16 points of its rim.
-                    for k in 0..17 {
-                        let phi = k as f32 * std::f32::consts::TAU / 16.0;
-                        let y = if k == 16 { x } else { x + (f.s * phi.cos() + f.t * phi.sin()) * r };
-                        prop_assert!(y.distance(node.center) <= node.bound + slack, "node {}: disk point {} past bound {}", i, y.distance(node.center), node.bound);
-                        let along = node.cone_axis.dot(y - node.center);
-                        prop_assert!(along >= node.slab[0] - slack && along <= node.slab[1] + slack, "node {}: {} outside slab {:?}", i, along, node.slab);
-                    }
-                }
-            }
-            // Spread-out sets nest loosely: the tight bound is the smaller one somewhere.
-            if matches!(layout, Layout::Free) && n > 8 {
-                prop_assert!(tighter > 0);
-            }
+            check_tight_bounds(n, seed, layout)?;
         }
 
         #[test]
