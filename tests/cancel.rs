@@ -58,7 +58,7 @@ fn cancelling_each_heavy_node_midway_stops_the_run_and_leaves_the_cache_consiste
         // results are the bytes of a run never cancelled.
         let again = engine.run(&g, &RunOptions::default()).unwrap();
         for ((name, a), (_, b)) in clean.outputs.iter().zip(&again.outputs) {
-            assert_eq!(a.fingerprint(), b.fingerprint(), "{target}: output {name} differs after a cancelled run");
+            assert!(a.encode() == b.encode(), "{target}: output {name} differs after a cancelled run");
         }
     }
 }

@@ -449,6 +449,15 @@ impl Engine {
         }));
         match outcome {
             Ok(Ok((outputs, shards))) => {
+                // Fingerprinted here, on the node's thread, not by whoever asks first.
+                for (port, v) in outputs.iter().enumerate() {
+                    match n.kind.caching() {
+                        Caching::Keyed => v.fingerprint_by_key(&n.key, port),
+                        _ => {
+                            v.fingerprint();
+                        }
+                    }
+                }
                 let (metrics, notes, deps) = cx.take();
                 Ok((CacheEntry { outputs, metrics, notes, deps, compute_ms: 0.0 }, shards))
             }

@@ -21,6 +21,13 @@ pub enum Caching {
     Auto,
     /// Never cached: the node has a side effect (writes a file) and runs every time it is needed.
     Never,
+    /// As `Auto`, but the outputs are fingerprinted by the run's cache key instead of by
+    /// hashing their content: for the per-edit nodes of an interactive pipeline, whose
+    /// megabytes of output change with every edit (hashing them would cost a noticeable part
+    /// of a frame, and an unchanged output, the one thing content hashing would catch, does
+    /// not happen there). What this gives up is only the early cut-off when a re-run
+    /// reproduces the same bytes.
+    Keyed,
 }
 
 /// The doc comment of a node type, available at run time (the editor tooltip, `relume nodes`).

@@ -4,7 +4,7 @@
 use crate::error::NodeError;
 use crate::hash::{Hash, Hasher};
 use std::any::{Any, TypeId};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// A type that can flow along an edge. Registered by name; the editor colours ports with
 /// `COLOR`. Every port type has a disk encoding (`encode` / `decode`: serde through postcard
@@ -137,16 +137,25 @@ fn decode_erased<T: PortValue>(bytes: &[u8], fingerprint: Hash) -> Option<Value>
     T::decode(bytes).map(|v| Value::with_fingerprint(v, fingerprint))
 }
 
-/// A value on a port, shared cheaply, with its fingerprint computed once.
+type HashFn = fn(&(dyn Any + Send + Sync)) -> Hash;
+
+fn hash_erased<T: PortValue>(v: &(dyn Any + Send + Sync)) -> Hash {
+    v.downcast_ref::<T>().expect("a Value holds its declared type").fingerprint()
+}
+
+/// A value on a port, shared cheaply, with its fingerprint computed once: the hash of its
+/// content, or (for the outputs of a `Caching::Keyed` node, set by the executor) of the key
+/// of the run that made it.
 #[derive(Clone)]
 pub struct Value {
     data: Arc<dyn Any + Send + Sync>,
     type_name: &'static str,
     type_id: TypeId,
-    fingerprint: Hash,
+    fingerprint: OnceLock<Hash>,
     bytes: usize,
     size: crate::memory::PortSize,
     encode: EncodeFn,
+    hash: HashFn,
 }
 
 impl Value {
@@ -157,8 +166,31 @@ impl Value {
     /// A value whose fingerprint is already known (read back from the disk cache, where the
     /// entry's checksum vouches for it).
     fn with_fingerprint<T: PortValue>(v: T, fingerprint: Hash) -> Value {
+        let v = Value::unhashed(v);
+        v.fingerprint.set(fingerprint).expect("a fresh value has no fingerprint yet");
+        v
+    }
+    /// A node's output as `outputs!` hands it to the executor: its fingerprint is computed
+    /// when first asked for, unless the executor gives it the run's key first.
+    #[doc(hidden)]
+    pub fn unhashed<T: PortValue>(v: T) -> Value {
         let (bytes, size) = (v.byte_size(), v.size());
-        Value { data: Arc::new(v), type_name: T::NAME, type_id: TypeId::of::<T>(), fingerprint, bytes, size, encode: encode_erased::<T> }
+        Value {
+            data: Arc::new(v),
+            type_name: T::NAME,
+            type_id: TypeId::of::<T>(),
+            fingerprint: OnceLock::new(),
+            bytes,
+            size,
+            encode: encode_erased::<T>,
+            hash: hash_erased::<T>,
+        }
+    }
+    /// Fingerprints output `port` of a run by the run's cache `key` instead of its content
+    /// (a node's output is a function of its key: same key, same bytes). No effect on a
+    /// value already fingerprinted.
+    pub(crate) fn fingerprint_by_key(&self, key: &Hash, port: usize) {
+        let _ = self.fingerprint.set(Hasher::new().str("output of run").str(self.type_name).hash(key).u64(port as u64).finish());
     }
     pub fn get<T: PortValue>(&self) -> Option<&T> {
         self.data.downcast_ref::<T>()
@@ -170,7 +202,7 @@ impl Value {
         self.type_id
     }
     pub fn fingerprint(&self) -> Hash {
-        self.fingerprint
+        *self.fingerprint.get_or_init(|| (self.hash)(self.data.as_ref()))
     }
     pub fn byte_size(&self) -> usize {
         self.bytes
@@ -185,7 +217,7 @@ impl Value {
 
 impl std::fmt::Debug for Value {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "Value({}, {:?}, {} B)", self.type_name, self.fingerprint, self.bytes)
+        write!(f, "Value({}, {:?}, {} B)", self.type_name, self.fingerprint(), self.bytes)
     }
 }
 
@@ -294,7 +326,7 @@ macro_rules! outputs {
                 vec![$($crate::PortDecl::of::<$ty>(stringify!($port))),+]
             }
             fn into_values(self) -> Vec<$crate::Value> {
-                vec![$($crate::Value::new(self.$port)),+]
+                vec![$($crate::Value::unhashed(self.$port)),+]
             }
         }
     };

@@ -93,9 +93,34 @@ impl Apply {
     }
 }
 
+/// Rounds down to a whole number (two inputs, one output).
+#[derive(Params)]
+pub struct Floor {}
+
+inputs!(pub FloorIn { a: Num });
+outputs!(pub FloorOut { out: Num });
+
+#[node(category = "test")]
+impl Floor {
+    fn run(&self, i: FloorIn, _cx: &RunCtx) -> Result<FloorOut, NodeError> {
+        Ok(FloorOut { out: Num(i.a.0.floor()) })
+    }
+}
+
+/// `Floor` with its output fingerprinted by the run's key.
+#[derive(Params)]
+pub struct KeyedFloor {}
+
+#[node(category = "test", caching = Keyed)]
+impl KeyedFloor {
+    fn run(&self, i: FloorIn, _cx: &RunCtx) -> Result<FloorOut, NodeError> {
+        Ok(FloorOut { out: Num(i.a.0.floor()) })
+    }
+}
+
 fn registry() -> Registry {
     let mut r = Registry::new();
-    r.add::<Source>().add::<Apply>();
+    r.add::<Source>().add::<Apply>().add::<Floor>().add::<KeyedFloor>();
     r
 }
 
@@ -182,4 +207,36 @@ fn int_and_float_spellings_defaults_and_set_give_one_cache_key() {
     let mut b = graph("");
     b.set_param_text(&registry(), "a.value", "2.0").unwrap();
     assert_eq!(key_of(&a), key_of(&b));
+}
+
+#[test]
+fn a_rerun_that_reproduces_its_bytes_cuts_off_downstream_unless_its_node_is_keyed() {
+    let floor_graph = |kind: &str, value: f64| {
+        Graph::parse(
+            &format!(
+                r#"(version: 1, nodes: {{ "a": (kind: "Source", params: (value: {value:?})), "b": (kind: "Source", params: ()),
+                   "f": (kind: "{kind}", params: ()), "x": (kind: "Apply", params: ()) }},
+                   edges: [("a.out", "f.a"), ("f.out", "x.a"), ("b.out", "x.b")], outputs: {{ "out": "x.out" }})"#
+            ),
+            None,
+        )
+        .unwrap()
+    };
+    for (kind, keyed) in [("Floor", false), ("KeyedFloor", true)] {
+        let e = Engine::new(registry());
+        let first = e.run(&floor_graph(kind, 2.25), &RunOptions::default()).unwrap();
+        // 2.75 floors to the same 2: `f` re-runs and gives the same bytes.
+        let second = e.run(&floor_graph(kind, 2.75), &RunOptions::default()).unwrap();
+        assert_eq!(second.output("out").unwrap().get::<Num>(), Some(&Num(6.0)));
+        let ran = second.report.ran_ids();
+        assert!(ran.contains(&"f"), "{kind}: {ran:?}");
+        // A content fingerprint sees the same output and leaves `x` alone; a key fingerprint
+        // sees a new run.
+        assert_eq!(ran.contains(&"x"), keyed, "{kind}: {ran:?}");
+        let fp = |r: &relume_core::RunResult| r.report.node("x").unwrap().key.clone();
+        assert_eq!(fp(&first) != fp(&second), keyed, "{kind}");
+        // The same run in a fresh engine gives the same fingerprints either way.
+        let again = Engine::new(registry()).run(&floor_graph(kind, 2.75), &RunOptions::default()).unwrap();
+        assert_eq!(fp(&again), fp(&second), "{kind}");
+    }
 }

@@ -5,7 +5,7 @@
 //!   struct's doc comment is the node's doc (the editor tooltip).
 //! - `#[derive(ParamEnum)]` on an enum of unit variants: a choice parameter whose variants are
 //!   listed once; an unknown name is a load error, never a fallback.
-//! - `#[node(category = "…", version = N, caching = Never, kind = "…")]` on `impl X { fn run … }`:
+//! - `#[node(category = "…", version = N, caching = Never | Keyed, kind = "…")]` on `impl X { fn run … }`:
 //!   turns the block into `impl Node for X`, taking the port types from `run`'s signature.
 
 use proc_macro::TokenStream;
