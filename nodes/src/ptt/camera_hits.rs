@@ -2,7 +2,7 @@
 
 use super::screen_hits::ScreenHits;
 use crate::render::camera::CameraRays;
-use crate::render::zbuffer::{Rasterizer, MISS};
+use crate::render::zbuffer::{slots_per_pixel, BandHits, Rasterizer, MAX_SIDE, MISS, SLOT_BYTES};
 use crate::types::{Camera, Scene};
 use glam::Vec3;
 use relume_core::memory::fmt_bytes;
@@ -38,13 +38,20 @@ pub struct CameraHits {
 inputs!(pub CameraHitsIn { scene: Scene, camera: Camera });
 outputs!(pub CameraHitsOut { hits: ScreenHits });
 
-/// Bytes per sample of a band's z-buffer (the hit and its depth).
-const SAMPLE_BYTES: u64 = 20;
+/// One band's pixels, laid out as `ScreenHits`' arrays are (so that joining the bands
+/// copies slices): entries per pixel, their vertices and weights, the missed fraction and
+/// direction, and the samples that hit.
+#[derive(Default)]
+struct Band {
+    counts: Vec<u32>,
+    vertex: Vec<u32>,
+    weight: Vec<f32>,
+    miss: Vec<f32>,
+    miss_dir: Vec<Vec3>,
+    covered: u64,
+}
 
-/// One band's pixels: entries per pixel, the entries, the missed fraction and direction.
-type Band = (Vec<u32>, Vec<(u32, f32)>, Vec<(f32, Vec3)>, u64);
-
-#[node(category = "ptt", version = 2)]
+#[node(category = "ptt", version = 2, caching = Keyed)]
 impl CameraHits {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         let hits = inputs[1].and_then(|s| s.dims).map(|[w, h]| {
@@ -60,7 +67,12 @@ impl CameraHits {
         let pixels = (w * h) as u64;
         let spp = self.spp as usize;
         // The projected triangles and every band's z-buffer, as if all were held at once.
-        let need = scene.triangles.len() as u64 * 2 * 200 + pixels * spp as u64 * SAMPLE_BYTES + ScreenHits::bytes(pixels, pixels * 3, 0);
+        if w > MAX_SIDE || h > MAX_SIDE {
+            return Err(NodeError::input("camera", format!("{w} × {h} pixels: the z-buffer draws at most {MAX_SIDE} pixels a side")));
+        }
+        let need = scene.triangles.len() as u64 * 2 * 200
+            + pixels * (slots_per_pixel(spp) * SLOT_BYTES) as u64
+            + ScreenHits::bytes(pixels, pixels * 3, 0);
         if need > cx.memory_budget() {
             return Err(NodeError::over_limit(format!(
                 "rasterising {w} × {h} pixels at {spp} samples each needs about {}, over the {} budget",
@@ -73,52 +85,68 @@ impl CameraHits {
         let rays = CameraRays::new(cam);
         let inv = 1.0 / spp as f32;
         // Per thread: the band's hits and z-buffer, and a pixel's triangles, reused.
-        let scratch = || (Vec::new(), Vec::new(), Vec::<(u32, Vec3)>::with_capacity(spp));
-        let bands: Vec<Band> = cx.par_map_init(raster.bands(), scratch, |(hits, depth, tris), b| {
+        let scratch = || (BandHits::default(), Vec::<(u32, Vec3)>::with_capacity(spp));
+        let bands: Vec<Band> = cx.par_map_init(raster.bands(), scratch, |(hits, tris), b| {
             let rows = raster.band_rows(b);
-            raster.band_into(b, hits, depth);
-            let (mut counts, mut entries, mut background, mut covered) = (vec![], vec![], vec![], 0u64);
-            counts.reserve(rows.len() * w);
-            background.reserve(rows.len() * w);
-            for (p, samples) in hits.chunks(spp).enumerate() {
+            raster.band_into(b, hits);
+            let pixels = rows.len() * w;
+            let mut out = Band {
+                counts: Vec::with_capacity(pixels),
+                miss: Vec::with_capacity(pixels),
+                miss_dir: Vec::with_capacity(pixels),
+                ..Band::default()
+            };
+            for p in 0..pixels {
                 let (x, y) = (p % w, rows.start + p / w);
-                let start = entries.len();
+                let start = out.vertex.len();
                 let (mut missed, mut ox, mut oy) = (0u32, 0.0f32, 0.0f32);
                 // The pixel's triangles with their summed barycentrics, in order of first hit.
                 tris.clear();
-                for (s, hit) in samples.iter().enumerate() {
-                    if hit.tri == MISS {
-                        let (sx, sy) = raster.pattern()[s];
-                        (ox, oy, missed) = (ox + sx, oy + sy, missed + 1);
-                        continue;
-                    }
-                    covered += 1;
-                    let b = Vec3::new(1.0 - hit.b1 - hit.b2, hit.b1, hit.b2);
-                    match tris.iter_mut().find(|t: &&mut (u32, Vec3)| t.0 == hit.tri) {
-                        Some(t) => t.1 += b,
-                        None => tris.push((hit.tri, b)),
+                let (tri, b1, b2) = hits.pixel(p);
+                let corners = |s: usize| Vec3::new(1.0 - b1[s] - b2[s], b1[s], b2[s]);
+                if tri[0] != MISS && tri.iter().all(|&t| t == tri[0]) {
+                    // The common pixel: all its samples on one triangle.
+                    out.covered += spp as u64;
+                    tris.push((tri[0], (0..spp).fold(Vec3::ZERO, |sum, s| sum + corners(s))));
+                } else {
+                    for (s, &t) in tri.iter().enumerate() {
+                        if t == MISS {
+                            let (sx, sy) = raster.pattern()[s];
+                            (ox, oy, missed) = (ox + sx, oy + sy, missed + 1);
+                            continue;
+                        }
+                        out.covered += 1;
+                        match tris.iter_mut().find(|e: &&mut (u32, Vec3)| e.0 == t) {
+                            Some(e) => e.1 += corners(s),
+                            None => tris.push((t, corners(s))),
+                        }
                     }
                 }
                 for &(t, b) in tris.iter() {
                     for (v, wt) in scene.triangles[t as usize].into_iter().zip(b.to_array()) {
-                        match entries[start..].iter_mut().find(|e: &&mut (u32, f32)| e.0 == v) {
-                            Some(e) => e.1 += wt * inv,
-                            None => entries.push((v, wt * inv)),
+                        match out.vertex[start..].iter().position(|&e| e == v) {
+                            Some(e) => out.weight[start + e] += wt * inv,
+                            None => {
+                                out.vertex.push(v);
+                                out.weight.push(wt * inv);
+                            }
                         }
                     }
                 }
-                counts.push((entries.len() - start) as u32);
-                background.push(if missed > 0 {
+                out.counts.push((out.vertex.len() - start) as u32);
+                let (m, d) = if missed > 0 {
                     // The ray through the missed samples' mean position.
                     let m = missed as f32;
                     (m * inv, rays.ray(x as f32 + ox / m, y as f32 + oy / m).1)
                 } else {
                     (0.0, Vec3::ZERO)
-                });
+                };
+                out.miss.push(m);
+                out.miss_dir.push(d);
             }
-            (counts, entries, background, covered)
+            out
         })?;
-        let total: usize = bands.iter().map(|b| b.1.len()).sum();
+        let total: usize = bands.iter().map(|b| b.vertex.len()).sum();
         let mut out = ScreenHits {
             width: w as u32,
             height: h as u32,
@@ -133,20 +161,18 @@ impl CameraHits {
         out.offsets.push(0);
         let mut covered = 0;
         let mut seen = vec![false; scene.positions.len()];
-        for (counts, entries, background, c) in bands {
-            for n in counts {
-                out.offsets.push(out.offsets.last().unwrap() + n);
-            }
-            for (v, wt) in entries {
-                seen[v as usize] = true;
-                out.vertex.push(v);
-                out.weight.push(wt);
-            }
-            for (m, d) in background {
-                out.miss.push(m);
-                out.miss_dir.push(d);
-            }
-            covered += c;
+        for band in bands {
+            let mut at = *out.offsets.last().unwrap();
+            out.offsets.extend(band.counts.iter().map(|&n| {
+                at += n;
+                at
+            }));
+            band.vertex.iter().for_each(|&v| seen[v as usize] = true);
+            out.vertex.extend_from_slice(&band.vertex);
+            out.weight.extend_from_slice(&band.weight);
+            out.miss.extend_from_slice(&band.miss);
+            out.miss_dir.extend_from_slice(&band.miss_dir);
+            covered += band.covered;
         }
         out.seen = (0..seen.len() as u32).filter(|&v| seen[v as usize]).collect();
         cx.metric("spp", spp as f64);
@@ -242,6 +268,10 @@ mod tests {
         big.camera.height = 16384;
         let e = run_on::<CameraHits>(&[("spp", i(1024))], vec![Value::new(big.clone()), Value::new(big.camera.clone())]).unwrap_err();
         assert!(e.to_string().contains("budget"), "{e}");
+        // A strip too wide for the z-buffer's 16-bit pixel positions, however few its bytes.
+        (big.camera.width, big.camera.height) = (MAX_SIDE + 1, 1);
+        let e = run_on::<CameraHits>(&[("spp", i(1))], vec![Value::new(big.clone()), Value::new(big.camera.clone())]).unwrap_err();
+        assert!(e.to_string().contains("at most 65535"), "{e}");
     }
 
     #[test]
