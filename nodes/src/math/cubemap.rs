@@ -58,6 +58,65 @@ pub fn locate(d: Vec3) -> (usize, f32, f32) {
     }
 }
 
+/// The solid angles of the n² texels of one face of a cube map of side `n`, row after row
+/// (the same on every face; four arc tangents each, in parallel).
+pub fn face_solid_angles(n: usize) -> Vec<f64> {
+    use rayon::prelude::*;
+    let e = |t: usize| -1.0 + 2.0 * t as f64 / n as f64;
+    (0..n * n).into_par_iter().map(|k| rect_solid_angle(e(k % n), e(k % n + 1), e(k / n), e(k / n + 1))).collect()
+}
+
+/// The texel of a map of side `n` that direction `d` falls in.
+pub fn texel_of_side(n: usize, d: Vec3) -> usize {
+    let (face, u, v) = locate(d);
+    let t = |x: f32| (((x + 1.0) * 0.5 * n as f32) as usize).min(n - 1);
+    (face * n + t(v)) * n + t(u)
+}
+
+/// A cube map's texels borrowed from wherever they are held (a port value's own array),
+/// read as `CubeMap` reads its own.
+#[derive(Clone, Copy, Debug)]
+pub struct CubeView<'a> {
+    pub n: usize,
+    pub texels: &'a [Vec3],
+}
+
+impl CubeView<'_> {
+    /// As `CubeMap::box_downsample`, without a copy of the texels. The fine texels' solid
+    /// angles (four arc tangents each) are the same on every face: computed for one.
+    pub fn box_downsample(&self, m: usize) -> CubeMap {
+        let n = self.n;
+        assert!(m > 0 && n.is_multiple_of(m), "a cube map of side {n} cannot be box-filtered to side {m}");
+        // As `CubeMap::solid_angle` gives them (rounded to f32).
+        let face_w: Vec<f64> = face_solid_angles(n).into_iter().map(|w| w as f32 as f64).collect();
+        let r = n / m;
+        let mut sum = vec![[0.0f64; 4]; 6 * m * m];
+        for (k, t) in self.texels.iter().enumerate() {
+            let w = face_w[k % (n * n)];
+            let (face, i, j) = (k / (n * n), k % n, k / n % n);
+            let s = &mut sum[(face * m + j / r) * m + i / r];
+            for c in 0..3 {
+                s[c] += t[c] as f64 * w;
+            }
+            s[3] += w;
+        }
+        let texels = sum.iter().map(|s| Vec3::new((s[0] / s[3]) as f32, (s[1] / s[3]) as f32, (s[2] / s[3]) as f32)).collect();
+        CubeMap { n: m, texels }
+    }
+
+    /// Bilinear lookup at direction `d` within its face (as `CubeMap::lookup`).
+    pub fn lookup(&self, d: Vec3) -> Vec3 {
+        let (face, u, v) = locate(d);
+        let g = |x: f32| ((x + 1.0) * 0.5 * self.n as f32 - 0.5).clamp(0.0, (self.n - 1) as f32);
+        let (x, y) = (g(u), g(v));
+        let (i0, j0) = (x as usize, y as usize);
+        let (i1, j1) = ((i0 + 1).min(self.n - 1), (j0 + 1).min(self.n - 1));
+        let (fx, fy) = (x - i0 as f32, y - j0 as f32);
+        let t = |i, j| self.texels[(face * self.n + j) * self.n + i];
+        (t(i0, j0) * (1.0 - fx) + t(i1, j0) * fx) * (1.0 - fy) + (t(i0, j1) * (1.0 - fx) + t(i1, j1) * fx) * fy
+    }
+}
+
 /// An RGB cube map (see the module doc).
 #[derive(Clone, Debug, PartialEq)]
 pub struct CubeMap {
@@ -99,9 +158,12 @@ impl CubeMap {
 
     /// The texel direction `d` falls in.
     pub fn texel_of(&self, d: Vec3) -> usize {
-        let (face, u, v) = locate(d);
-        let t = |x: f32| (((x + 1.0) * 0.5 * self.n as f32) as usize).min(self.n - 1);
-        self.index(face, t(u), t(v))
+        texel_of_side(self.n, d)
+    }
+
+    /// The map borrowed (for texels held elsewhere without a copy, see `CubeView`).
+    pub fn view(&self) -> CubeView<'_> {
+        CubeView { n: self.n, texels: &self.texels }
     }
 
     /// The map of side `n` whose texels are the solid-angle-weighted means of `f` over
@@ -113,7 +175,7 @@ impl CubeMap {
         let e = |t: usize| -1.0 + 2.0 * t as f64 / m as f64;
         // The sub-texels' solid angles are the same on every face: computed once (four arc
         // tangents each), not six times.
-        let dws: Vec<f64> = (0..m * m).into_par_iter().map(|k| rect_solid_angle(e(k % m), e(k % m + 1), e(k / m), e(k / m + 1))).collect();
+        let dws = face_solid_angles(m);
         let texels = (0..6 * n * n)
             .into_par_iter()
             .map(|k| {
@@ -136,14 +198,7 @@ impl CubeMap {
     /// The value at direction `d`, bilinear between texel centres on its face (clamped at the
     /// face's edges).
     pub fn lookup(&self, d: Vec3) -> Vec3 {
-        let (face, u, v) = locate(d);
-        let g = |x: f32| ((x + 1.0) * 0.5 * self.n as f32 - 0.5).clamp(0.0, (self.n - 1) as f32);
-        let (x, y) = (g(u), g(v));
-        let (i0, j0) = (x as usize, y as usize);
-        let (i1, j1) = ((i0 + 1).min(self.n - 1), (j0 + 1).min(self.n - 1));
-        let (fx, fy) = (x - i0 as f32, y - j0 as f32);
-        let t = |i, j| self.texels[self.index(face, i, j)];
-        (t(i0, j0) * (1.0 - fx) + t(i1, j0) * fx) * (1.0 - fy) + (t(i0, j1) * (1.0 - fx) + t(i1, j1) * fx) * fy
+        self.view().lookup(d)
     }
 
     /// ∫ over the sphere: Σ texel × its solid angle (in f64, texel order).
@@ -245,18 +300,7 @@ impl CubeMap {
     /// lighting bases of the one- and two-bounce transfer, [S] 5.3.3.4–5). Summed in texel
     /// order in f64.
     pub fn box_downsample(&self, m: usize) -> CubeMap {
-        assert!(m > 0 && self.n.is_multiple_of(m), "a cube map of side {} cannot be box-filtered to side {m}", self.n);
-        let mut sum = vec![[0.0f64; 4]; 6 * m * m];
-        for (k, t) in self.texels.iter().enumerate() {
-            let w = self.solid_angle(k) as f64;
-            let s = &mut sum[self.coarse_of(k, m)];
-            for c in 0..3 {
-                s[c] += t[c] as f64 * w;
-            }
-            s[3] += w;
-        }
-        let texels = sum.iter().map(|s| Vec3::new((s[0] / s[3]) as f32, (s[1] / s[3]) as f32, (s[2] / s[3]) as f32)).collect();
-        CubeMap { n: m, texels }
+        self.view().box_downsample(m)
     }
 
     /// A `width` × `height` latitude-longitude image of the map in the scenes' convention

@@ -4,7 +4,7 @@ use super::bounce::SH;
 use super::transfer_t1::BounceTransfer;
 use super::transfer_t2::TwoBounce;
 use super::types::EnvLight;
-use crate::math::cubemap::CubeMap;
+use crate::math::cubemap::CubeView;
 use crate::types::pod_vec;
 use glam::Vec3;
 use relume_core::memory::fmt_bytes;
@@ -81,7 +81,7 @@ fn box_light(env: &EnvLight, m: usize) -> Result<Vec<Vec3>, NodeError> {
     if m == 0 || !(env.n as usize).is_multiple_of(m) {
         return Err(NodeError::input("env", format!("a cube map of side {} cannot be box-filtered to the transfer's side {m}", env.n)));
     }
-    Ok(CubeMap { n: env.n as usize, texels: env.map.clone() }.box_downsample(m).texels)
+    Ok(CubeView { n: env.n as usize, texels: &env.map }.box_downsample(m).texels)
 }
 
 /// The reflector slot of each transfer channel and the weight it enters that slot with: the
@@ -120,7 +120,7 @@ pub struct PttBounceLight {
 inputs!(pub PttBounceLightIn { env: EnvLight, bounce: BounceTransfer, two: TwoBounce });
 outputs!(pub PttBounceLightOut { light: BounceLight });
 
-#[node(category = "ptt")]
+#[node(category = "ptt", caching = Keyed)]
 impl PttBounceLight {
     fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
         MemoryEstimate { outputs: vec![None], working: 0 }

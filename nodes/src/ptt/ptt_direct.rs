@@ -60,7 +60,7 @@ pub struct PttDirect {}
 inputs!(pub PttDirectIn { env: EnvLight, direct: DirectTransfer, projection: ShColumns });
 outputs!(pub PttDirectOut { light: DirectLight });
 
-#[node(category = "ptt")]
+#[node(category = "ptt", caching = Keyed)]
 impl PttDirect {
     fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
         MemoryEstimate { outputs: vec![None], working: 0 }

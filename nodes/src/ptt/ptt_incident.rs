@@ -180,7 +180,7 @@ impl PttIncident {
     }
 }
 
-#[node(category = "ptt", version = 2)]
+#[node(category = "ptt", version = 2, caching = Keyed)]
 impl PttIncident {
     fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
         MemoryEstimate { outputs: vec![None], working: 0 }
@@ -264,14 +264,30 @@ impl PttIncident {
             vertex_of[t as usize] = v as u32;
         }
         out.tensor.par_chunks_mut(cols * CHUNK).zip(out.bounce.par_chunks_mut(SH * CHUNK)).enumerate().for_each(|(k, (tensor, bounce))| {
+            // Per chunk: the slot's projection transposed (SH rows of `cols`), and the sums
+            // per colour, so that the product runs along the columns, eight at a time.
+            let (mut pt, mut acc) = (vec![0.0f32; SH * cols], [vec![0.0f32; cols], vec![0.0f32; cols], vec![0.0f32; cols]]);
             for ((j, tc), bc) in (k * CHUNK..).zip(tensor.chunks_exact_mut(cols)).zip(bounce.chunks_exact_mut(SH)) {
                 let v = vertex_of[j] as usize;
                 let c = sh_of(v);
                 let mut total = c;
                 total[0] += two_of(v) / Y00;
                 let (pv, cols0) = (p.of(j), &i.direct.tensor[j * cols..(j + 1) * cols]);
+                for (kk, row) in pv.chunks_exact(SH).enumerate() {
+                    for (q, &x) in row.iter().enumerate() {
+                        pt[q * cols + kk] = x;
+                    }
+                }
+                // Column kk: Σ_q total[q] · P[kk][q], summed in q order from zero.
+                acc.iter_mut().for_each(|a| a.fill(0.0));
+                for (t, prow) in total.iter().zip(pt.chunks_exact(cols)) {
+                    for (ch, a) in acc.iter_mut().enumerate() {
+                        let tc = t[ch];
+                        a.iter_mut().zip(prow).for_each(|(a, x)| *a += tc * *x);
+                    }
+                }
                 for (kk, o) in tc.iter_mut().enumerate() {
-                    *o = cols0[kk] + total.iter().zip(&pv[kk * SH..(kk + 1) * SH]).map(|(c, x)| *c * *x).sum::<Vec3>();
+                    *o = cols0[kk] + Vec3::new(acc[0][kk], acc[1][kk], acc[2][kk]);
                 }
                 bc.copy_from_slice(&c);
             }

@@ -8,7 +8,7 @@ use super::screen_hits::ScreenHits;
 use super::transfer_t0::LobeVisibility;
 use super::types::{EnvLight, VertexColors, Visibility};
 use super::vertices::vertex_frame;
-use crate::math::cubemap::CubeMap;
+use crate::math::cubemap::{texel_of_side, CubeView};
 use crate::math::sh::sh_basis_into;
 use crate::types::{Camera, Material, ObjectMaterial, ObjectMaterials, Scene};
 use glam::Vec3;
@@ -61,9 +61,9 @@ const PREFETCH_AHEAD: usize = 8;
 
 /// Where lobe k's light comes from: the map itself with the visibility bits (0°), or a
 /// prefiltered map with a visible-fraction map.
-enum LobeSource {
+enum LobeSource<'a> {
     Sharp,
-    Wide { env: CubeMap, vis: usize, zonal: [f32; SH] },
+    Wide { env: CubeView<'a>, vis: usize, zonal: [f32; SH] },
 }
 
 /// A dynamic object's shading: Kd, Ks, the tensor's core for its parameter and its position on h.
@@ -98,7 +98,7 @@ fn lum(v: Vec3) -> f64 {
 }
 
 impl PttRelight {
-    fn sources(&self, i: &PttRelightIn) -> Result<Vec<LobeSource>, NodeError> {
+    fn sources<'a>(&self, i: &PttRelightIn<'a>) -> Result<Vec<LobeSource<'a>>, NodeError> {
         i.lobes
             .sigmas
             .iter()
@@ -119,7 +119,7 @@ impl PttRelight {
                     let l = (q as f64).sqrt() as usize;
                     (-((l * (l + 1)) as f64) * sigma * sigma / 2.0).exp() as f32
                 });
-                Ok(LobeSource::Wide { env: CubeMap { n: pre.n as usize, texels: pre.texels.clone() }, vis, zonal })
+                Ok(LobeSource::Wide { env: CubeView { n: pre.n as usize, texels: &pre.texels }, vis, zonal })
             })
             .collect()
     }
@@ -165,7 +165,7 @@ impl PttRelight {
     }
 }
 
-#[node(category = "ptt")]
+#[node(category = "ptt", caching = Keyed)]
 impl PttRelight {
     fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
         MemoryEstimate { outputs: vec![None], working: 0 }
@@ -197,8 +197,8 @@ impl PttRelight {
         let sources = self.sources(&i)?;
         let shadings = self.shadings(&i)?;
         let owner = vertex_objects(scene);
-        let env = CubeMap { n: i.env.n as usize, texels: i.env.map.clone() };
-        let bits = CubeMap::constant(i.visibility.n as usize, Vec3::ZERO);
+        let env = CubeView { n: i.env.n as usize, texels: &i.env.map };
+        let bits_side = i.visibility.n as usize;
         let (eye, cols) = (i.camera.origin, p.columns as usize);
         cx.check()?;
         let seen = &i.hits.seen;
@@ -209,11 +209,13 @@ impl PttRelight {
             let (nv, wo) = (p.normals[v], (eye - scene.positions[v]).normalize_or_zero());
             (p.slot[v] != NO_SLOT && sh.ks != Vec3::ZERO && nv.dot(wo) > 0.0).then(|| (2.0 * nv.dot(wo) * nv - wo).normalize_or_zero())
         };
-        let per = cx.par_map(seen.len(), |k| {
+        // Per thread: the tensor term's sums, one per row of the core.
+        let scratch = || vec![Vec3::ZERO; i.brdf.ranks[1] as usize];
+        let per = cx.par_map_init(seen.len(), scratch, |rows, k| {
             // The visibility a few vertices ahead is far apart in memory: fetch it early.
             if let Some(&ahead) = seen.get(k + PREFETCH_AHEAD) {
                 if let Some(m) = mirror(ahead as usize) {
-                    crate::math::prefetch(&i.visibility.of(ahead as usize)[bits.texel_of(m) / 32]);
+                    crate::math::prefetch(&i.visibility.of(ahead as usize)[texel_of_side(bits_side, m) / 32]);
                     for src in &sources {
                         if let LobeSource::Wide { vis, .. } = src {
                             i.lobe_visibility.prefetch(ahead as usize, *vis, m);
@@ -243,11 +245,15 @@ impl PttRelight {
             // The tensor term: u_o · M · U^I.
             let u_o = i.brdf.u_o(local);
             let u = &inc.tensor[t * cols..(t + 1) * cols];
-            let mut spec: Vec3 = u_o
-                .iter()
-                .enumerate()
-                .map(|(b, &uo)| uo * u.iter().zip(&sh.core[b * cols..(b + 1) * cols]).map(|(x, m)| *x * *m).sum::<Vec3>())
-                .sum();
+            // Row b's sum Σ_c U^I_c M_bc, each in column order, the rows side by side (their
+            // chains of adds overlap instead of waiting on each other).
+            rows.fill(Vec3::ZERO);
+            for (c, x) in u.iter().enumerate() {
+                for (b, r) in rows.iter_mut().enumerate() {
+                    *r += *x * sh.core[b * cols + c];
+                }
+            }
+            let mut spec: Vec3 = u_o.iter().zip(rows.iter()).map(|(&uo, r)| uo * *r).sum();
             // The lobes around the mirror direction.
             let a: [f32; MAX_LOBES] = i.lobes.amplitudes(&sh.h, local);
             let m = (2.0 * nv.dot(wo) * nv - wo).normalize_or_zero();
@@ -260,7 +266,7 @@ impl PttRelight {
                 }
                 let light = match src {
                     LobeSource::Sharp => {
-                        let seen = if i.visibility.visible(v, bits.texel_of(m)) { 1.0 } else { 0.0 };
+                        let seen = if i.visibility.visible(v, texel_of_side(bits_side, m)) { 1.0 } else { 0.0 };
                         env.lookup(m) * seen + c1.iter().zip(&y).map(|(c, y)| *c * *y).sum::<Vec3>()
                     }
                     LobeSource::Wide { env, vis, zonal } => {
@@ -295,6 +301,7 @@ impl PttRelight {
 mod tests {
     use super::*;
     use crate::brdf;
+    use crate::math::cubemap::CubeMap;
     use crate::ptt::brdf::test_support::{small_brdf, small_ct_brdf};
     use crate::ptt::brdf::types::gaussian_norm;
     use crate::ptt::test_support::{blob_sky, plane, Chain, GLOSSY};

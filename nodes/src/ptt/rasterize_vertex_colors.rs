@@ -30,7 +30,7 @@ pub struct RasterizeVertexColors {
 inputs!(pub RasterizeVertexColorsIn { hits: ScreenHits, colors: VertexColors, scene: Scene });
 outputs!(pub RasterizeVertexColorsOut { image: Image });
 
-#[node(category = "ptt", version = 2)]
+#[node(category = "ptt", version = 2, caching = Keyed)]
 impl RasterizeVertexColors {
     fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
         MemoryEstimate { outputs: vec![None], working: 0 }
