@@ -226,10 +226,13 @@ impl PttIncident {
             i.light.pairs_of(v).iter().zip(&ww).map(|(t, w)| *w * *t).sum()
         };
         cx.check()?;
-        // The diffuse irradiance of every vertex, with the sums of each bounce's luminance.
-        let chunks: Vec<(Vec<Vec3>, [f64; 3])> = cx.par_map(n.div_ceil(CHUNK), |k| {
+        // The diffuse irradiance of every vertex, with the sums of each bounce's luminance,
+        // and its two-bounce light (the tensor pass reads it again: kept rather than summed
+        // twice from the pairs, the largest array an edit reads).
+        let chunks: Vec<(Vec<Vec3>, Vec<Vec3>, [f64; 3])> = cx.par_map(n.div_ceil(CHUNK), |k| {
             let range = k * CHUNK..((k + 1) * CHUNK).min(n);
             let (mut irr, mut sums) = (Vec::with_capacity(range.len()), [0.0f64; 3]);
+            let mut two = Vec::with_capacity(if bounces == 2 { range.len() } else { 0 });
             let mut y = [0.0f32; SH];
             for v in range {
                 let e0 = i.direct.irradiance[v];
@@ -238,24 +241,32 @@ impl PttIncident {
                     sh_basis_into(p.normals[v], &mut y);
                     e1 = sh_of(v).iter().zip(y.iter().zip(&zonal)).map(|(c, (y, a))| *c * (y * a)).sum();
                 }
-                let e2 = PI * two_of(v);
+                let i2 = two_of(v);
+                if bounces == 2 {
+                    two.push(i2);
+                }
+                let e2 = PI * i2;
                 irr.push(e0 + e1 + e2);
                 for (m, e) in sums.iter_mut().zip([e0, e1, e2]) {
                     *m += lum(e);
                 }
             }
-            (irr, sums)
+            (irr, two, sums)
         })?;
         let mut out = VertexIncident {
             columns: cols as u32,
             bounces,
             irradiance: Vec::with_capacity(n),
-            tensor: vec![Vec3::ZERO; slots * cols],
-            bounce: vec![Vec3::ZERO; slots * SH],
+            // Zeroed by the allocator (fresh pages, not written here): the slot pass below
+            // writes every value, on every thread, so the pages are first touched there.
+            tensor: bytemuck::zeroed_vec(slots * cols),
+            bounce: bytemuck::zeroed_vec(slots * SH),
         };
         let mut means = [0.0f64; 3];
-        for (irr, sums) in chunks {
+        let mut two = Vec::with_capacity(if bounces == 2 { n } else { 0 });
+        for (irr, t, sums) in chunks {
             out.irradiance.extend(irr);
+            two.extend(t);
             means.iter_mut().zip(sums).for_each(|(m, s)| *m += s);
         }
         // The tensor-shaded vertices' columns and SH, written in place slot by slot.
@@ -271,7 +282,7 @@ impl PttIncident {
                 let v = vertex_of[j] as usize;
                 let c = sh_of(v);
                 let mut total = c;
-                total[0] += two_of(v) / Y00;
+                total[0] += two.get(v).copied().unwrap_or(Vec3::ZERO) / Y00;
                 let (pv, cols0) = (p.of(j), &i.direct.tensor[j * cols..(j + 1) * cols]);
                 for (kk, row) in pv.chunks_exact(SH).enumerate() {
                     for (q, &x) in row.iter().enumerate() {
