@@ -651,9 +651,21 @@ mod tests {
                 for k in 0..17 {
                     let phi = k as f32 * std::f32::consts::TAU / 16.0;
                     let y = if k == 16 { x } else { x + (f.s * phi.cos() + f.t * phi.sin()) * r };
-                    prop_assert!(y.distance(node.center) <= node.bound + slack, "node {}: disk point {} past bound {}", i, y.distance(node.center), node.bound);
+                    prop_assert!(
+                        y.distance(node.center) <= node.bound + slack,
+                        "node {}: disk point {} past bound {}",
+                        i,
+                        y.distance(node.center),
+                        node.bound
+                    );
                     let along = node.cone_axis.dot(y - node.center);
-                    prop_assert!(along >= node.slab[0] - slack && along <= node.slab[1] + slack, "node {}: {} outside slab {:?}", i, along, node.slab);
+                    prop_assert!(
+                        along >= node.slab[0] - slack && along <= node.slab[1] + slack,
+                        "node {}: {} outside slab {:?}",
+                        i,
+                        along,
+                        node.slab
+                    );
                 }
             }
         }
