@@ -16,16 +16,22 @@ use serde::{Deserialize, Serialize};
 /// No slot: the vertex is not shaded with the BRDF tensor.
 pub const NO_SLOT: u32 = u32::MAX;
 
+/// No owner: no triangle uses the vertex.
+pub const NO_OWNER: u32 = u32::MAX;
+
 /// Per vertex of a dynamic object (a "slot"), the projections P_k(s) = ∫ Y_s(ω) U^ωi(F⁻¹ω, k)
 /// (ω · n)⁺ dω of each column k of the BRDF tensor's incoming factor, times the cosine, in
 /// the vertex frame F, on 4-band real SH in world axes: against incident light given in
 /// world SH (the one-bounce transfer's), U^I_k = Σ_s c_s P_k(s). `slot[v]` is the vertex's
 /// slot or `NO_SLOT` (vertices of fixed objects, shaded diffuse only); slot t's values at
-/// `values[t · columns · 16 ..]`, laid out (column, s). `normals` are every vertex's.
+/// `values[t · columns · 16 ..]`, laid out (column, s). `normals` are every vertex's, and
+/// `owner[v]` the scene object of v's first triangle (`NO_OWNER` for a vertex no triangle
+/// uses), kept here so that the per-edit nodes need not walk the triangles again.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ShColumns {
     pub columns: u32,
     pub slot: Vec<u32>,
+    pub owner: Vec<u32>,
     #[serde(with = "pod_vec")]
     pub normals: Vec<Vec3>,
     #[serde(with = "pod_vec")]
@@ -44,15 +50,21 @@ impl ShColumns {
         &self.values[t * w..(t + 1) * w]
     }
 
+    /// Vertex `v`'s scene object, if a triangle uses it.
+    pub fn owner_of(&self, v: usize) -> Option<u32> {
+        Some(self.owner[v]).filter(|&o| o != NO_OWNER)
+    }
+
     /// Bytes held for `vertices` with `slots` of them shaded by `columns` columns.
     pub fn bytes_for(vertices: u64, slots: u64, columns: u64) -> u64 {
-        vertices.saturating_mul(16).saturating_add(slots.saturating_mul(columns).saturating_mul(SH as u64 * 4)).saturating_add(32)
+        vertices.saturating_mul(20).saturating_add(slots.saturating_mul(columns).saturating_mul(SH as u64 * 4)).saturating_add(32)
     }
 
     fn is_consistent(&self) -> bool {
         let w = self.columns as usize * SH;
         let slots = self.values.len().checked_div(w).unwrap_or(0);
         self.slot.len() == self.normals.len()
+            && self.owner.len() == self.normals.len()
             && (w == 0 || self.values.len().is_multiple_of(w))
             && self.slot.iter().all(|&t| t == NO_SLOT || (t as usize) < slots)
             && self.values.iter().all(|x| x.is_finite())
@@ -65,7 +77,7 @@ impl PortValue for ShColumns {
     const COLOR: [u8; 3] = [200, 170, 90];
     const DOC: &'static str = "per shaded vertex, the world-SH projection of the BRDF's incoming factor times the cosine";
     fn byte_size(&self) -> usize {
-        self.values.len() * 4 + self.slot.len() * 4 + self.normals.len() * 12 + 16
+        self.values.len() * 4 + (self.slot.len() + self.owner.len()) * 4 + self.normals.len() * 12 + 16
     }
     relume_core::serde_codec!(check ShColumns::is_consistent);
 }
@@ -126,7 +138,7 @@ pub struct IncidentProjection {
 inputs!(pub IncidentProjectionIn { scene: Scene, visibility: Visibility, brdf: TuckerBrdf });
 outputs!(pub IncidentProjectionOut { projection: ShColumns });
 
-#[node(category = "ptt")]
+#[node(category = "ptt", version = 2)]
 impl IncidentProjection {
     fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
         MemoryEstimate { outputs: vec![None], working: 0 }
@@ -168,7 +180,8 @@ impl IncidentProjection {
         cx.metric("slots", shaded.len() as f64);
         cx.metric("columns", cols as f64);
         cx.metric("bytes", bytes as f64);
-        Ok(IncidentProjectionOut { projection: ShColumns { columns: cols as u32, slot, normals: vis.normals.clone(), values } })
+        let owner = owner.iter().map(|o| o.unwrap_or(NO_OWNER)).collect();
+        Ok(IncidentProjectionOut { projection: ShColumns { columns: cols as u32, slot, owner, normals: vis.normals.clone(), values } })
     }
 }
 
@@ -212,6 +225,11 @@ pub(crate) mod tests {
         .expect("runs");
         let p: ShColumns = first(&out);
         assert_eq!(p.slots(), s2.positions.len());
+        // Each vertex's owner: the object of its first triangle.
+        for (v, &o) in p.owner.iter().enumerate() {
+            let first_tri = s2.triangles.iter().position(|t| t.contains(&(v as u32))).expect("every vertex is used");
+            assert_eq!(o, s2.tri_object[first_tri], "vertex {v}");
+        }
         let c: Vec<f32> = (0..SH).map(|k| uniform(7, k as u64, 0) - 0.3).collect();
         for v in [0, 5, s2.positions.len() - 1] {
             let t = p.slot[v] as usize;

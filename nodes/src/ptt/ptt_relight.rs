@@ -2,7 +2,7 @@
 
 use super::bounce::SH;
 use super::brdf::types::{Blend, BrdfFamily, MaterialParam, SpecularLobes, TuckerBrdf, MAX_LOBES};
-use super::incident_projection::{vertex_objects, ShColumns, NO_SLOT};
+use super::incident_projection::{ShColumns, NO_OWNER, NO_SLOT};
 use super::ptt_incident::VertexIncident;
 use super::screen_hits::ScreenHits;
 use super::transfer_t0::LobeVisibility;
@@ -196,7 +196,13 @@ impl PttRelight {
         VertexColors::check_budget(n, cx.memory_budget())?;
         let sources = self.sources(&i)?;
         let shadings = self.shadings(&i)?;
-        let owner = vertex_objects(scene);
+        if p.owner.iter().any(|&o| o != NO_OWNER && o as usize >= scene.objects.len()) {
+            return Err(NodeError::input(
+                "projection",
+                format!("names objects the scene's {} do not hold: they must come from the same scene", scene.objects.len()),
+            ));
+        }
+        let owner = |v: usize| p.owner_of(v);
         let env = CubeView { n: i.env.n as usize, texels: &i.env.map };
         let bits_side = i.visibility.n as usize;
         let (eye, cols) = (i.camera.origin, p.columns as usize);
@@ -205,7 +211,7 @@ impl PttRelight {
         // The mirror direction of the view about a tensor-shaded vertex's normal, where its
         // lobes read the visibility (none when it has no specular part toward the eye).
         let mirror = |v: usize| -> Option<Vec3> {
-            let sh = shadings[owner[v]? as usize].as_ref()?;
+            let sh = shadings[owner(v)? as usize].as_ref()?;
             let (nv, wo) = (p.normals[v], (eye - scene.positions[v]).normalize_or_zero());
             (p.slot[v] != NO_SLOT && sh.ks != Vec3::ZERO && nv.dot(wo) > 0.0).then(|| (2.0 * nv.dot(wo) * nv - wo).normalize_or_zero())
         };
@@ -224,7 +230,7 @@ impl PttRelight {
                 }
             }
             let v = seen[k] as usize;
-            let Some(o) = owner[v] else { return (Vec3::ZERO, Vec3::ZERO) };
+            let Some(o) = owner(v) else { return (Vec3::ZERO, Vec3::ZERO) };
             let e = inc.irradiance[v];
             let Some(sh) = &shadings[o as usize] else {
                 let albedo = match scene.objects[o as usize].material {
@@ -430,6 +436,11 @@ mod tests {
         assert!(e.to_string().contains("not Lambertian"), "{e}");
         let e = run_on::<PttRelight>(&[], c.relight_inputs(&s, &inc, &c.env, &ObjectMaterials(vec![]))).expect_err("no material");
         assert!(e.to_string().contains("no material"), "{e}");
+        // A projection of another scene, naming objects this one lacks.
+        let mut fewer = s.clone();
+        fewer.objects.clear();
+        let e = run_on::<PttRelight>(&[], c.relight_inputs(&fewer, &inc, &c.env, &m)).expect_err("objects the scene lacks");
+        assert!(e.to_string().contains("do not hold"), "{e}");
     }
 
     /// The glossy plane under the blob sky, its material edited to Cook-Torrance (m, F0) on
