@@ -190,7 +190,9 @@ impl PttIncident {
         let n = self.check(&i)?;
         let (p, cols, bounces) = (i.projection, i.projection.columns as usize, i.light.bounces);
         let slots = p.slots();
-        let bytes = VertexIncident::bytes_for(n as u64, slots as u64, cols as u64) + n as u64 * (SH as u64 * 12 + 8);
+        // Beside the output, per vertex: its one-bounce SH (16 RGB), its cluster row, and its
+        // two-bounce light twice (per chunk, then joined).
+        let bytes = VertexIncident::bytes_for(n as u64, slots as u64, cols as u64) + n as u64 * (SH as u64 * 12 + 8 + 2 * 12);
         if bytes > cx.memory_budget() {
             return Err(NodeError::over_limit(format!(
                 "the incident light of {n} vertices would hold {}, over the {} budget",
