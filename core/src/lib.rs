@@ -11,6 +11,7 @@ mod ctx;
 mod error;
 mod exec;
 mod explain;
+mod file_hash;
 pub mod graph;
 mod hash;
 pub mod memory;
@@ -29,6 +30,7 @@ pub use ctx::{resolve_write_path, CancelToken, Event, NodeStatus, Observer, RunC
 pub use error::{GraphError, GraphErrors, NodeError};
 pub use exec::{DiskPolicy, Engine, RunError, RunOptions, RunResult};
 pub use explain::{PlanAction, PlanLine};
+pub use file_hash::content_hash;
 pub use graph::{Graph, FORMAT_VERSION};
 pub use hash::{Hash, Hasher};
 pub use memory::{MemoryEstimate, PortSize};

@@ -63,8 +63,13 @@ pub fn fmt_bytes(b: u64) -> String {
 }
 
 /// The default budget of a run: 80 % of the machine's physical memory (8 GiB where it cannot
-/// be read).
+/// be read). Read once per process: every node run's context starts from it.
 pub fn default_budget() -> u64 {
+    static BUDGET: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
+    *BUDGET.get_or_init(read_default_budget)
+}
+
+fn read_default_budget() -> u64 {
     let total_kib = std::fs::read_to_string("/proc/meminfo")
         .ok()
         .and_then(|t| t.lines().find(|l| l.starts_with("MemTotal:")).and_then(|l| l.split_whitespace().nth(1)?.parse::<u64>().ok()));

@@ -1,7 +1,7 @@
 //! Parameter schemas (type, default, range, unit, help), values, validation and typed access.
 
 use crate::error::NodeError;
-use crate::hash::{Hash, Hasher};
+use crate::hash::Hasher;
 use crate::ron::{write_f64, write_str, Ron, RonKind};
 use std::path::{Path, PathBuf};
 
@@ -366,8 +366,8 @@ impl ParamValues {
             v.hash_into(h);
             if spec.kind == ParamKind::InputFile {
                 let path = self.path(name);
-                let bytes = crate::read_input(&path).map_err(|e| format!("parameter `{name}`: cannot read {}: {e}", path.display()))?;
-                h.hash(&Hash::of_bytes(&bytes));
+                let content = crate::content_hash(&path).map_err(|e| format!("parameter `{name}`: cannot read {}: {e}", path.display()))?;
+                h.hash(&content);
             }
         }
         Ok(())

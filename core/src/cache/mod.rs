@@ -32,7 +32,7 @@ impl CacheEntry {
 
     /// Whether every file dependency still has the recorded content.
     pub fn deps_unchanged(&self) -> bool {
-        self.deps.iter().all(|(path, h)| crate::read_input(path).is_ok_and(|b| Hash::of_bytes(&b) == *h))
+        self.deps.iter().all(|(path, h)| crate::content_hash(path).is_ok_and(|c| c == *h))
     }
 }
 
