@@ -295,30 +295,43 @@ impl<'a> RunCtx<'a> {
         init: impl Fn() -> S + Sync + Send,
         f: impl Fn(&mut S, usize) -> T + Sync + Send,
     ) -> Result<Vec<T>, NodeError> {
-        let done = AtomicU64::new(0);
-        (0..n)
-            .into_par_iter()
-            .map_init(init, |scratch, i| {
-                self.check()?;
-                let r = f(scratch, i);
-                self.progress(done.fetch_add(1, Ordering::Relaxed) + 1, n as u64);
-                Ok(r)
-            })
-            .collect()
+        self.par_blocks(n, init, |scratch, i| Ok(f(scratch, i)))
     }
 
     /// As `par_map` for work that can fail: the first error rayon meets stops the run.
     pub fn par_try_map<T: Send>(&self, n: usize, f: impl Fn(usize) -> Result<T, NodeError> + Sync + Send) -> Result<Vec<T>, NodeError> {
+        self.par_blocks(n, || (), |_, i| f(i))
+    }
+
+    /// The parallel maps' one loop: the items in blocks of consecutive indices (`block_len`),
+    /// cancellation checked per item, progress counted per block. Counting per item made
+    /// both cores write one shared counter for every item, and the line's trips between them
+    /// cost more than a light item (a vertex shaded for an orbit) itself.
+    fn par_blocks<T: Send, S>(
+        &self,
+        n: usize,
+        init: impl Fn() -> S + Sync + Send,
+        f: impl Fn(&mut S, usize) -> Result<T, NodeError> + Sync + Send,
+    ) -> Result<Vec<T>, NodeError> {
+        let block = block_len(n, rayon::current_num_threads());
         let done = AtomicU64::new(0);
-        (0..n)
+        let parts: Vec<Vec<T>> = (0..n.div_ceil(block))
             .into_par_iter()
-            .map(|i| {
-                self.check()?;
-                let r = f(i)?;
-                self.progress(done.fetch_add(1, Ordering::Relaxed) + 1, n as u64);
-                Ok(r)
+            .map_init(init, |scratch, b| {
+                let items = b * block..((b + 1) * block).min(n);
+                let len = items.len() as u64;
+                let mut out = Vec::with_capacity(items.len());
+                for i in items {
+                    self.check()?;
+                    out.push(f(scratch, i)?);
+                }
+                self.progress(done.fetch_add(len, Ordering::Relaxed) + len, n as u64);
+                Ok(out)
             })
-            .collect()
+            .collect::<Result<_, NodeError>>()?;
+        let mut all = Vec::with_capacity(n);
+        parts.into_iter().for_each(|p| all.extend(p));
+        Ok(all)
     }
 
     /// Runs `f(chunk_index, chunk)` over `data` split into chunks of `chunk` elements (rows
@@ -361,6 +374,13 @@ impl<'a> RunCtx<'a> {
     }
 }
 
+/// Items per block of the parallel maps for `n` items on `threads` threads: about 32 blocks
+/// a thread (rayon balances their load), at most 256 items (a block of heavy items, a
+/// vertex's precompute, still ends soon enough to show progress).
+fn block_len(n: usize, threads: usize) -> usize {
+    (n / (threads.max(1) * 32)).clamp(1, 256)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -392,6 +412,22 @@ mod tests {
         cancel.cancel();
         assert_eq!(cx.par_map(10, |i| i), Err(NodeError::Cancelled));
         assert_eq!(cx.tick(1, 2), Err(NodeError::Cancelled));
+    }
+
+    #[test]
+    fn the_maps_keep_item_order_over_blocks_report_the_whole_and_stop_at_an_error() {
+        assert_eq!((block_len(0, 2), block_len(100, 2), block_len(10_000, 2), block_len(1 << 20, 2)), (1, 1, 156, 256));
+        let cancel = CancelToken::new();
+        for n in [0, 1, 63, 64, 65, 10_000, 70_000] {
+            let rec = Record(Mutex::default());
+            let cx = RunCtx::new("n", &cancel, Some(&rec));
+            let got = cx.par_map_init(n, || 7usize, |seven, i| i * *seven).unwrap();
+            assert_eq!(got, (0..n).map(|i| i * 7).collect::<Vec<_>>(), "{n} items");
+            assert!(n == 0 || rec.0.lock().unwrap().contains(&1.0), "{n} items: the bar reaches the end");
+        }
+        let cx = RunCtx::new("n", &cancel, None);
+        let failing = cx.par_try_map(5000, |i| if i == 4321 { Err(NodeError::input("x", "item 4321")) } else { Ok(i) });
+        assert!(failing.expect_err("fails").to_string().contains("item 4321"));
     }
 
     #[test]
