@@ -15,6 +15,7 @@ pub mod sh_rotation;
 pub mod srgb;
 pub mod ssim;
 pub mod streamed_pca;
+pub mod tree_coding;
 pub mod tucker;
 
 /// Hints the processor to bring the cache line holding `x` into the cache (no effect on
