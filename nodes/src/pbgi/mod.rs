@@ -8,6 +8,7 @@ pub mod pbgi_gather;
 pub mod point_tree;
 pub mod shade_direct;
 pub mod traversal;
+pub mod wavelet_radiance;
 
 use relume_core::Registry;
 

@@ -1,0 +1,90 @@
+//! A surfel's outgoing radiance as wavelets (wavelet PBGI, [P] 4.4; PIPELINES.md pipeline 4
+//! step 8): the radiance it sends in every direction, on a world-aligned cube map of side n
+//! (6 × 32² by default, 6 × 128² for `ring`), through the non-standard Haar transform per face
+//! (`math::cube_haar`, which says why that variant) and the thesis' non-linear
+//! approximation by threshold. Glossy surfels send a lobe, so their points carry what classic
+//! PBGI's single diffuse radiance cannot: glossy inter-reflection and caustics.
+//!
+//! Directions below the surfel's tangent plane send nothing. The incident light comes as
+//! samples (world direction toward the light, weight = radiance × cos θi / pdf / count), so
+//! delta lights are one sample each and extended lights many; each texel's radiance is
+//! Σ f(ωo, ωi) × weight with f the material's BRDF in the surfel's frame.
+
+use crate::brdf;
+use crate::math::cube_haar::{CubeHaar, SparseCubeHaar};
+use crate::math::cubemap::CubeMap;
+use crate::math::frame::Frame;
+use crate::types::Material;
+use glam::Vec3;
+
+/// The surfel's outgoing radiance on a cube map of side `n`: texel k holds the radiance
+/// toward its centre direction.
+pub fn outgoing_cube(material: &Material, normal: Vec3, incident: &[(Vec3, Vec3)], n: usize) -> CubeMap {
+    let frame = Frame::from_normal(normal);
+    let local: Vec<(Vec3, Vec3)> = incident.iter().map(|&(wi, w)| (frame.to_local(wi), w)).filter(|(wi, _)| wi.z > 0.0).collect();
+    let mut map = CubeMap::constant(n, Vec3::ZERO);
+    for k in 0..map.texels.len() {
+        let wo = frame.to_local(map.direction(k));
+        if wo.z <= 0.0 {
+            continue;
+        }
+        map.texels[k] = local.iter().map(|&(wi, w)| brdf::eval(material, wo, wi) * w).sum();
+    }
+    map
+}
+
+/// `outgoing_cube` through the Haar transform, keeping the coefficients of magnitude at
+/// least `threshold` ([P]: 0.002).
+pub fn outgoing_wavelets(material: &Material, normal: Vec3, incident: &[(Vec3, Vec3)], n: usize, threshold: f32) -> SparseCubeHaar {
+    CubeHaar::forward(&outgoing_cube(material, normal, incident, n)).keep_above(threshold)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f32::consts::PI;
+
+    /// ∫ over the sphere of the radiance the kept coefficients give back.
+    fn integral(w: &SparseCubeHaar) -> Vec3 {
+        w.dense().inverse().integral()
+    }
+
+    #[test]
+    fn a_lambert_surfel_sends_albedo_over_pi_times_irradiance_over_its_hemisphere_only() {
+        let n = Vec3::new(0.2, 0.9, -0.3).normalize();
+        let albedo = Vec3::new(0.6, 0.4, 0.2);
+        // A light 30° off the normal: irradiance E = L cos 30°.
+        let wi = (n * 30f32.to_radians().cos() + n.cross(Vec3::X).normalize() * 30f32.to_radians().sin()).normalize();
+        let e = 2.0 * wi.dot(n);
+        let map = outgoing_cube(&Material::Lambert { albedo }, n, &[(wi, Vec3::splat(e))], 16);
+        for k in 0..map.texels.len() {
+            let want = if map.direction(k).dot(n) > 0.0 { albedo / PI * e } else { Vec3::ZERO };
+            assert!((map.texels[k] - want).abs().max_element() < 1e-6, "texel {k}: {} vs {want}", map.texels[k]);
+        }
+        // A light from behind the surfel sends nothing.
+        let dark = outgoing_cube(&Material::Lambert { albedo }, n, &[(-wi, Vec3::ONE)], 8);
+        assert!(dark.texels.iter().all(|t| *t == Vec3::ZERO));
+    }
+
+    #[test]
+    fn a_blinn_phong_180_lobe_keeps_its_analytic_integral_from_few_wavelet_terms() {
+        // Light along the normal with irradiance E: L(ωo) = E (kd/π + ks (s+2)/(8π) cos^s(θo/2)),
+        // whose integral over the hemisphere is E (2 kd + ks (1 − 2^−(s+2)/2)).
+        let (kd, ks, s) = (Vec3::splat(0.1), Vec3::new(0.8, 0.6, 0.4), 180.0);
+        let e = 3.0;
+        let want = (kd * 2.0 + ks * (1.0 - 2f32.powf(-(s + 2.0) / 2.0))) * e;
+        let m = Material::BlinnPhong { kd, ks, exponent: s };
+        for normal in [Vec3::Y, Vec3::new(0.3, 0.5, 0.8).normalize()] {
+            // Measured (normal along y, then oblique): 0.068 % and 0.0069 % off with 448 and
+            // 963 of 6,144 terms at 32²; 0.0046 % and 0.00044 % with 4,872 and 8,924 of
+            // 98,304 at 128². The diffuse part's edge at the horizon costs most of the terms.
+            for (side, tol) in [(32, 2e-3), (128, 2e-4)] {
+                let w = outgoing_wavelets(&m, normal, &[(normal, Vec3::splat(e))], side, 0.002);
+                let got = integral(&w);
+                let err = ((got - want) / want).abs().max_element();
+                assert!(err < tol, "side {side}, normal {normal}: {got} vs {want} ({err}), {} terms", w.index.len());
+                assert!(w.index.len() * 4 < 6 * side * side, "side {side}: {} terms", w.index.len());
+            }
+        }
+    }
+}
