@@ -182,6 +182,57 @@ pub fn largest(weight: &[f64], k: usize) -> Vec<u32> {
     order
 }
 
+/// The most terms `texel_terms` gives (a side of 1024: 6 + 3 × 10).
+pub const MAX_TEXEL_TERMS: usize = 36;
+
+/// The Haar terms one texel's value is made of: texel `k` (face-major, row-major within the
+/// face) of a side-`n` map (n ≤ 1024) is Σ weight × coefficient[index] over the pairs
+/// returned (the first `len`): the six stored scaling terms through the inverse of the
+/// faces' step, and per level the three details whose square support holds the texel,
+/// ± 1 / (support side). 6 + 3 log₂ n terms: a point evaluation without the inverse
+/// transform of the whole map.
+pub fn texel_terms(n: usize, k: usize) -> ([(u32, f32); MAX_TEXEL_TERMS], usize) {
+    assert!(n.is_power_of_two() && n <= 1024, "texel terms need a power-of-two side up to 1024, not {n}");
+    let mut out = [(0u32, 0.0f32); MAX_TEXEL_TERMS];
+    let mut len = 0;
+    let mut push = |i: usize, w: f32| {
+        out[len] = (i as u32, w);
+        len += 1;
+    };
+    let (face, y, x) = (k / (n * n), k / n % n, k % n);
+    // Face `face`'s own scaling term from the six stored ones: the inverse step's matrix.
+    static FACES: std::sync::OnceLock<[[f32; 6]; 6]> = std::sync::OnceLock::new();
+    let m = FACES.get_or_init(|| {
+        let mut m = [[0.0; 6]; 6];
+        for g in 0..6 {
+            let mut unit = [Vec3::ZERO; 6];
+            unit[g] = Vec3::ONE;
+            faces_inverse(&mut unit, 1);
+            for f in 0..6 {
+                m[f][g] = unit[f].x;
+            }
+        }
+        m
+    });
+    for (g, w) in m[face].iter().enumerate() {
+        push(g * n * n, w / n as f32);
+    }
+    let base = face * n * n;
+    let mut s = n;
+    while s >= 2 {
+        let shift = (n / s).trailing_zeros();
+        let (bx, by, h) = (x >> shift, y >> shift, s / 2);
+        let (c, r) = (bx / 2, by / 2);
+        let (sx, sy) = (if bx % 2 == 0 { 1.0 } else { -1.0 }, if by % 2 == 0 { 1.0 } else { -1.0 });
+        let w = s as f32 / (2 * n) as f32;
+        push(base + r * n + c + h, sx * w);
+        push(base + (r + h) * n + c, sy * w);
+        push(base + (r + h) * n + c + h, sx * sy * w);
+        s /= 2;
+    }
+    (out, len)
+}
+
 impl SparseCubeHaar {
     /// All coefficients, zeros where nothing was kept.
     pub fn dense(&self) -> CubeHaar {
@@ -196,6 +247,25 @@ impl SparseCubeHaar {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_texels_terms_give_its_value_without_the_whole_inverse() {
+        use crate::math::rng::uniform;
+        for n in [1, 2, 8, 32] {
+            let coeffs = (0..6 * n * n)
+                .map(|i| Vec3::new(uniform(1, i as u64, 0), uniform(1, i as u64, 1), uniform(1, i as u64, 2)) - 0.5)
+                .collect();
+            let h = CubeHaar { n, coeffs };
+            let map = h.inverse();
+            for k in 0..6 * n * n {
+                let (terms, len) = texel_terms(n, k);
+                let terms = &terms[..len];
+                let v: Vec3 = terms.iter().map(|&(i, w)| h.coeffs[i as usize] * w).sum();
+                assert!((v - map.texels[k]).abs().max_element() < 1e-5, "n {n}, texel {k}: {v} vs {}", map.texels[k]);
+                assert_eq!(len, 6 + 3 * n.trailing_zeros() as usize);
+            }
+        }
+    }
 
     /// A sky of 1 with a sun 10⁴× brighter in the texels within 2° of `sun`.
     fn sky(n: usize, sun: Vec3) -> CubeMap {

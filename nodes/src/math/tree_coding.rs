@@ -37,9 +37,11 @@ pub enum Threshold {
 }
 
 /// A sparse vector: ascending indices and their values.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Sparse {
+    #[serde(with = "crate::types::pod_vec")]
     pub index: Vec<u32>,
+    #[serde(with = "crate::types::pod_vec")]
     pub value: Vec<f32>,
 }
 
@@ -66,6 +68,35 @@ impl Sparse {
     pub fn bytes(&self) -> usize {
         self.index.len() * 8
     }
+
+    /// Entry `i` (0 where nothing is kept), by binary search.
+    pub fn get(&self, i: u32) -> f32 {
+        self.index.binary_search(&i).map_or(0.0, |k| self.value[k])
+    }
+
+    /// For each term (index i, weight t; ascending i), entries `stride · i … stride · i +
+    /// stride − 1` added to `out` times `w · t`. The terms are found in one forward sweep:
+    /// each search gallops on from where the last one stopped (a vector of RGB triples keeps
+    /// a texel's channels adjacent, so a group is one search and a few reads).
+    fn add_groups(&self, terms: &[(u32, f32)], stride: usize, w: f32, out: &mut [f32]) {
+        let ix = &self.index;
+        let mut lo = 0;
+        for &(i, t) in terms {
+            let first = stride as u32 * i;
+            // Gallop: the first k ≥ lo with ix[k] ≥ first lies in (lo + step / 2, lo + step].
+            let mut step = 1;
+            while lo + step <= ix.len() && ix[lo + step - 1] < first {
+                step *= 2;
+            }
+            let (a, b) = (lo + step / 2, (lo + step).min(ix.len()));
+            let mut k = a + ix[a..b].partition_point(|&x| x < first);
+            lo = k;
+            while k < ix.len() && ix[k] < first + stride as u32 {
+                out[(ix[k] - first) as usize] += w * t * self.value[k];
+                k += 1;
+            }
+        }
+    }
 }
 
 /// A binary tree as the coding reads it: per node its two children (`None` for a leaf) and
@@ -79,7 +110,7 @@ pub struct TreeShape<'a> {
 
 /// The coded tree: per node its stored average (level ≤ ε) and detail (inner nodes at level
 /// ≥ ε), with what rebuilding a node needs (parent, side, level, the children's area shares).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct CodedTree {
     pub dim: usize,
     /// The split level ε.
@@ -219,6 +250,62 @@ impl CodedTree {
         out
     }
 
+    /// Σ weight × entries `stride · index … + stride − 1` of node `v`'s vector, over `terms`
+    /// (index, weight; indices ascending), into `out` (`stride` long, zeroed first): a few entries of the
+    /// vector `reconstruct` would build whole, read from the same stored vectors (a texel
+    /// of a node's radiance from `cube_haar::texel_terms`, RGB with stride 3).
+    pub fn dot(&self, v: u32, terms: &[(u32, f32)], stride: usize, out: &mut [f32]) {
+        out.fill(0.0);
+        let mut at = v;
+        // Up from `v` to its stored average: each detail on the way enters with the sign and
+        // weight of the child the path takes, as in `reconstruct`.
+        loop {
+            if let Some(g) = &self.average[at as usize] {
+                g.add_groups(terms, stride, 1.0, out);
+                break;
+            }
+            let (p, left) = self.parent[at as usize];
+            assert!(p != u32::MAX, "node {v} has no stored average above it");
+            let alpha = self.share[p as usize];
+            let w = if left { 2.0 * (1.0 - alpha) } else { -2.0 * alpha };
+            if let Some(h) = &self.detail[p as usize] {
+                h.add_groups(terms, stride, w, out);
+            }
+            at = p;
+        }
+    }
+
+    /// Whether the parts agree (what decoding a stored tree checks before anything reads
+    /// it): one entry per node everywhere, parents one level up, every node below ε with a
+    /// stored average above it, sparse indices ascending and under `dim`, shares in [0, 1].
+    pub fn is_consistent(&self) -> bool {
+        let n = self.average.len();
+        let lengths = [self.detail.len(), self.parent.len(), self.level.len(), self.share.len()].iter().all(|&l| l == n);
+        let sparse_ok = |s: &Sparse| {
+            s.index.len() == s.value.len()
+                && s.index.windows(2).all(|w| w[0] < w[1])
+                && s.index.last().is_none_or(|&i| (i as usize) < self.dim)
+        };
+        lengths
+            && self.average.iter().chain(&self.detail).flatten().all(sparse_ok)
+            && self.share.iter().all(|a| (0.0..=1.0).contains(a))
+            && (0..n).all(|v| match self.parent[v].0 {
+                u32::MAX => self.level[v] == 0 && self.average[v].is_some(),
+                p => (p as usize) < n && self.level[p as usize].checked_add(1) == Some(self.level[v]),
+            })
+            // Levels strictly fall toward the root, so the walk up ends; it must meet an average.
+            && (0..n).all(|v| {
+                let mut at = v;
+                while self.average[at].is_none() {
+                    match self.parent[at].0 {
+                        u32::MAX => return false,
+                        p => at = p as usize,
+                    }
+                }
+                true
+            })
+    }
+
     /// Bytes of the stored vectors (index and value per kept coefficient).
     pub fn bytes(&self) -> usize {
         self.average.iter().chain(&self.detail).flatten().map(Sparse::bytes).sum()
@@ -353,6 +440,25 @@ mod tests {
         let c = t.code(4, 3, Threshold::Coefficient(0.0), |_, _| 0.0);
         let depth = *c.level.iter().max().unwrap() as usize;
         assert!(c.peak_live <= depth + 2 && c.peak_live >= 3, "{} held, depth {depth}", c.peak_live);
+    }
+
+    #[test]
+    fn a_few_entries_read_through_dot_are_those_of_the_rebuilt_vector() {
+        // 60-long vectors as 20 triples, thresholded so that some stored entries are gone.
+        let t = TestTree::new(37, |p| 1.0 + (p % 3) as f32);
+        let c = t.code(60, 2, Threshold::Coefficient(0.3), |p, d| ((p * 7 + d * 5) % 11) as f32 / 5.0 - 1.0);
+        let mut out = [0.0f32; 3];
+        let all: Vec<(u32, f32)> = (0..20).map(|i| (i, 0.1 * i as f32 - 1.0)).collect();
+        for v in 0..t.children.len() as u32 {
+            let full = c.reconstruct(v);
+            for terms in [vec![(0, 1.0)], vec![(19, 1.0)], vec![(1, 0.5), (7, -2.0), (8, 1.0), (19, 3.0)], all.clone()] {
+                c.dot(v, &terms, 3, &mut out);
+                for ch in 0..3 {
+                    let want: f32 = terms.iter().map(|&(i, w)| w * full[3 * i as usize + ch]).sum();
+                    assert!((out[ch] - want).abs() <= 1e-5 * (1.0 + want.abs()), "node {v} {terms:?} [{ch}]: {} vs {want}", out[ch]);
+                }
+            }
+        }
     }
 
     proptest! {
