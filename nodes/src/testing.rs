@@ -74,6 +74,21 @@ pub mod test_scene {
     use crate::types::{Light, Material, Scene};
     use glam::Vec3;
 
+    /// A 2 × 2 floor of material `floor` at y = 0 under a 0.4 × 0.4 lamp of radiance 10 at
+    /// y = 1, seen from above at 8 × 8: add lights and build.
+    pub fn floor_and_lamp(floor: Material) -> SceneBuilder {
+        SceneBuilder::new(Vec3::new(0.0, 3.0, 0.1), Vec3::ZERO, 40.0, 8, 8)
+            .quad("floor", Vec3::new(-1.0, 0.0, 1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -2.0), floor, Vec3::ZERO)
+            .quad(
+                "lamp",
+                Vec3::new(-0.2, 1.0, -0.2),
+                Vec3::new(0.4, 0.0, 0.0),
+                Vec3::new(0.0, 0.0, 0.4),
+                Material::Lambert { albedo: Vec3::ZERO },
+                Vec3::splat(10.0),
+            )
+    }
+
     /// Three spheres over a floor quad under a point light.
     pub fn spheres() -> Scene {
         let grey = Material::Lambert { albedo: Vec3::splat(0.5) };

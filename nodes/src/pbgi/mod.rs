@@ -3,6 +3,7 @@
 pub mod cluster_receivers;
 pub mod factorized_gather;
 pub mod gbuffer;
+pub mod incident;
 pub mod microbuffer;
 pub mod pbgi_gather;
 pub mod point_tree;

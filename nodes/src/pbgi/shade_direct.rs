@@ -1,11 +1,10 @@
 //! ShadeDirect node.
 
+use super::incident::{DirectSampler, Incident};
 use crate::brdf::diffuse_albedo;
-use crate::math::rng::uniform;
-use crate::render::lights::{delta_sample, LightSampler};
 use crate::types::accel::Accel;
 use crate::types::{PointRadiance, Scene, SurfacePoints};
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 use std::f32::consts::FRAC_1_PI;
 
@@ -38,49 +37,21 @@ pub fn shade_direct(
     p: &ShadeDirect,
     cx: &RunCtx,
 ) -> Result<(Vec<Vec3>, u64), NodeError> {
-    let lights = LightSampler::new(scene);
-    let eps = 1e-6 * scene.extent();
+    let sampler = DirectSampler::new(scene, accel, p.samples, p.seed);
     // One point: its radiance, or None when it was skipped without tracing.
-    let shade = |i: usize| -> Option<Vec3> {
+    let shade = |i: usize, inc: &mut Incident| -> Option<Vec3> {
         let kd = diffuse_albedo(&pts.material[i]);
         let (x, n) = (pts.position[i], pts.normal[i]);
-        let reachable = lights.has_extended() || scene.lights.iter().any(|l| delta_sample(l, x).is_some_and(|(wi, _, _)| wi.dot(n) > 0.0));
-        if kd == Vec3::ZERO || !reachable {
+        if kd == Vec3::ZERO || !sampler.reachable(x, n) {
             return None;
         }
-        let origin = x + n * eps * (1.0 + x.abs().max_element());
-        let visible = |wi: Vec3, dist: f32| {
-            let tmax = if dist.is_finite() { dist * (1.0 - 1e-4) } else { f32::INFINITY };
-            !accel.occluded(origin, wi, 0.0, tmax)
-        };
-        let mut e = Vec3::ZERO;
-        for l in &scene.lights {
-            if let Some((wi, dist, li)) = delta_sample(l, x) {
-                let cos = wi.dot(n);
-                if cos > 0.0 && visible(wi, dist) {
-                    e += li * cos;
-                }
-            }
-        }
-        if lights.has_extended() {
-            let mut acc = Vec3::ZERO;
-            for s in 0..p.samples {
-                let id = (i as u64) << 20 | s as u64;
-                let u = |d| uniform(p.seed, id, d);
-                if let Some(ls) = lights.sample_extended(scene, x, u(0), Vec2::new(u(1), u(2))) {
-                    let cos = ls.wi.dot(n);
-                    if cos > 0.0 && ls.pdf > 0.0 && visible(ls.wi, ls.dist) {
-                        acc += ls.li * (cos / ls.pdf);
-                    }
-                }
-            }
-            e += acc / p.samples as f32;
-        }
-        Some(kd * FRAC_1_PI * e)
+        sampler.incident(i, x, n, inc);
+        Some(kd * FRAC_1_PI * inc.irradiance())
     };
     let n = pts.len();
     let tasks = cx.par_map(n.div_ceil(POINTS_PER_TASK), |t| {
-        (t * POINTS_PER_TASK..((t + 1) * POINTS_PER_TASK).min(n)).map(shade).collect::<Vec<_>>()
+        let mut inc = Incident::default();
+        (t * POINTS_PER_TASK..((t + 1) * POINTS_PER_TASK).min(n)).map(|i| shade(i, &mut inc)).collect::<Vec<_>>()
     })?;
     let mut skipped = 0;
     let out = tasks
@@ -177,17 +148,7 @@ mod tests {
     #[test]
     fn an_area_light_estimate_converges_to_the_same_value_for_two_seeds() {
         let lam = Material::Lambert { albedo: Vec3::splat(0.8) };
-        let scene = SceneBuilder::new(Vec3::new(0.0, 3.0, 0.1), Vec3::ZERO, 40.0, 8, 8)
-            .quad("floor", Vec3::new(-1.0, 0.0, 1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -2.0), lam, Vec3::ZERO)
-            .quad(
-                "lamp",
-                Vec3::new(-0.2, 1.0, -0.2),
-                Vec3::new(0.4, 0.0, 0.0),
-                Vec3::new(0.0, 0.0, 0.4),
-                Material::Lambert { albedo: Vec3::ZERO },
-                Vec3::splat(10.0),
-            )
-            .build();
+        let scene = crate::testing::test_scene::floor_and_lamp(lam).build();
         let accel = Accel::build(&scene, BuildQuality::Fast);
         let pts = points(&scene, 400);
         let mean = |seed| shade(&scene, &accel, &pts, 256, seed).0.iter().map(|v| v.x as f64).sum::<f64>();
