@@ -29,6 +29,7 @@ fn every_graph_in_graphs_runs_and_its_outputs_are_finite() {
                 }
                 "SampleSurface" => g.set_param_text(&reg, &format!("{}.count", n.id), "2000").unwrap(),
                 "Voxelize" | "VolumeSource" => g.set_param_text(&reg, &format!("{}.resolution", n.id), "32").unwrap(),
+                "SurfelWavelets" => g.set_param_text(&reg, &format!("{}.resolution", n.id), "16").unwrap(),
                 "EmitPhotons" => g.set_param_text(&reg, &format!("{}.resolution", n.id), "64").unwrap(),
                 kind => {
                     for (param, value) in ptt_test_size(kind) {

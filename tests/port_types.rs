@@ -7,9 +7,8 @@ use relume_tests::{add_output, files_under, load_graph, ptt_test_size};
 use std::collections::BTreeSet;
 
 /// `pbgi_vs_reference.ron` at test size with every output port of every node as an output:
-/// with `relight_ring.ron`, `relight_sv_spot.ron`, `voxelize_glass.ron` and
-/// `refract_glass.ron` it produces every
-/// port type relume registers.
+/// with `relight_ring.ron`, `relight_sv_spot.ron`, `voxelize_glass.ron`, `refract_glass.ron`,
+/// `ptt_envlit.ron` and `wpbgi_ring.ron` it produces every port type relume registers.
 fn every_port_graph() -> Graph {
     let g = load_graph(
         "pbgi_vs_reference.ron",
@@ -86,6 +85,19 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
     }
     let f = every_port(f);
     let rf = first.run(&f, &RunOptions::default()).unwrap();
+    // The wavelet PBGI's per-point wavelets and coded tree from the ring's graph.
+    let h = every_port(load_graph(
+        "wpbgi_ring.ron",
+        &[
+            ("scene.width", "8"),
+            ("scene.height", "8"),
+            ("points.count", "500"),
+            ("wavelets.resolution", "8"),
+            ("direct.pixel_samples", "1"),
+            ("reference.spp", "1"),
+        ],
+    ));
+    let rh = first.run(&h, &RunOptions::default()).unwrap();
 
     // Every registered port type is produced by this graph (as an output, or as the partial
     // results of its sharded nodes, kept on disk chunk by chunk), and each value decodes to
@@ -98,6 +110,7 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
         .chain(&rd.outputs)
         .chain(&re.outputs)
         .chain(&rf.outputs)
+        .chain(&rh.outputs)
         .map(|(_, v)| v.type_name())
         .collect();
     for n in r1
@@ -109,6 +122,7 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
         .chain(&rd.report.nodes)
         .chain(&re.report.nodes)
         .chain(&rf.report.nodes)
+        .chain(&rh.report.nodes)
     {
         let kind = reg.node(&n.kind).unwrap();
         if let (Some(sh), Some(stats)) = (kind.sharded(), &n.shards) {
@@ -118,7 +132,9 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
     }
     let registered: BTreeSet<&str> = reg.port_types().map(|t| t.name).collect();
     assert_eq!(produced, registered, "the graph covers every registered port type");
-    for (name, v) in r1.outputs.iter().chain(&rb.outputs).chain(&rc.outputs).chain(&rd.outputs).chain(&re.outputs).chain(&rf.outputs) {
+    for (name, v) in
+        r1.outputs.iter().chain(&rb.outputs).chain(&rc.outputs).chain(&rd.outputs).chain(&re.outputs).chain(&rf.outputs).chain(&rh.outputs)
+    {
         let bytes = v.encode();
         let info = reg.port_type(v.type_name()).unwrap();
         let back = (info.decode)(&bytes, v.fingerprint()).unwrap_or_else(|| panic!("{name} ({}) does not decode", v.type_name()));
@@ -131,7 +147,7 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
 
     // A second engine (another process) gets every node's result from disk, the same values.
     let second = Engine::new(relume_nodes::registry()).with_disk_cache(dir.path());
-    for (graph, r) in [(&g, &r1), (&b, &rb), (&c, &rc), (&d, &rd), (&e, &re), (&f, &rf)] {
+    for (graph, r) in [(&g, &r1), (&b, &rb), (&c, &rc), (&d, &rd), (&e, &re), (&f, &rf), (&h, &rh)] {
         let r2 = second.run(graph, &RunOptions::default()).unwrap();
         assert_eq!(r2.report.ran, 0, "{:?}", r2.report.ran_ids());
         // From disk, or from memory where an earlier graph or node had the same one (the BRDF

@@ -454,6 +454,17 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "GBuffer" => &["receivers"],
         "PointTree" => &["nodes", "depth"],
         "ShadeDirect" => &["points", "points_skipped"],
+        "SurfelWavelets" => &["points", "points_skipped", "points_capped", "terms_per_point", "terms_of_full_map"],
+        "WaveletTree" => &[
+            "nodes",
+            "coded_bytes",
+            "coefficients_kept",
+            "coefficients_before_threshold",
+            "uncompressed_vectors_held",
+            "uncoded_bytes",
+            "coding_ratio",
+        ],
+        "WaveletGather" => &["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver"],
         "SampleSurface" => &["points"],
         "BrdfPca" => &[
             "bases",

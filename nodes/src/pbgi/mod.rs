@@ -8,8 +8,11 @@ pub mod microbuffer;
 pub mod pbgi_gather;
 pub mod point_tree;
 pub mod shade_direct;
+pub mod surfel_wavelets;
 pub mod traversal;
+pub mod wavelet_gather;
 pub mod wavelet_radiance;
+pub mod wavelet_tree;
 
 use relume_core::Registry;
 
@@ -20,4 +23,7 @@ pub fn register(reg: &mut Registry) {
     reg.add::<pbgi_gather::PbgiGather>();
     reg.add::<cluster_receivers::ClusterReceivers>();
     reg.add::<factorized_gather::FactorizedGather>();
+    reg.add::<surfel_wavelets::SurfelWavelets>();
+    reg.add::<wavelet_tree::WaveletTree>();
+    reg.add::<wavelet_gather::WaveletGather>();
 }

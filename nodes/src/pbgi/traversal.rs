@@ -84,9 +84,32 @@ struct HotNode {
     right: u32,
 }
 
-/// Settings of one traversal.
-pub struct Traversal<'a> {
+/// What tree nodes send toward a receiver: the diffuse tree's SH radiance (`PointTree`
+/// itself) or the wavelet tree's (`wavelet_radiance::WaveletSource`).
+pub trait NodeRadiance: Sync {
+    /// Node i's projected area seen from `dir` (unit, from the node toward the receiver) and
+    /// the radiance it sends that way.
+    fn area_and_radiance(&self, i: u32, dir: Vec3) -> (f32, Vec3);
+    /// The radiance alone (a near leaf's, ray-cast as a disk).
+    fn radiance_toward(&self, i: u32, dir: Vec3) -> Vec3 {
+        self.area_and_radiance(i, dir).1
+    }
+}
+
+impl NodeRadiance for PointTree {
+    fn area_and_radiance(&self, i: u32, dir: Vec3) -> (f32, Vec3) {
+        PointTree::area_and_radiance(self, i, dir)
+    }
+    fn radiance_toward(&self, i: u32, dir: Vec3) -> Vec3 {
+        PointTree::radiance_toward(self, i, dir)
+    }
+}
+
+/// Settings of one traversal; `R` says what the nodes send (the tree's own SH radiance by
+/// default).
+pub struct Traversal<'a, R: NodeRadiance = PointTree> {
     pub tree: &'a PointTree,
+    pub source: &'a R,
     /// Largest solid angle of a rasterised node, in microbuffer pixels.
     pub threshold: f32,
     /// Self-intersection guard for exactly ray-cast near leaves, and the height above a
@@ -97,6 +120,13 @@ pub struct Traversal<'a> {
 
 impl<'a> Traversal<'a> {
     pub fn new(tree: &'a PointTree, threshold: f32, eps: f32) -> Self {
+        Traversal::with_source(tree, tree, threshold, eps)
+    }
+}
+
+impl<'a, R: NodeRadiance> Traversal<'a, R> {
+    /// A traversal of `tree` whose nodes send what `source` says.
+    pub fn with_source(tree: &'a PointTree, source: &'a R, threshold: f32, eps: f32) -> Self {
         let hot = tree
             .nodes
             .iter()
@@ -115,7 +145,7 @@ impl<'a> Traversal<'a> {
                 }
             })
             .collect();
-        Traversal { tree, threshold, eps, hot }
+        Traversal { tree, source, threshold, eps, hot }
     }
 
     /// Traverses from `roots` for a receiver at `p` with microbuffer frame `frame`, writing
@@ -174,12 +204,12 @@ impl<'a> Traversal<'a> {
                 counts.near_leaves += 1;
                 let c = frame.to_local(v);
                 let toward = -v / d.max(f32::MIN_POSITIVE);
-                mb.disk_exact(c, frame.to_local(node.axis), node.bound, self.tree.radiance_toward(i, toward), self.eps);
+                mb.disk_exact(c, frame.to_local(node.axis), node.bound, self.source.radiance_toward(i, toward), self.eps);
             }
             return;
         }
         let toward = -v / d;
-        let (a, l) = self.tree.area_and_radiance(i, toward);
+        let (a, l) = self.source.area_and_radiance(i, toward);
         if a <= 0.0 {
             return;
         }

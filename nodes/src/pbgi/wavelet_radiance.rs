@@ -11,11 +11,12 @@
 //! Σ f(ωo, ωi) × weight with f the material's BRDF in the surfel's frame.
 
 use crate::brdf;
-use crate::math::cube_haar::{CubeHaar, SparseCubeHaar};
+use crate::math::cube_haar::{texel_terms, CubeHaar, SparseCubeHaar};
+use crate::math::cubemap::texel_of_side;
 use crate::math::cubemap::CubeMap;
 use crate::math::frame::Frame;
 use crate::math::tree_coding::{CodedTree, Threshold, TreeShape};
-use crate::types::{Material, PointTree};
+use crate::types::{CodedWavelets, Material, PointTree, PointWavelets};
 use glam::Vec3;
 
 /// The surfel's outgoing radiance on a cube map of side `n`: texel k holds the radiance
@@ -40,23 +41,75 @@ pub fn outgoing_wavelets(material: &Material, normal: Vec3, incident: &[(Vec3, V
     CubeHaar::forward(&outgoing_cube(material, normal, incident, n)).keep_above(threshold)
 }
 
-/// The point tree's per-point wavelets (`per_point[i]` for point i, all of one side) coded
-/// hierarchically along the tree (`math::tree_coding`: nodes above level `split` keep their
-/// area-weighted average, nodes below their detail), each vector the RGB coefficients
+/// What a surfel sends per unit of its area toward each direction: the outgoing radiance
+/// times the cosine to its normal, J(ω) = L(ω) max(0, n·ω) (the texel's radiant intensity
+/// per unit area). This is what the point tree averages: a node's area-weighted mean of J
+/// times its area is the group's radiant intensity I(ω) = Σ A_j cos θ_j L_j(ω), so a
+/// receiver that divides by the node's projected area toward it gets the radiance the group
+/// shows, whatever mix of normals it holds. (Averaging L itself, as [P] 4.5 does, counts
+/// the points facing away as dark and halves what a curved group sends.) J also falls to 0
+/// at the horizon instead of stepping, which costs fewer wavelet terms.
+pub fn outgoing_intensity(material: &Material, normal: Vec3, incident: &[(Vec3, Vec3)], n: usize) -> CubeMap {
+    let mut map = outgoing_cube(material, normal, incident, n);
+    let nn = normal.normalize_or(Vec3::Z);
+    for k in 0..map.texels.len() {
+        let cos = map.direction(k).dot(nn).max(0.0);
+        map.texels[k] *= cos;
+    }
+    map
+}
+
+/// The point tree's per-point wavelets (`per_point`'s point i for the tree's point i)
+/// coded hierarchically along the tree (`math::tree_coding`: nodes above level `split` keep
+/// their area-weighted average, nodes below their detail), each vector the RGB coefficients
 /// flattened (coefficient k's channel c at 3k + c). `split` = `u32::MAX` keeps every node's
 /// average and no detail: the uncoded tree the coding is measured against.
-pub fn code_tree(tree: &PointTree, per_point: &[SparseCubeHaar], split: u32, threshold: Threshold) -> CodedTree {
-    let n = per_point.first().map_or(1, |w| w.n);
-    assert!(per_point.iter().all(|w| w.n == n), "the points' wavelets are of different sides");
+pub fn code_tree(tree: &PointTree, per_point: &PointWavelets, split: u32, threshold: Threshold) -> CodedTree {
+    let n = per_point.n as usize;
     let children: Vec<Option<[u32; 2]>> = tree.nodes.iter().map(|t| t.children).collect();
     let area: Vec<f32> = tree.nodes.iter().map(|t| t.area).collect();
     let shape = TreeShape { children: &children, area: &area, root: tree.root };
     CodedTree::build(shape, 6 * n * n * 3, split, threshold, |node, out| {
-        let w = &per_point[tree.nodes[node as usize].point as usize];
-        for (&k, v) in w.index.iter().zip(&w.value) {
+        let (index, value) = per_point.point(tree.nodes[node as usize].point as usize);
+        for (&k, v) in index.iter().zip(value) {
             out[3 * k as usize..3 * k as usize + 3].copy_from_slice(&v.to_array());
         }
     })
+}
+
+/// The radiance tree nodes send, read from their coded wavelets: what a gather rasterises.
+/// Node i's intensity toward ω is its area × the coded mean of J (`outgoing_intensity`) at
+/// ω's texel; divided by its projected area toward ω (the tree's SH estimate, exact for
+/// leaves) that is the radiance it shows. Negative values of the approximation are clamped
+/// to 0, and a node whose projected area is below `MIN_AREA_FRACTION` of its area sends
+/// nothing (as the diffuse tree's `radiance_toward`).
+pub struct WaveletSource<'a> {
+    pub tree: &'a PointTree,
+    pub coded: &'a CodedWavelets,
+}
+
+impl WaveletSource<'_> {
+    /// Node i's radiant intensity per unit area toward `dir` (the coded J).
+    pub fn intensity_per_area(&self, i: u32, dir: Vec3) -> Vec3 {
+        let n = self.coded.n as usize;
+        let (mut terms, len) = texel_terms(n, texel_of_side(n, dir));
+        let terms = &mut terms[..len];
+        terms.sort_unstable_by_key(|t| t.0);
+        let mut out = [0.0f32; 3];
+        self.coded.tree.dot(i, terms, 3, &mut out);
+        Vec3::from_array(out).max(Vec3::ZERO)
+    }
+}
+
+impl super::traversal::NodeRadiance for WaveletSource<'_> {
+    fn area_and_radiance(&self, i: u32, dir: Vec3) -> (f32, Vec3) {
+        let a = self.tree.projected_area(i, dir);
+        let node = &self.tree.nodes[i as usize];
+        if a <= crate::types::MIN_AREA_FRACTION * node.area || a <= 0.0 {
+            return (0.0, Vec3::ZERO);
+        }
+        (a, self.intensity_per_area(i, dir) * (node.area / a))
+    }
 }
 
 #[cfg(test)]
@@ -125,7 +178,8 @@ mod tests {
             })
             .collect();
         let tree = PointTree::build(&pts, &vec![Vec3::ZERO; pts.len()]);
-        let exact = code_tree(&tree, &per_point, 3, Threshold::Coefficient(0.0));
+        let wavelets = PointWavelets::from_points(8, &per_point);
+        let exact = code_tree(&tree, &wavelets, 3, Threshold::Coefficient(0.0));
         for (v, node) in tree.nodes.iter().enumerate().filter(|(_, t)| t.is_leaf()) {
             let got = exact.reconstruct(v as u32);
             let want = per_point[node.point as usize].dense().coeffs;
@@ -137,8 +191,8 @@ mod tests {
         // At the thesis' threshold the details of similar neighbours are mostly dropped:
         // the coded tree is smaller than every node keeping its average. Measured: 181,560 B
         // against 1,333,440 B (7.3×).
-        let coded = code_tree(&tree, &per_point, 3, Threshold::Coefficient(0.002));
-        let uncoded = code_tree(&tree, &per_point, u32::MAX, Threshold::Coefficient(0.002));
+        let coded = code_tree(&tree, &wavelets, 3, Threshold::Coefficient(0.002));
+        let uncoded = code_tree(&tree, &wavelets, u32::MAX, Threshold::Coefficient(0.002));
         assert!(uncoded.detail.iter().all(Option::is_none));
         assert!(coded.bytes() * 4 < uncoded.bytes(), "coded {} B, uncoded {} B", coded.bytes(), uncoded.bytes());
     }

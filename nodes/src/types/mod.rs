@@ -17,6 +17,7 @@ mod texture;
 mod transfer;
 pub mod view_paths;
 pub mod volume;
+mod wavelets;
 
 pub use self::image::{Image, MAX_IMAGE_BYTES};
 pub use accel::Accel;
@@ -35,6 +36,7 @@ pub use texture::{MaterialMaps, Texture};
 pub use transfer::{floats_and_stride, ObjectMaterial, ObjectMaterials, PathCounts, Specular, Transfer, TransferRows, MAX_TRANSFER_BYTES};
 pub use view_paths::ViewPaths;
 pub use volume::{Sampler, Volume, MAX_VOLUME_BYTES};
+pub use wavelets::{CodedWavelets, PointWavelets, MAX_WAVELET_SIDE};
 
 /// Serde of a `Vec` of plain 4-byte words (`f32`, `u32`, `Vec3`, `[u32; 3]`, …) as one byte
 /// string, little-endian: `#[serde(with = "super::pod_vec")]`. Through postcard that is the

@@ -1,0 +1,160 @@
+//! WaveletGather node.
+
+use super::pbgi_gather::gather_with;
+use super::traversal::{count_metrics, microbuffer_params, tree_extent, Traversal};
+use super::wavelet_radiance::WaveletSource;
+use crate::types::{CodedWavelets, Image, Metrics, PointTree, Receivers};
+use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+
+microbuffer_params! {
+    /// One bounce of glossy light gathered from the wavelet point tree (wavelet PBGI, [P]
+    /// 4.6): `PbgiGather`'s traversal and microbuffer, but each rasterised node sends what its
+    /// coded wavelets say toward the receiver (its radiant intensity at that direction's
+    /// texel over its projected area: `wavelet_radiance::WaveletSource`), so glossy senders
+    /// send their lobes and caustics appear. The microbuffer is the uniform one (N × N over
+    /// the hemisphere in the Nusselt mapping); convolved with the receiver's BRDF and cosine.
+    /// Outputs the indirect image and per-receiver counts.
+    #[derive(Params)]
+    pub struct WaveletGather {}
+}
+
+inputs!(pub WaveletGatherIn { tree: PointTree, coded: CodedWavelets, receivers: Receivers });
+outputs!(pub WaveletGatherOut { indirect: Image, stats: Metrics });
+
+#[node(category = "pbgi")]
+impl WaveletGather {
+    fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
+        let image = inputs[2].and_then(|s| s.dims).map(|[w, h]| PortSize::image(w, h));
+        MemoryEstimate { outputs: vec![image, Some(PortSize::bytes(256))], working: 0 }
+    }
+
+    fn run(&self, i: WaveletGatherIn, cx: &RunCtx) -> Result<WaveletGatherOut, NodeError> {
+        if i.coded.tree.parent.len() != i.tree.nodes.len() {
+            return Err(NodeError::input(
+                "coded",
+                format!("wavelets coded for a tree of {} nodes, not this tree of {}", i.coded.tree.parent.len(), i.tree.nodes.len()),
+            ));
+        }
+        let source = WaveletSource { tree: i.tree, coded: i.coded };
+        let t = Traversal::with_source(i.tree, &source, self.threshold, 1e-5 * tree_extent(i.tree));
+        let (img, counts) = gather_with(&t, i.receivers, self.resolution, cx)?;
+        let m = count_metrics(counts, i.receivers.len());
+        for (k, v) in &m.0 {
+            cx.metric(k, *v);
+        }
+        Ok(WaveletGatherOut { indirect: img, stats: m })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pbgi::pbgi_gather::{gather, PbgiGather};
+    use crate::pbgi::shade_direct::{shade_direct, ShadeDirect};
+    use crate::pbgi::surfel_wavelets::SurfelWavelets;
+    use crate::pbgi::wavelet_tree::WaveletTree;
+    use crate::scene::builder::SceneBuilder;
+    use crate::testing::{cancels_midway, f, first, i, run_on};
+    use crate::types::accel::{Accel, BuildQuality};
+    use crate::types::{Light, Material, PointWavelets, Scene, SurfacePoints};
+    use glam::Vec3;
+    use relume_core::{CancelToken, Value};
+
+    /// A floor and a back wall under a point light, seen from the front at 12 × 12.
+    fn corner(wall: Material) -> (Scene, SurfacePoints) {
+        let grey = Material::Lambert { albedo: Vec3::splat(0.6) };
+        let scene = SceneBuilder::new(Vec3::new(0.0, 1.2, 2.5), Vec3::new(0.0, 0.4, 0.0), 50.0, 12, 12)
+            .quad("floor", Vec3::new(-1.0, 0.0, 1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -2.0), grey, Vec3::ZERO)
+            .quad("wall", Vec3::new(-1.0, 0.0, -1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 1.5, 0.0), wall, Vec3::ZERO)
+            .light(Light::Point { position: Vec3::new(0.3, 1.2, 0.6), intensity: Vec3::splat(3.0) })
+            .build();
+        let pts = crate::geometry::sample_surface::sample_surface(
+            &scene,
+            &crate::geometry::sample_surface::SampleSurface {
+                method: crate::geometry::sample_surface::Method::AreaCdf,
+                count: 3000,
+                seed: 2,
+                emitters: true,
+            },
+        )
+        .unwrap();
+        (scene, pts)
+    }
+
+    /// The diffuse tree, the coded wavelets and the receivers of `corner`.
+    fn setup(wall: Material) -> (PointTree, CodedWavelets, Receivers) {
+        let (scene, pts) = corner(wall);
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let cancel = CancelToken::new();
+        let (b, _) = shade_direct(&scene, &accel, &pts, &ShadeDirect { samples: 1, seed: 0 }, &RunCtx::new("t", &cancel, None)).unwrap();
+        let tree = PointTree::build(&pts, &b);
+        let acc = || Value::new(Accel::build(&scene, BuildQuality::Fast));
+        let w: PointWavelets = first(
+            &run_on::<SurfelWavelets>(&[("resolution", i(32))], vec![Value::new(scene.clone()), acc(), Value::new(pts.clone())]).unwrap(),
+        );
+        let coded: CodedWavelets = first(
+            &run_on::<WaveletTree>(
+                &[("report_uncoded", relume_core::ParamValue::Bool(false))],
+                vec![Value::new(tree.clone()), Value::new(w)],
+            )
+            .unwrap(),
+        );
+        let r: Receivers = first(&run_on::<crate::pbgi::gbuffer::GBuffer>(&[], vec![Value::new(scene.clone()), acc()]).unwrap());
+        (tree, coded, r)
+    }
+
+    fn mean(img: &Image) -> f64 {
+        img.pixels.iter().map(|p| p[0] as f64).sum::<f64>() / img.pixels.len() as f64
+    }
+
+    #[test]
+    fn on_a_diffuse_scene_the_wavelet_gather_agrees_with_the_diffuse_one() {
+        let (tree, coded, r) = setup(Material::Lambert { albedo: Vec3::splat(0.6) });
+        let cancel = CancelToken::new();
+        let cx = RunCtx::new("t", &cancel, None);
+        let (diffuse, _) = gather(&tree, &r, &PbgiGather { resolution: 16, threshold: 1.0 }, tree_extent(&tree), &cx).unwrap();
+        let out = run_on::<WaveletGather>(&[], vec![Value::new(tree.clone()), Value::new(coded), Value::new(r)]).unwrap();
+        let wavelet: Image = first(&out);
+        let (a, b) = (mean(&diffuse), mean(&wavelet));
+        // Measured: 0.010205 against 0.010184 (0.2 % apart).
+        assert!(a > 0.0 && ((b - a) / a).abs() < 0.02, "mean indirect: diffuse {a}, wavelet {b}");
+        let stats = out[1].get::<Metrics>().unwrap();
+        assert!(stats.get("nodes_rasterised_per_receiver").unwrap() > 0.0);
+    }
+
+    #[test]
+    fn a_glossy_wall_sends_more_light_where_its_lobe_points_than_a_diffuse_one() {
+        // The same reflectance: Lambert 0.6, or Blinn-Phong 0.1 + 0.5 with s = 60. The diffuse
+        // tree sees only kd of the glossy wall; the wavelet tree carries its lobe, which the
+        // point light above the floor mirrors down onto the floor in front of the wall.
+        let glossy = Material::BlinnPhong { kd: Vec3::splat(0.1), ks: Vec3::splat(0.5), exponent: 60.0 };
+        let (tree, coded, r) = setup(glossy);
+        let cancel = CancelToken::new();
+        let cx = RunCtx::new("t", &cancel, None);
+        let (diffuse, _) = gather(&tree, &r, &PbgiGather { resolution: 16, threshold: 1.0 }, tree_extent(&tree), &cx).unwrap();
+        let wavelet: Image = first(&run_on::<WaveletGather>(&[], vec![Value::new(tree), Value::new(coded), Value::new(r)]).unwrap());
+        let (a, b) = (mean(&diffuse), mean(&wavelet));
+        // Measured: 0.00602 against 0.00903 (1.50×).
+        assert!(b > 1.3 * a, "diffuse tree {a}, wavelet tree {b}");
+    }
+
+    #[test]
+    fn coded_wavelets_of_another_tree_are_refused_and_a_run_can_be_cancelled() {
+        let (tree, coded, r) = setup(Material::Lambert { albedo: Vec3::splat(0.6) });
+        let other = {
+            let (_, pts) = corner(Material::Lambert { albedo: Vec3::ONE });
+            let n = pts.len() / 2;
+            let half = SurfacePoints {
+                position: pts.position[..n].to_vec(),
+                normal: pts.normal[..n].to_vec(),
+                radius: pts.radius[..n].to_vec(),
+                object: pts.object[..n].to_vec(),
+                material: pts.material[..n].to_vec(),
+            };
+            PointTree::build(&half, &vec![Vec3::ZERO; n])
+        };
+        let err = run_on::<WaveletGather>(&[], vec![Value::new(other), Value::new(coded.clone()), Value::new(r.clone())]).unwrap_err();
+        assert!(err.to_string().contains("not this tree"), "{err}");
+        cancels_midway::<WaveletGather>(&[("threshold", f(1.0))], vec![Value::new(tree), Value::new(coded), Value::new(r)]);
+    }
+}
