@@ -74,6 +74,7 @@ impl Microbuffer {
         }
     }
 
+    #[cfg(test)]
     fn pixel_of(&self, d: Vec3) -> usize {
         let n = self.n as f32;
         let x = (((d.x + 1.0) * 0.5 * n) as usize).min(self.n - 1);
@@ -81,34 +82,13 @@ impl Microbuffer {
         y * self.n + x
     }
 
-    /// Adds a splat covering fraction `cov` of pixel i at `depth` with radiance `l`, by depth
-    /// layers. Within one layer (depths within a factor 1.25) coverage adds up uncapped: the
-    /// splats of one surface tile it without true overlap, and capping each pixel at 1 would
-    /// lose the excess of over-covered pixels while under-covered ones keep their gap (a bias
-    /// measured at −16 % on two parallel planes). A splat clearly in front hides what is there
-    /// by its coverage; one clearly behind shows through the uncovered rest only.
-    /// `radiance` holds Σ coverage · L.
+    /// Local direction of pixel `i`'s centre (`None` outside the disk).
+    pub fn dir(&self, i: usize) -> Option<Vec3> {
+        self.dirs[i]
+    }
+
     fn write(&mut self, i: usize, depth: f32, l: Vec3, cov: f32) {
-        let cov = cov.max(0.0);
-        let (d0, c0) = (self.depth[i], self.coverage[i]);
-        if c0 <= 0.0 {
-            self.depth[i] = depth;
-            self.radiance[i] = l * cov;
-            self.coverage[i] = cov;
-        } else if depth * LAYER < d0 {
-            let hide = cov.min(1.0);
-            self.radiance[i] = l * cov + self.radiance[i] * (1.0 - hide);
-            self.coverage[i] = cov + c0 * (1.0 - hide);
-            self.depth[i] = depth;
-        } else if depth > d0 * LAYER {
-            let vis = (1.0 - c0).max(0.0);
-            self.radiance[i] += l * (cov * vis);
-            self.coverage[i] += cov * vis;
-        } else {
-            self.radiance[i] += l * cov;
-            self.coverage[i] += cov;
-            self.depth[i] = d0.min(depth);
-        }
+        layer_write(&mut self.depth[i], &mut self.radiance[i], &mut self.coverage[i], depth, l, cov);
     }
 
     /// Rasterises a node seen in local direction `d` (unit, z > 0 part is visible) at distance
@@ -116,64 +96,24 @@ impl Microbuffer {
     /// writes one pixel with radiance scaled by its share of the pixel (coverage); a larger
     /// one covers the pixels within its angular radius.
     pub fn splat(&mut self, d: Vec3, dist: f32, omega: f32, l: Vec3) {
-        if d.z <= 0.0 || omega <= 0.0 {
-            return;
-        }
-        let alpha = (omega / std::f32::consts::PI).sqrt().min(std::f32::consts::FRAC_PI_2);
-        let centre = self.pixel_of(d);
-        let pixel_omega = self.pixel_weight() / d.z.max(1e-3);
-        if self.n == 1 {
-            self.write(centre, dist, l, omega / pixel_omega);
-            return;
-        }
-        if omega <= pixel_omega {
-            // Spread a sub-pixel node bilinearly over the 2 × 2 pixels around its centre, so
-            // that neighbouring nodes fill pixels evenly instead of piling onto one.
-            let n = self.n as f32;
-            let (fx, fy) = ((d.x + 1.0) * 0.5 * n - 0.5, (d.y + 1.0) * 0.5 * n - 0.5);
-            let (x0, y0) = (fx.floor(), fy.floor());
-            let (tx, ty) = (fx - x0, fy - y0);
-            for (dx, dy, w) in [(0, 0, (1.0 - tx) * (1.0 - ty)), (1, 0, tx * (1.0 - ty)), (0, 1, (1.0 - tx) * ty), (1, 1, tx * ty)] {
-                let (x, y) = (x0 as i64 + dx, y0 as i64 + dy);
-                if w <= 0.0 || x < 0 || y < 0 || x >= self.n as i64 || y >= self.n as i64 {
-                    continue;
-                }
-                let i = y as usize * self.n + x as usize;
-                if let Some(pd) = self.dirs[i] {
-                    // Coverage relative to that pixel's own solid angle.
-                    self.write(i, dist, l, w * omega * pd.z / self.pixel_weight());
-                }
-            }
-            return;
-        }
-        // Pixels whose centre lies within the angular radius; the footprint on the disk is at
-        // most sin α wide around (d.x, d.y).
-        let n = self.n as f32;
-        let reach = alpha.sin() + 2.0 / n;
-        let lo = |c: f32| (((c - reach + 1.0) * 0.5 * n).floor().max(0.0)) as usize;
-        let hi = |c: f32| (((c + reach + 1.0) * 0.5 * n).ceil().min(n - 1.0)) as usize;
-        let cos_a = alpha.cos();
-        let mut any = false;
-        for y in lo(d.y)..=hi(d.y) {
-            for x in lo(d.x)..=hi(d.x) {
-                let i = y * self.n + x;
-                if let Some(w) = self.dirs[i] {
-                    if w.dot(d) >= cos_a {
-                        self.write(i, dist, l, 1.0);
-                        any = true;
-                    }
-                }
-            }
-        }
-        if !any {
-            self.write(centre, dist, l, omega / pixel_omega);
-        }
+        let Microbuffer { n, dirs, depth, radiance, coverage } = self;
+        splat_taps(*n, dirs, d, omega, &mut |i, cov| layer_write(&mut depth[i], &mut radiance[i], &mut coverage[i], dist, l, cov));
+    }
+
+    /// The writes `splat` makes (pixel, coverage), in its order, without making them.
+    pub fn splat_writes(&self, d: Vec3, omega: f32, f: &mut impl FnMut(usize, f32)) {
+        splat_taps(self.n, &self.dirs, d, omega, f)
     }
 
     /// Exact raster of a disk (centre `c` relative to the receiver, normal `nrm`, radius `r`,
     /// all local): each pixel's centre ray is intersected with the disk. The front side shows
     /// `l`, the back side occludes in black.
     pub fn disk_exact(&mut self, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
+        self.disk_exact_where(c, nrm, r, l, eps, |_| true)
+    }
+
+    /// `disk_exact` on the pixels `keep` accepts only.
+    pub fn disk_exact_where(&mut self, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32, keep: impl Fn(usize) -> bool) {
         let dist = c.length();
         // Only pixels inside the disk's bounding cone can see it (all of them when the
         // receiver is within the disk's radius of its centre).
@@ -192,7 +132,7 @@ impl Microbuffer {
             for x in lo.0..=hi.0 {
                 let i = y * self.n + x;
                 let Some(w) = self.dirs[i] else { continue };
-                if w.dot(axis) < cos_cone {
+                if w.dot(axis) < cos_cone || !keep(i) {
                     continue;
                 }
                 let denom = w.dot(nrm);
@@ -241,6 +181,97 @@ impl Microbuffer {
             }
         }
         sum * w
+    }
+}
+
+/// Adds a splat covering fraction `cov` of a pixel (its depth, Σ coverage · L and coverage)
+/// at `depth` with radiance `l`, by depth layers. Within one layer (depths within a factor
+/// 1.25) coverage adds up uncapped: the splats of one surface tile it without true overlap,
+/// and capping each pixel at 1 would lose the excess of over-covered pixels while
+/// under-covered ones keep their gap (a bias measured at −16 % on two parallel planes). A
+/// splat clearly in front hides what is there by its coverage; one clearly behind shows
+/// through the uncovered rest only.
+pub fn layer_write(d0: &mut f32, rad: &mut Vec3, c0: &mut f32, depth: f32, l: Vec3, cov: f32) {
+    let cov = cov.max(0.0);
+    if *c0 <= 0.0 {
+        *d0 = depth;
+        *rad = l * cov;
+        *c0 = cov;
+    } else if depth * LAYER < *d0 {
+        let hide = cov.min(1.0);
+        *rad = l * cov + *rad * (1.0 - hide);
+        *c0 = cov + *c0 * (1.0 - hide);
+        *d0 = depth;
+    } else if depth > *d0 * LAYER {
+        let vis = (1.0 - *c0).max(0.0);
+        *rad += l * (cov * vis);
+        *c0 += cov * vis;
+    } else {
+        *rad += l * cov;
+        *c0 += cov;
+        *d0 = d0.min(depth);
+    }
+}
+
+/// The pixels (and coverages) a node seen in direction `d` of solid angle `omega` covers in
+/// an `n`-wide buffer with pixel directions `dirs`: a node smaller than its pixel spreads
+/// bilinearly over the 2 × 2 pixels around its centre, so that neighbouring nodes fill
+/// pixels evenly instead of piling onto one, each share measured against that pixel's own
+/// solid angle; a larger one covers the pixels whose centre lies within its angular radius.
+fn splat_taps(n: usize, dirs: &[Option<Vec3>], d: Vec3, omega: f32, f: &mut impl FnMut(usize, f32)) {
+    if d.z <= 0.0 || omega <= 0.0 {
+        return;
+    }
+    let weight = if n == 1 { std::f32::consts::PI } else { 4.0 / (n * n) as f32 };
+    let nf = n as f32;
+    let pixel_of = |d: Vec3| {
+        let x = (((d.x + 1.0) * 0.5 * nf) as usize).min(n - 1);
+        let y = (((d.y + 1.0) * 0.5 * nf) as usize).min(n - 1);
+        y * n + x
+    };
+    let alpha = (omega / std::f32::consts::PI).sqrt().min(std::f32::consts::FRAC_PI_2);
+    let centre = pixel_of(d);
+    let pixel_omega = weight / d.z.max(1e-3);
+    if n == 1 {
+        f(centre, omega / pixel_omega);
+        return;
+    }
+    if omega <= pixel_omega {
+        let (fx, fy) = ((d.x + 1.0) * 0.5 * nf - 0.5, (d.y + 1.0) * 0.5 * nf - 0.5);
+        let (x0, y0) = (fx.floor(), fy.floor());
+        let (tx, ty) = (fx - x0, fy - y0);
+        for (dx, dy, w) in [(0, 0, (1.0 - tx) * (1.0 - ty)), (1, 0, tx * (1.0 - ty)), (0, 1, (1.0 - tx) * ty), (1, 1, tx * ty)] {
+            let (x, y) = (x0 as i64 + dx, y0 as i64 + dy);
+            if w <= 0.0 || x < 0 || y < 0 || x >= n as i64 || y >= n as i64 {
+                continue;
+            }
+            let i = y as usize * n + x as usize;
+            if let Some(pd) = dirs[i] {
+                f(i, w * omega * pd.z / weight);
+            }
+        }
+        return;
+    }
+    // Pixels whose centre lies within the angular radius; the footprint on the disk is at
+    // most sin α wide around (d.x, d.y).
+    let reach = alpha.sin() + 2.0 / nf;
+    let lo = |c: f32| (((c - reach + 1.0) * 0.5 * nf).floor().max(0.0)) as usize;
+    let hi = |c: f32| (((c + reach + 1.0) * 0.5 * nf).ceil().min(nf - 1.0)) as usize;
+    let cos_a = alpha.cos();
+    let mut any = false;
+    for y in lo(d.y)..=hi(d.y) {
+        for x in lo(d.x)..=hi(d.x) {
+            let i = y * n + x;
+            if let Some(w) = dirs[i] {
+                if w.dot(d) >= cos_a {
+                    f(i, 1.0);
+                    any = true;
+                }
+            }
+        }
+    }
+    if !any {
+        f(centre, omega / pixel_omega);
     }
 }
 

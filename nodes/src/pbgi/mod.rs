@@ -1,5 +1,6 @@
 //! Point-based global illumination (PIPELINES.md pipeline 4; [P] chapters 2–3).
 
+pub mod adaptive_microbuffer;
 pub mod cluster_receivers;
 pub mod factorized_gather;
 pub mod gbuffer;

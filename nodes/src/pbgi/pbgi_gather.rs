@@ -1,7 +1,7 @@
 //! PbgiGather node.
 
 use super::microbuffer::Microbuffer;
-use super::traversal::{count_metrics, microbuffer_params, tree_extent, GatherCounts, NodeRadiance, Traversal};
+use super::traversal::{count_metrics, microbuffer_params, tree_extent, GatherBuffer, GatherCounts, NodeRadiance, Traversal};
 use crate::brdf;
 use crate::math::frame::Frame;
 use crate::types::{Image, Metrics, PointTree, Receivers};
@@ -30,18 +30,17 @@ const RECEIVERS_PER_TASK: usize = 16;
 
 /// Indirect radiance toward the camera for every receiver (`extent` sets the traversal's ε).
 pub fn gather(tree: &PointTree, r: &Receivers, p: &PbgiGather, extent: f32, cx: &RunCtx) -> Result<(Image, GatherCounts), NodeError> {
-    gather_with(&Traversal::new(tree, p.threshold, 1e-5 * extent), r, p.resolution, cx)
+    gather_with(&Traversal::new(tree, p.threshold, 1e-5 * extent), r, Microbuffer::new(p.resolution), cx)
 }
 
-/// The gather over traversal `t` (whatever its nodes send) with microbuffers of side
-/// `resolution`: one microbuffer per receiver, convolved with the receiver's BRDF.
-pub fn gather_with<R: NodeRadiance>(
+/// The gather over traversal `t` (whatever its nodes send) into copies of `blank` (uniform
+/// or adaptive): one buffer per receiver, convolved with the receiver's BRDF.
+pub fn gather_with<R: NodeRadiance, B: GatherBuffer>(
     t: &Traversal<R>,
     r: &Receivers,
-    resolution: usize,
+    blank: B,
     cx: &RunCtx,
 ) -> Result<(Image, GatherCounts), NodeError> {
-    let blank = Microbuffer::new(resolution);
     let tasks = cx.par_map(r.len().div_ceil(RECEIVERS_PER_TASK), |task| {
         let (mut mb, mut stack) = (blank.clone(), Vec::new());
         let first = task * RECEIVERS_PER_TASK;
@@ -51,10 +50,11 @@ pub fn gather_with<R: NodeRadiance>(
                 if brdf::is_delta(&r.material[i]) {
                     return (Vec3::ZERO, counts);
                 }
-                mb.clear();
                 let frame = Frame::from_normal(r.normal[i]);
+                let wo = frame.to_local(r.wo[i]);
+                mb.begin(&r.material[i], wo);
                 t.run(&[t.tree.root], r.position[i], &frame, &mut mb, &mut stack, &mut counts, |_, _| false);
-                (mb.convolve(&r.material[i], frame.to_local(r.wo[i])), counts)
+                (mb.end(&r.material[i], wo), counts)
             })
             .collect::<Vec<_>>()
     })?;

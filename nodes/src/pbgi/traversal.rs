@@ -105,6 +105,48 @@ impl NodeRadiance for PointTree {
     }
 }
 
+/// Where a traversal rasterises: the uniform `Microbuffer`, or the adaptive one that keeps
+/// its nodes and refines where the light asks (`adaptive_microbuffer`).
+pub trait Raster {
+    /// The solid angle one pixel stands for where local direction `d` lands (the traversal
+    /// rasterises a node whose solid angle is at most `threshold` times this).
+    fn pixel_solid_angle(&self, d: Vec3) -> f32;
+    /// Rasterises node `node` seen in local direction `d` at distance `dist`, of solid angle
+    /// `omega` and radiance `l`. A raster that refines may hand nodes back for another visit
+    /// by pushing them on `stack`.
+    fn splat(&mut self, node: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, stack: &mut Vec<u32>);
+    /// Ray-casts a near leaf exactly as a disk (centre `c`, normal `nrm`, radius `r`, local).
+    fn disk(&mut self, node: u32, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32);
+}
+
+impl Raster for Microbuffer {
+    fn pixel_solid_angle(&self, _: Vec3) -> f32 {
+        self.mean_pixel_solid_angle()
+    }
+    fn splat(&mut self, _: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, _: &mut Vec<u32>) {
+        Microbuffer::splat(self, d, dist, omega, l)
+    }
+    fn disk(&mut self, _: u32, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
+        self.disk_exact(c, nrm, r, l, eps)
+    }
+}
+
+/// A buffer a gather fills per receiver: prepared for the receiver's material and outgoing
+/// direction (local), filled by a traversal, then convolved into its outgoing radiance.
+pub trait GatherBuffer: Raster + Clone + Send + Sync {
+    fn begin(&mut self, m: &crate::types::Material, wo: Vec3);
+    fn end(&mut self, m: &crate::types::Material, wo: Vec3) -> Vec3;
+}
+
+impl GatherBuffer for Microbuffer {
+    fn begin(&mut self, _: &crate::types::Material, _: Vec3) {
+        self.clear();
+    }
+    fn end(&mut self, m: &crate::types::Material, wo: Vec3) -> Vec3 {
+        self.convolve(m, wo)
+    }
+}
+
 /// Settings of one traversal; `R` says what the nodes send (the tree's own SH radiance by
 /// default).
 pub struct Traversal<'a, R: NodeRadiance = PointTree> {
@@ -157,12 +199,11 @@ impl<'a, R: NodeRadiance> Traversal<'a, R> {
         roots: &[u32],
         p: Vec3,
         frame: &Frame,
-        mb: &mut Microbuffer,
+        mb: &mut impl Raster,
         stack: &mut Vec<u32>,
         counts: &mut GatherCounts,
         mut leave: impl FnMut(u32, f32) -> bool,
     ) {
-        let limit = self.threshold * mb.mean_pixel_solid_angle();
         stack.clear();
         stack.extend_from_slice(roots);
         while let Some(i) = stack.pop() {
@@ -172,31 +213,21 @@ impl<'a, R: NodeRadiance> Traversal<'a, R> {
             if leave(i, d) {
                 continue;
             }
-            self.visit(i, v, d, frame, mb, limit, stack, counts);
+            self.visit(i, v, d, frame, mb, stack, counts);
         }
     }
 
     /// One node of a traversal: skip it when it lies wholly under the receiver's horizon, open
     /// it, ray-cast it (near leaf) or rasterise it.
     #[allow(clippy::too_many_arguments)]
-    fn visit(
-        &self,
-        i: u32,
-        v: Vec3,
-        d: f32,
-        frame: &Frame,
-        mb: &mut Microbuffer,
-        limit: f32,
-        stack: &mut Vec<u32>,
-        counts: &mut GatherCounts,
-    ) {
+    fn visit(&self, i: u32, v: Vec3, d: f32, frame: &Frame, mb: &mut impl Raster, stack: &mut Vec<u32>, counts: &mut GatherCounts) {
         let node = &self.hot[i as usize];
         if top_above_horizon(node, v, frame.n) <= self.eps {
             return;
         }
         let inside = d <= node.bound;
         let omega = node.area / (d * d).max(f32::MIN_POSITIVE);
-        if inside || omega > limit {
+        if inside || omega > self.threshold * mb.pixel_solid_angle(frame.to_local(v / d)) {
             if node.right != u32::MAX {
                 stack.push(i + 1);
                 stack.push(node.right);
@@ -204,7 +235,7 @@ impl<'a, R: NodeRadiance> Traversal<'a, R> {
                 counts.near_leaves += 1;
                 let c = frame.to_local(v);
                 let toward = -v / d.max(f32::MIN_POSITIVE);
-                mb.disk_exact(c, frame.to_local(node.axis), node.bound, self.source.radiance_toward(i, toward), self.eps);
+                mb.disk(i, c, frame.to_local(node.axis), node.bound, self.source.radiance_toward(i, toward), self.eps);
             }
             return;
         }
@@ -214,7 +245,7 @@ impl<'a, R: NodeRadiance> Traversal<'a, R> {
             return;
         }
         counts.rasterised += 1;
-        mb.splat(frame.to_local(v / d), d, a / (d * d), l);
+        Raster::splat(mb, i, frame.to_local(v / d), d, a / (d * d), l, stack);
     }
 }
 

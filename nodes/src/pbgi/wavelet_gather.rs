@@ -1,5 +1,7 @@
 //! WaveletGather node.
 
+use super::adaptive_microbuffer::AdaptiveMicrobuffer;
+use super::microbuffer::Microbuffer;
 use super::pbgi_gather::gather_with;
 use super::traversal::{count_metrics, microbuffer_params, tree_extent, Traversal};
 use super::wavelet_radiance::WaveletSource;
@@ -13,9 +15,20 @@ microbuffer_params! {
     /// texel over its projected area: `wavelet_radiance::WaveletSource`), so glossy senders
     /// send their lobes and caustics appear. The microbuffer is the uniform one (N × N over
     /// the hemisphere in the Nusselt mapping); convolved with the receiver's BRDF and cosine.
-    /// Outputs the indirect image and per-receiver counts.
+    /// With `max_level` > 0 the microbuffer is the importance-driven adaptive one ([P]
+    /// 4.6.2, `adaptive_microbuffer`): it starts at `resolution`², its pixels split up to
+    /// `max_level` times where the receiver's BRDF weighs more than the mean, and again where
+    /// a node's radiance over 2^(splits by light) exceeds `gamma`; the nodes a split pixel held
+    /// are visited again. Outputs the indirect image and per-receiver counts.
     #[derive(Params)]
-    pub struct WaveletGather {}
+    pub struct WaveletGather {
+        /// adaptive microbuffer: most 2 × 2 splits of a pixel (0: the uniform microbuffer)
+        #[param(default = 0, range = 0..=4, unit = "levels")]
+        pub max_level: u32,
+        /// adaptive microbuffer: radiance above which a node splits its pixel (γ; [P] gives none)
+        #[param(default = 1.0, range = 0.0..=1.0e6, unit = "W/(m² sr)")]
+        pub gamma: f32,
+    }
 }
 
 inputs!(pub WaveletGatherIn { tree: PointTree, coded: CodedWavelets, receivers: Receivers });
@@ -37,7 +50,14 @@ impl WaveletGather {
         }
         let source = WaveletSource { tree: i.tree, coded: i.coded };
         let t = Traversal::with_source(i.tree, &source, self.threshold, 1e-5 * tree_extent(i.tree));
-        let (img, counts) = gather_with(&t, i.receivers, self.resolution, cx)?;
+        let (img, counts) = if self.max_level == 0 {
+            gather_with(&t, i.receivers, Microbuffer::new(self.resolution), cx)?
+        } else {
+            if self.resolution < 2 {
+                return Err(NodeError::param("resolution", "the adaptive microbuffer starts at 2 × 2 or more"));
+            }
+            gather_with(&t, i.receivers, AdaptiveMicrobuffer::new(self.resolution, self.max_level, self.gamma), cx)?
+        };
         let m = count_metrics(counts, i.receivers.len());
         for (k, v) in &m.0 {
             cx.metric(k, *v);
@@ -120,6 +140,22 @@ mod tests {
         assert!(a > 0.0 && ((b - a) / a).abs() < 0.02, "mean indirect: diffuse {a}, wavelet {b}");
         let stats = out[1].get::<Metrics>().unwrap();
         assert!(stats.get("nodes_rasterised_per_receiver").unwrap() > 0.0);
+    }
+
+    #[test]
+    fn the_adaptive_microbuffer_leaves_lambert_receivers_uniform_until_the_light_splits_them() {
+        // Every receiver here is Lambert: the BRDF refines nothing, so without splits by light
+        // the adaptive gather is the uniform one, byte for byte; a low γ splits and re-visits.
+        let (tree, coded, r) = setup(Material::Lambert { albedo: Vec3::splat(0.6) });
+        let inputs = || vec![Value::new(tree.clone()), Value::new(coded.clone()), Value::new(r.clone())];
+        let uniform: Image = first(&run_on::<WaveletGather>(&[], inputs()).unwrap());
+        let adaptive = run_on::<WaveletGather>(&[("max_level", i(2)), ("gamma", f(1e6))], inputs()).unwrap();
+        assert_eq!(first::<Image>(&adaptive).pixels, uniform.pixels);
+        let split = run_on::<WaveletGather>(&[("max_level", i(2)), ("gamma", f(0.01))], inputs()).unwrap();
+        let visited = |o: &[Value]| o[1].get::<Metrics>().unwrap().get("nodes_visited_per_receiver").unwrap();
+        assert!(visited(&split) > visited(&adaptive), "{} vs {}", visited(&split), visited(&adaptive));
+        let (a, b) = (mean(&uniform), mean(&first::<Image>(&split)));
+        assert!(((b - a) / a).abs() < 0.05, "uniform {a}, split by light {b}");
     }
 
     #[test]
