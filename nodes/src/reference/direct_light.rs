@@ -56,7 +56,7 @@ fn shade(
     let (first, count, total) = sample;
     let frame = Frame::from_normal(surf.ns);
     let wo = frame.to_local(-d);
-    let eps = 1e-6 * t.scene.extent();
+    let eps = t.eps();
     let mut sum = Vec3::ZERO;
     for k in first..first + count {
         let jitter = Vec2::new(uniform(seed, id, 2 * k + 2), uniform(seed, id, 2 * k + 3));

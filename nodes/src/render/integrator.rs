@@ -63,6 +63,12 @@ impl<'a> Tracer<'a> {
         Tracer { scene, accel, lights: LightSampler::new(scene), settings, eps }
     }
 
+    /// How far off a surface secondary rays start: 10⁻⁶ of the scene's extent, computed once
+    /// here (the extent walks every vertex).
+    pub fn eps(&self) -> f32 {
+        self.eps
+    }
+
     fn environment(&self, d: Vec3) -> Vec3 {
         self.scene.environment_radiance(d)
     }

@@ -174,7 +174,8 @@ impl Scene {
         self.positions.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)))
     }
 
-    /// Length of the bounding-box diagonal (1 for an empty scene): sets ray epsilons.
+    /// Length of the bounding-box diagonal (1 for an empty scene): sets ray epsilons. It walks
+    /// every vertex: compute it once per render, not per sample.
     pub fn extent(&self) -> f32 {
         let (lo, hi) = self.bounds();
         let d = (hi - lo).length();
