@@ -18,6 +18,23 @@ pub fn rect_solid_angle(x0: f64, x1: f64, y0: f64, y1: f64) -> f64 {
     f(x1, y1) - f(x0, y1) - f(x1, y0) + f(x0, y0)
 }
 
+/// Every texel's centre direction of a side-`n` map (`CubeMap::direction` for k = 0 …
+/// 6n² − 1, the same bits), for loops over all texels of many maps: power-of-two sides up to
+/// 1024 are computed once per process and kept, other sides each call.
+pub fn texel_directions(n: usize) -> std::borrow::Cow<'static, [Vec3]> {
+    use std::sync::OnceLock;
+    static KEPT: [OnceLock<Vec<Vec3>>; 11] = [const { OnceLock::new() }; 11];
+    let all = || {
+        let map = CubeMap { n, texels: Vec::new() };
+        (0..6 * n * n).map(|k| map.direction(k)).collect::<Vec<Vec3>>()
+    };
+    if n.is_power_of_two() && n <= 1024 {
+        std::borrow::Cow::Borrowed(KEPT[n.trailing_zeros() as usize].get_or_init(all).as_slice())
+    } else {
+        std::borrow::Cow::Owned(all())
+    }
+}
+
 /// The direction (not unit) of point (u, v) ∈ [−1, 1]² on `face`.
 pub fn face_point(face: usize, u: f32, v: f32) -> Vec3 {
     match face {
@@ -367,6 +384,16 @@ impl GaussKernel {
 mod tests {
     use super::*;
     use crate::math::rng::uniform;
+
+    #[test]
+    fn the_kept_texel_directions_are_the_maps_to_the_bit() {
+        for n in [1, 4, 32, 3] {
+            let map = CubeMap::constant(n, Vec3::ZERO);
+            let dirs = texel_directions(n);
+            assert_eq!(dirs.len(), 6 * n * n);
+            assert!((0..dirs.len()).all(|k| dirs[k] == map.direction(k)), "side {n}");
+        }
+    }
 
     fn unit(k: u64) -> Vec3 {
         crate::math::sampling::uniform_sphere(glam::Vec2::new(uniform(11, k, 0), uniform(11, k, 1)))
