@@ -78,7 +78,7 @@ impl Sparse {
     /// stride − 1` added to `out` times `w · t`. The terms are found in one forward sweep:
     /// each search gallops on from where the last one stopped (a vector of RGB triples keeps
     /// a texel's channels adjacent, so a group is one search and a few reads).
-    fn add_groups(&self, terms: &[(u32, f32)], stride: usize, w: f32, out: &mut [f32]) {
+    pub fn add_groups(&self, terms: &[(u32, f32)], stride: usize, w: f32, out: &mut [f32]) {
         let ix = &self.index;
         let mut lo = 0;
         for &(i, t) in terms {
@@ -241,10 +241,8 @@ impl CodedTree {
         // Down from the ancestor: each step adds the parent's detail toward the child taken.
         for &child in path.iter().rev() {
             let (p, left) = self.parent[child as usize];
-            let alpha = self.share[p as usize];
-            let w = if left { 2.0 * (1.0 - alpha) } else { -2.0 * alpha };
             if let Some(h) = &self.detail[p as usize] {
-                h.add_to(w, &mut out);
+                h.add_to(self.detail_weight(p, left), &mut out);
             }
         }
         out
@@ -266,12 +264,22 @@ impl CodedTree {
             }
             let (p, left) = self.parent[at as usize];
             assert!(p != u32::MAX, "node {v} has no stored average above it");
-            let alpha = self.share[p as usize];
-            let w = if left { 2.0 * (1.0 - alpha) } else { -2.0 * alpha };
+            let w = self.detail_weight(p, left);
             if let Some(h) = &self.detail[p as usize] {
                 h.add_groups(terms, stride, w, out);
             }
             at = p;
+        }
+    }
+
+    /// The weight of parent p's detail in its child's vector: G_child = G_p + w H_p, with
+    /// w = 2 (1 − α) for the left child and −2 α for the right (α the left child's area share).
+    pub fn detail_weight(&self, p: u32, left: bool) -> f32 {
+        let alpha = self.share[p as usize];
+        if left {
+            2.0 * (1.0 - alpha)
+        } else {
+            -2.0 * alpha
         }
     }
 

@@ -10,6 +10,7 @@ pub mod pbgi_gather;
 pub mod point_tree;
 pub mod shade_direct;
 pub mod surfel_wavelets;
+pub mod texel_cache;
 pub mod traversal;
 pub mod wavelet_gather;
 pub mod wavelet_radiance;

@@ -34,18 +34,24 @@ pub fn gather(tree: &PointTree, r: &Receivers, p: &PbgiGather, extent: f32, cx: 
 }
 
 /// The gather over traversal `t` (whatever its nodes send) into copies of `blank` (uniform
-/// or adaptive): one buffer per receiver, convolved with the receiver's BRDF.
+/// or adaptive): one buffer per receiver, convolved with the receiver's BRDF. Receivers are
+/// taken in Z order over the image (`z_order`), so a task's receivers are a small square and
+/// see the tree's nodes from nearly the same place (what memos of node values reuse); each
+/// receiver's result is its own, so the order changes no byte.
 pub fn gather_with<R: NodeRadiance, B: GatherBuffer>(
     t: &Traversal<R>,
     r: &Receivers,
     blank: B,
     cx: &RunCtx,
 ) -> Result<(Image, GatherCounts), NodeError> {
+    let order = z_order(r);
     let tasks = cx.par_map(r.len().div_ceil(RECEIVERS_PER_TASK), |task| {
         let (mut mb, mut stack) = (blank.clone(), Vec::new());
         let first = task * RECEIVERS_PER_TASK;
-        (first..(first + RECEIVERS_PER_TASK).min(r.len()))
-            .map(|i| {
+        order[first..(first + RECEIVERS_PER_TASK).min(r.len())]
+            .iter()
+            .map(|&i| {
+                let i = i as usize;
                 let mut counts = GatherCounts::default();
                 if brdf::is_delta(&r.material[i]) {
                     return (Vec3::ZERO, counts);
@@ -60,11 +66,32 @@ pub fn gather_with<R: NodeRadiance, B: GatherBuffer>(
     })?;
     let mut img = Image { width: r.width, height: r.height, pixels: vec![[0.0; 3]; r.width * r.height] };
     let mut total = GatherCounts::default();
-    for (i, (l, c)) in tasks.into_iter().flatten().enumerate() {
-        img.pixels[r.pixel[i] as usize] = l.to_array();
+    for (&i, (l, c)) in order.iter().zip(tasks.into_iter().flatten()) {
+        img.pixels[r.pixel[i as usize] as usize] = l.to_array();
         total = total + c;
     }
     Ok((img, total))
+}
+
+/// The receivers' indices sorted by the Morton code of their pixel (x and y bits
+/// interleaved; ties keep the receivers' order).
+pub fn z_order(r: &Receivers) -> Vec<u32> {
+    let spread = |mut v: u64| {
+        v &= 0xFFFF_FFFF;
+        v = (v | v << 16) & 0x0000_FFFF_0000_FFFF;
+        v = (v | v << 8) & 0x00FF_00FF_00FF_00FF;
+        v = (v | v << 4) & 0x0F0F_0F0F_0F0F_0F0F;
+        v = (v | v << 2) & 0x3333_3333_3333_3333;
+        (v | v << 1) & 0x5555_5555_5555_5555
+    };
+    let w = r.width.max(1) as u64;
+    let key = |i: u32| {
+        let p = r.pixel[i as usize] as u64;
+        spread(p % w) | spread(p / w) << 1
+    };
+    let mut order: Vec<u32> = (0..r.len() as u32).collect();
+    order.sort_by_key(|&i| key(i));
+    order
 }
 
 #[node(category = "pbgi")]
@@ -89,6 +116,22 @@ mod tests {
     use super::*;
     use crate::testing::{cancels_midway, first, i, pbgi_setup, run_on};
     use relume_core::Value;
+
+    #[test]
+    fn receivers_are_taken_in_z_order_over_their_pixels() {
+        let (_, mut r) = pbgi_setup::tree_and_receivers();
+        // Pretend the receivers cover a 4 × 4 image in reverse row order.
+        let n = r.len().min(16);
+        r.width = 4;
+        r.pixel = (0..r.len() as u32).map(|i| if (i as usize) < n { 15 - i } else { 16 + i }).collect();
+        let order = z_order(&r);
+        let pixels: Vec<u32> = order[..n].iter().map(|&i| r.pixel[i as usize]).collect();
+        let want: Vec<u32> = [0, 1, 4, 5, 2, 3, 6, 7, 8, 9, 12, 13, 10, 11, 14, 15].into_iter().filter(|&p| p + (n as u32) >= 16).collect();
+        assert_eq!(pixels, want);
+        let mut all = order.clone();
+        all.sort_unstable();
+        assert_eq!(all, (0..r.len() as u32).collect::<Vec<_>>(), "a permutation");
+    }
 
     #[test]
     fn the_node_lights_the_receivers_and_reports_its_counts() {

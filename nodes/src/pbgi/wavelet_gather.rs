@@ -38,7 +38,9 @@ outputs!(pub WaveletGatherOut { indirect: Image, stats: Metrics });
 impl WaveletGather {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         let image = inputs[2].and_then(|s| s.dims).map(|[w, h]| PortSize::image(w, h));
-        MemoryEstimate { outputs: vec![image, Some(PortSize::bytes(256))], working: 0 }
+        // Each thread's memo of texel values (`texel_cache`).
+        let memo = super::texel_cache::BYTES_PER_THREAD as u64 * rayon::current_num_threads() as u64;
+        MemoryEstimate { outputs: vec![image, Some(PortSize::bytes(256))], working: memo }
     }
 
     fn run(&self, i: WaveletGatherIn, cx: &RunCtx) -> Result<WaveletGatherOut, NodeError> {
@@ -48,7 +50,7 @@ impl WaveletGather {
                 format!("wavelets coded for a tree of {} nodes, not this tree of {}", i.coded.tree.parent.len(), i.tree.nodes.len()),
             ));
         }
-        let source = WaveletSource { tree: i.tree, coded: i.coded };
+        let source = WaveletSource::new(i.tree, i.coded);
         let t = Traversal::with_source(i.tree, &source, self.threshold, 1e-5 * tree_extent(i.tree));
         let (img, counts) = if self.max_level == 0 {
             gather_with(&t, i.receivers, Microbuffer::new(self.resolution), cx)?

@@ -10,10 +10,11 @@
 //! delta lights are one sample each and extended lights many; each texel's radiance is
 //! Σ f(ωo, ωi) × weight with f the material's BRDF in the surfel's frame.
 
+use super::texel_cache;
 use crate::brdf;
 use crate::math::cube_haar::{texel_terms, CubeHaar, SparseCubeHaar};
-use crate::math::cubemap::texel_of_side;
 use crate::math::cubemap::CubeMap;
+use crate::math::cubemap::{texel_directions, texel_of_side};
 use crate::math::frame::Frame;
 use crate::math::tree_coding::{CodedTree, Threshold, TreeShape};
 use crate::types::{CodedWavelets, Material, PointTree, PointWavelets};
@@ -25,12 +26,12 @@ pub fn outgoing_cube(material: &Material, normal: Vec3, incident: &[(Vec3, Vec3)
     let frame = Frame::from_normal(normal);
     let local: Vec<(Vec3, Vec3)> = incident.iter().map(|&(wi, w)| (frame.to_local(wi), w)).filter(|(wi, _)| wi.z > 0.0).collect();
     let mut map = CubeMap::constant(n, Vec3::ZERO);
-    for k in 0..map.texels.len() {
-        let wo = frame.to_local(map.direction(k));
+    for (t, &d) in map.texels.iter_mut().zip(texel_directions(n).iter()) {
+        let wo = frame.to_local(d);
         if wo.z <= 0.0 {
             continue;
         }
-        map.texels[k] = local.iter().map(|&(wi, w)| brdf::eval(material, wo, wi) * w).sum();
+        *t = local.iter().map(|&(wi, w)| brdf::eval(material, wo, wi) * w).sum();
     }
     map
 }
@@ -52,9 +53,8 @@ pub fn outgoing_wavelets(material: &Material, normal: Vec3, incident: &[(Vec3, V
 pub fn outgoing_intensity(material: &Material, normal: Vec3, incident: &[(Vec3, Vec3)], n: usize) -> CubeMap {
     let mut map = outgoing_cube(material, normal, incident, n);
     let nn = normal.normalize_or(Vec3::Z);
-    for k in 0..map.texels.len() {
-        let cos = map.direction(k).dot(nn).max(0.0);
-        map.texels[k] *= cos;
+    for (t, d) in map.texels.iter_mut().zip(texel_directions(n).iter()) {
+        *t *= d.dot(nn).max(0.0);
     }
     map
 }
@@ -83,21 +83,49 @@ pub fn code_tree(tree: &PointTree, per_point: &PointWavelets, split: u32, thresh
 /// leaves) that is the radiance it shows. Negative values of the approximation are clamped
 /// to 0, and a node whose projected area is below `MIN_AREA_FRACTION` of its area sends
 /// nothing (as the diffuse tree's `radiance_toward`).
+/// Texel values are memoised per thread (`texel_cache`), which changes no result.
 pub struct WaveletSource<'a> {
-    pub tree: &'a PointTree,
-    pub coded: &'a CodedWavelets,
+    tree: &'a PointTree,
+    coded: &'a CodedWavelets,
+    owner: u64,
 }
 
-impl WaveletSource<'_> {
-    /// Node i's radiant intensity per unit area toward `dir` (the coded J).
+impl<'a> WaveletSource<'a> {
+    pub fn new(tree: &'a PointTree, coded: &'a CodedWavelets) -> Self {
+        WaveletSource { tree, coded, owner: super::texel_cache::new_owner() }
+    }
+
+    /// Node i's radiant intensity per unit area toward `dir` (the coded J, negative values
+    /// of the approximation clamped to 0).
     pub fn intensity_per_area(&self, i: u32, dir: Vec3) -> Vec3 {
         let n = self.coded.n as usize;
-        let (mut terms, len) = texel_terms(n, texel_of_side(n, dir));
-        let terms = &mut terms[..len];
-        terms.sort_unstable_by_key(|t| t.0);
+        let k = texel_of_side(n, dir) as u32;
+        let value = texel_cache::get_or(self.owner, i, k, || {
+            let (mut terms, len) = texel_terms(n, k as usize);
+            let terms = &mut terms[..len];
+            terms.sort_unstable_by_key(|t| t.0);
+            self.texel(i, k, terms)
+        });
+        value.max(Vec3::ZERO)
+    }
+
+    /// Node i's coded J at texel k (`terms` its Haar terms, ascending): a stored average's
+    /// entries, or the parent's value (memoised: siblings and neighbours share it) plus the
+    /// parent's detail toward i. The same sums however the memo is filled.
+    fn texel(&self, i: u32, k: u32, terms: &[(u32, f32)]) -> Vec3 {
+        let t = &self.coded.tree;
         let mut out = [0.0f32; 3];
-        self.coded.tree.dot(i, terms, 3, &mut out);
-        Vec3::from_array(out).max(Vec3::ZERO)
+        if let Some(g) = &t.average[i as usize] {
+            g.add_groups(terms, 3, 1.0, &mut out);
+            return Vec3::from_array(out);
+        }
+        let (p, left) = t.parent[i as usize];
+        assert!(p != u32::MAX, "node {i} has no stored average above it");
+        let above = texel_cache::get_or(self.owner, p, k, || self.texel(p, k, terms));
+        if let Some(h) = &t.detail[p as usize] {
+            h.add_groups(terms, 3, t.detail_weight(p, left), &mut out);
+        }
+        above + Vec3::from_array(out)
     }
 }
 
@@ -195,5 +223,26 @@ mod tests {
         let uncoded = code_tree(&tree, &wavelets, u32::MAX, Threshold::Coefficient(0.002));
         assert!(uncoded.detail.iter().all(Option::is_none));
         assert!(coded.bytes() * 4 < uncoded.bytes(), "coded {} B, uncoded {} B", coded.bytes(), uncoded.bytes());
+
+        // The gather's texel values (memoised, parent first) agree with `dot` along the
+        // whole path, and do not depend on the order the memo was filled in.
+        let cw = CodedWavelets { n: 8, tree: coded };
+        let dirs: Vec<Vec3> = (0..40).map(|k| Vec3::new((k as f32 * 0.7).sin(), 1.0, (k as f32 * 1.3).cos()).normalize()).collect();
+        let nodes: Vec<u32> = (0..tree.nodes.len() as u32).collect();
+        let leaves_first = WaveletSource::new(&tree, &cw);
+        let roots_first = WaveletSource::new(&tree, &cw);
+        for &d in &dirs {
+            let a: Vec<Vec3> = nodes.iter().rev().map(|&v| leaves_first.intensity_per_area(v, d)).collect();
+            let b: Vec<Vec3> = nodes.iter().map(|&v| roots_first.intensity_per_area(v, d)).collect();
+            for (&v, (x, y)) in nodes.iter().zip(a.iter().rev().zip(&b)) {
+                assert_eq!(x, y, "node {v} toward {d}");
+                let (mut terms, len) = texel_terms(8, texel_of_side(8, d));
+                terms[..len].sort_unstable_by_key(|t| t.0);
+                let mut want = [0.0f32; 3];
+                cw.tree.dot(v, &terms[..len], 3, &mut want);
+                let want = Vec3::from_array(want).max(Vec3::ZERO);
+                assert!((*y - want).abs().max_element() <= 1e-5 * (1.0 + want.max_element()), "node {v}: {y} vs {want}");
+            }
+        }
     }
 }
