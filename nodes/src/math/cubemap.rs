@@ -9,7 +9,9 @@
 //! over texels are integrals over the sphere.
 
 use glam::Vec3;
+use std::borrow::Cow;
 use std::f64::consts::PI;
+use std::sync::OnceLock;
 
 /// The solid angle of the rectangle [x0, x1] × [y0, y1] on the plane at distance 1 from the
 /// eye, seen from the eye (exact; also the texels of a light's shadow map).
@@ -21,17 +23,27 @@ pub fn rect_solid_angle(x0: f64, x1: f64, y0: f64, y1: f64) -> f64 {
 /// Every texel's centre direction of a side-`n` map (`CubeMap::direction` for k = 0 …
 /// 6n² − 1, the same bits), for loops over all texels of many maps: power-of-two sides up to
 /// 1024 are computed once per process and kept, other sides each call.
-pub fn texel_directions(n: usize) -> std::borrow::Cow<'static, [Vec3]> {
-    use std::sync::OnceLock;
+pub fn texel_directions(n: usize) -> Cow<'static, [Vec3]> {
     static KEPT: [OnceLock<Vec<Vec3>>; 11] = [const { OnceLock::new() }; 11];
+    per_texel(&KEPT, n, |map, k| map.direction(k))
+}
+
+/// Every texel's solid angle of a side-`n` map (`CubeMap::solid_angle`), kept the same way.
+pub fn texel_solid_angles(n: usize) -> Cow<'static, [f32]> {
+    static KEPT: [OnceLock<Vec<f32>>; 11] = [const { OnceLock::new() }; 11];
+    per_texel(&KEPT, n, |map, k| map.solid_angle(k))
+}
+
+/// `f` over every texel of a side-`n` map, kept in `kept` (by log₂ n) for power-of-two sides.
+fn per_texel<T: Clone>(kept: &'static [OnceLock<Vec<T>>; 11], n: usize, f: impl Fn(&CubeMap, usize) -> T) -> Cow<'static, [T]> {
     let all = || {
         let map = CubeMap { n, texels: Vec::new() };
-        (0..6 * n * n).map(|k| map.direction(k)).collect::<Vec<Vec3>>()
+        (0..6 * n * n).map(|k| f(&map, k)).collect::<Vec<T>>()
     };
     if n.is_power_of_two() && n <= 1024 {
-        std::borrow::Cow::Borrowed(KEPT[n.trailing_zeros() as usize].get_or_init(all).as_slice())
+        Cow::Borrowed(kept[n.trailing_zeros() as usize].get_or_init(all).as_slice())
     } else {
-        std::borrow::Cow::Owned(all())
+        Cow::Owned(all())
     }
 }
 
@@ -392,6 +404,8 @@ mod tests {
             let dirs = texel_directions(n);
             assert_eq!(dirs.len(), 6 * n * n);
             assert!((0..dirs.len()).all(|k| dirs[k] == map.direction(k)), "side {n}");
+            let omega = texel_solid_angles(n);
+            assert!((0..dirs.len()).all(|k| omega[k] == map.solid_angle(k)), "side {n}");
         }
     }
 

@@ -17,7 +17,10 @@ use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, Port
 /// non-standard Haar transform per face. Coefficients with every channel below `threshold`
 /// are dropped ([P]: 0.002), and at most `max_terms` kept per point (the largest; the
 /// report counts the points capped). Points no light reaches, black points and smooth
-/// dielectrics (whose mirror light a point cannot carry) keep no terms. The output holds at
+/// dielectrics (whose mirror light a point cannot carry) keep no terms. Lobes narrower than
+/// the map resolves are widened to it, and a map that would send out more than the point
+/// receives is scaled down (`wavelet_radiance::band_limited`, `outgoing_intensity`: narrow
+/// lobes and grazing light, QUALITY.md §2). The output holds at
 /// most points × max_terms × 16 B: over the memory budget it is refused before anything is
 /// drawn.
 #[derive(Params)]
