@@ -1,5 +1,5 @@
 //! Wavelet PBGI on the ring (`graphs/wpbgi_ring.ron` at 256 × 256, 30,000 points, cube maps of
-//! 6 × 32²): the gather from the coded tree (split level 8) against the same gather from the
+//! 6 × 16² as the graph has them): the gather from the coded tree (split level 8) against the same gather from the
 //! uncoded tree (split 20: every node keeps its average; this tree is 15 levels deep) and
 //! against classic PBGI on the same points, receivers and microbuffer. Prints, once, the
 //! coded and uncoded bytes and the nodes rasterised per receiver; receivers/s is the
