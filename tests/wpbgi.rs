@@ -1,8 +1,29 @@
 //! Wavelet PBGI on the ring (`graphs/wpbgi_ring.ron`): the caustic the glossy ring throws on
 //! the plane against the path tracer's, and which nodes an edit of the coding re-runs.
 
+use glam::Vec3;
+use relume_core::Value;
 use relume_nodes::types::{Image, Metrics};
-use relume_tests::{engine, load_graph, ran, run, run_outputs};
+use relume_tests::{add_output, engine, load_graph, ran, run, run_kind, run_outputs, tests_dir};
+
+/// `wpbgi_ring.ron` on a test scene (`tests/scenes`) with `count` points, 8² maps and a
+/// `resolution`² microbuffer.
+fn wpbgi_graph(scene: &str, count: usize, resolution: usize) -> relume_core::Graph {
+    let path = tests_dir().join("scenes").join(scene).display().to_string();
+    let (count, res) = (count.to_string(), resolution.to_string());
+    load_graph(
+        "wpbgi_ring.ron",
+        &[("scene.path", &path), ("points.count", &count), ("points.seed", "3"), ("wavelets.resolution", "8"), ("gather.resolution", &res)],
+    )
+}
+
+fn indirect(g: &relume_core::Graph) -> Image {
+    run_outputs(&engine(), g, &["indirect"]).output("indirect").unwrap().get::<Image>().unwrap().clone()
+}
+
+fn finite_and_not_negative(img: &Image) -> bool {
+    img.as_floats().iter().all(|x| x.is_finite() && *x >= 0.0)
+}
 
 /// Σ of the red and green channels (the ring is yellow, so is its caustic) over the pixels
 /// with x ∈ [x0, x1) × width and y ∈ [y0, y1) × height.
@@ -67,4 +88,51 @@ fn changing_the_coding_threshold_reruns_the_coding_onward_not_sampling_or_direct
     assert_eq!(ran(&run(&e, &g)), ["coded", "gather", "wpbgi_error", "wpbgi_image"]);
     g.set_param_text(&reg, "coded.split", "3").unwrap();
     assert_eq!(ran(&run(&e, &g)), ["coded", "gather", "wpbgi_error", "wpbgi_image"]);
+}
+
+#[test]
+fn stiff_wavelet_pbgi_cases_stay_finite_and_bounded() {
+    // QUALITY.md §2 "PBGI". All points coplanar: one plane under a light sends itself nothing.
+    let img = indirect(&wpbgi_graph("one_plane.ron", 3_000, 16));
+    assert!(img.as_floats().iter().all(|x| x.is_finite() && x.abs() < 1e-6), "coplanar: no indirect light");
+    // Microbuffers of 1 × 1 and 256 × 256, and three points (receivers inside node spheres
+    // everywhere), uniform and adaptive: finite and not negative.
+    for (res, count, max_level) in [(1, 2_000, 0), (256, 2_000, 0), (16, 3, 0), (2, 2_000, 3), (16, 3, 2)] {
+        let mut g = wpbgi_graph("two_planes.ron", count, res);
+        g.set_param_text(&relume_nodes::registry(), "gather.max_level", &max_level.to_string()).unwrap();
+        assert!(finite_and_not_negative(&indirect(&g)), "res {res}, {count} points, max_level {max_level}");
+    }
+    // The adaptive buffer cannot start at 1 × 1, and says so.
+    let mut g = wpbgi_graph("two_planes.ron", 500, 1);
+    g.set_param_text(&relume_nodes::registry(), "gather.max_level", "2").unwrap();
+    let Err(err) = engine().run(&g, &relume_core::RunOptions { outputs: Some(vec!["indirect".into()]), ..Default::default() }) else {
+        panic!("a 1 × 1 adaptive buffer ran");
+    };
+    assert!(err.to_string().contains("2 × 2"), "{err}");
+}
+
+#[test]
+fn coincident_points_get_wavelets_code_and_gather_finitely() {
+    use relume_nodes::types::{Material, PointRadiance, SurfacePoints};
+    let mut g = wpbgi_graph("two_planes.ron", 1_000, 16);
+    for (o, port) in [("scene", "scene.scene"), ("accel", "bvh.accel"), ("receivers", "gbuffer.receivers")] {
+        add_output(&mut g, o, port);
+    }
+    let r = run_outputs(&engine(), &g, &["scene", "accel", "receivers"]);
+    let out = |o: &str| r.output(o).unwrap().clone();
+    // Fifty glossy disks stacked at one place under the upper plane, facing down.
+    let pts = SurfacePoints {
+        position: vec![Vec3::new(0.0, 0.8, 0.0); 50],
+        normal: vec![-Vec3::Y; 50],
+        radius: vec![0.05; 50],
+        object: vec![0; 50],
+        material: vec![Material::BlinnPhong { kd: Vec3::splat(0.3), ks: Vec3::splat(0.7), exponent: 1.0e4 }; 50],
+    };
+    let w = run_kind("SurfelWavelets", &[out("scene"), out("accel"), Value::new(pts.clone())]).unwrap().remove(0);
+    let tree = run_kind("PointTree", &[Value::new(pts), Value::new(PointRadiance(vec![Vec3::ONE; 50]))]).unwrap().remove(0);
+    let coded = run_kind("WaveletTree", &[tree.clone(), w]).unwrap().remove(0);
+    let img = run_kind("WaveletGather", &[tree, coded, out("receivers")]).unwrap().remove(0);
+    let img = img.get::<Image>().unwrap();
+    assert!(finite_and_not_negative(img));
+    assert!(img.as_floats().iter().any(|x| *x > 0.0), "the stacked disks are seen from below");
 }
