@@ -7,6 +7,18 @@ use crate::brdf;
 use crate::types::Material;
 use glam::Vec3;
 
+/// Local direction of pixel `i`'s centre in an N × N Nusselt buffer: (x, y) on the unit
+/// disk lifted to the hemisphere (`None` outside the disk; the single pixel of N = 1 is +z).
+pub fn nusselt_dir(n: usize, i: usize) -> Option<Vec3> {
+    let (x, y) = (((i % n) as f32 + 0.5) / n as f32 * 2.0 - 1.0, ((i / n) as f32 + 0.5) / n as f32 * 2.0 - 1.0);
+    let r2 = x * x + y * y;
+    if n == 1 {
+        Some(Vec3::Z)
+    } else {
+        (r2 < 1.0).then(|| Vec3::new(x, y, (1.0 - r2).sqrt()))
+    }
+}
+
 #[derive(Clone)]
 pub struct Microbuffer {
     n: usize,
@@ -25,17 +37,7 @@ impl Microbuffer {
     /// An N × N buffer (N ≥ 1; N = 1 is one pixel for the whole hemisphere).
     pub fn new(n: usize) -> Self {
         let n = n.max(1);
-        let dirs = (0..n * n)
-            .map(|i| {
-                let (x, y) = (((i % n) as f32 + 0.5) / n as f32 * 2.0 - 1.0, ((i / n) as f32 + 0.5) / n as f32 * 2.0 - 1.0);
-                let r2 = x * x + y * y;
-                if n == 1 {
-                    Some(Vec3::Z)
-                } else {
-                    (r2 < 1.0).then(|| Vec3::new(x, y, (1.0 - r2).sqrt()))
-                }
-            })
-            .collect();
+        let dirs = (0..n * n).map(|i| nusselt_dir(n, i)).collect();
         Microbuffer { n, dirs, depth: vec![f32::INFINITY; n * n], radiance: vec![Vec3::ZERO; n * n], coverage: vec![0.0; n * n] }
     }
 

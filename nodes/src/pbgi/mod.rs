@@ -1,6 +1,7 @@
 //! Point-based global illumination (PIPELINES.md pipeline 4; [P] chapters 2–3).
 
 pub mod adaptive_microbuffer;
+pub mod brdf_wavelets;
 pub mod cluster_receivers;
 pub mod factorized_gather;
 pub mod gbuffer;
