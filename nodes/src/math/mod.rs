@@ -7,6 +7,7 @@ pub mod cubemap;
 pub mod frame;
 pub mod haar;
 pub mod kmeans;
+pub mod morton;
 pub mod pca;
 pub mod rng;
 pub mod sampling;

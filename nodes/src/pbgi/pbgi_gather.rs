@@ -4,6 +4,7 @@ use super::microbuffer::Microbuffer;
 use super::traversal::{count_metrics, microbuffer_params, tree_extent, GatherBuffer, GatherCounts, NodeRadiance, Traversal};
 use crate::brdf;
 use crate::math::frame::Frame;
+use crate::math::morton::morton2;
 use crate::types::{Image, Metrics, PointTree, Receivers};
 use glam::Vec3;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
@@ -73,21 +74,13 @@ pub fn gather_with<R: NodeRadiance, B: GatherBuffer>(
     Ok((img, total))
 }
 
-/// The receivers' indices sorted by the Morton code of their pixel (x and y bits
-/// interleaved; ties keep the receivers' order).
+/// The receivers' indices sorted by the Morton code of their pixel (`math::morton`; ties
+/// keep the receivers' order).
 pub fn z_order(r: &Receivers) -> Vec<u32> {
-    let spread = |mut v: u64| {
-        v &= 0xFFFF_FFFF;
-        v = (v | v << 16) & 0x0000_FFFF_0000_FFFF;
-        v = (v | v << 8) & 0x00FF_00FF_00FF_00FF;
-        v = (v | v << 4) & 0x0F0F_0F0F_0F0F_0F0F;
-        v = (v | v << 2) & 0x3333_3333_3333_3333;
-        (v | v << 1) & 0x5555_5555_5555_5555
-    };
-    let w = r.width.max(1) as u64;
+    let w = r.width.max(1);
     let key = |i: u32| {
-        let p = r.pixel[i as usize] as u64;
-        spread(p % w) | spread(p / w) << 1
+        let p = r.pixel[i as usize] as usize;
+        morton2(p % w, p / w)
     };
     let mut order: Vec<u32> = (0..r.len() as u32).collect();
     order.sort_by_key(|&i| key(i));

@@ -3,6 +3,7 @@
 use super::blur::{blur, kernel};
 use super::octree::{CLEARANCE, LEVEL, MAX_STEP};
 use super::optics::{box_interval, for_each_voxel, leaf_exit, luminance, planar_frame, ray_step, voxel_of, Clearance, Integrator, Ray};
+use crate::math::morton::morton3;
 use crate::types::{Accel, CausticMap, PhotonDeposits, Photons, Sampler, Scene, Volume};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -114,18 +115,6 @@ struct Photon {
     /// already known (the first step: found when the photon was sorted), else negative.
     run: f32,
     fate: Fate,
-}
-
-/// The Morton code of a voxel (10 bits an axis, interleaved).
-fn morton(c: [usize; 3]) -> u32 {
-    let spread = |v: usize| {
-        let mut x = (v as u32) & 0x3ff;
-        x = (x | (x << 16)) & 0x030000ff;
-        x = (x | (x << 8)) & 0x0300f00f;
-        x = (x | (x << 4)) & 0x030c30c3;
-        (x | (x << 2)) & 0x09249249
-    };
-    spread(c[0]) | (spread(c[1]) << 1) | (spread(c[2]) << 2)
 }
 
 /// Everything a chunk and the gather share, derived from the inputs and parameters only.
@@ -415,7 +404,7 @@ impl<'a> Setup<'a> {
         // Sums and counts do not depend on the order.
         alive.sort_by_cached_key(|p| {
             let q = self.oct_s.to_grid(p.ray.x);
-            morton(voxel_of(self.m, q))
+            morton3(voxel_of(self.m, q))
         });
         let total = alive.len();
         let mut steps = 0u32;
