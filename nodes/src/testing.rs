@@ -178,3 +178,71 @@ pub mod pbgi_setup {
         (t, r)
     }
 }
+
+/// A small wavelet-PBGI set-up: a floor and a back wall under a point light, 3,000 points,
+/// 6 × 32² maps, seen from the front at 12 × 12.
+pub mod wpbgi_setup {
+    use super::{first, i, run_on};
+    use crate::pbgi::shade_direct::{shade_direct, ShadeDirect};
+    use crate::pbgi::surfel_wavelets::SurfelWavelets;
+    use crate::pbgi::wavelet_tree::WaveletTree;
+    use crate::scene::builder::SceneBuilder;
+    use crate::types::accel::{Accel, BuildQuality};
+    use crate::types::{CodedWavelets, Light, Material, PointTree, PointWavelets, Receivers, Scene, SurfacePoints};
+    use glam::Vec3;
+    use relume_core::{CancelToken, RunCtx, Value};
+
+    /// The scene (a grey Lambert floor, the back wall of material `wall`) and its points.
+    pub fn corner(wall: Material) -> (Scene, SurfacePoints) {
+        let grey = Material::Lambert { albedo: Vec3::splat(0.6) };
+        let scene = SceneBuilder::new(Vec3::new(0.0, 1.2, 2.5), Vec3::new(0.0, 0.4, 0.0), 50.0, 12, 12)
+            .quad("floor", Vec3::new(-1.0, 0.0, 1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -2.0), grey, Vec3::ZERO)
+            .quad("wall", Vec3::new(-1.0, 0.0, -1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 1.5, 0.0), wall, Vec3::ZERO)
+            .light(Light::Point { position: Vec3::new(0.3, 1.2, 0.6), intensity: Vec3::splat(3.0) })
+            .build();
+        let pts = crate::geometry::sample_surface::sample_surface(
+            &scene,
+            &crate::geometry::sample_surface::SampleSurface {
+                method: crate::geometry::sample_surface::Method::AreaCdf,
+                count: 3000,
+                seed: 2,
+                emitters: true,
+            },
+        )
+        .unwrap();
+        (scene, pts)
+    }
+
+    /// Everything a wavelet gather or a view tree reads.
+    pub struct Setup {
+        pub points: SurfacePoints,
+        /// The diffuse tree (`ShadeDirect`'s radiance).
+        pub tree: PointTree,
+        pub wavelets: PointWavelets,
+        /// `wavelets` coded at the default split (20) and threshold (0.002).
+        pub coded: CodedWavelets,
+        pub receivers: Receivers,
+    }
+
+    pub fn setup(wall: Material) -> Setup {
+        let (scene, points) = corner(wall);
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let cancel = CancelToken::new();
+        let (b, _) = shade_direct(&scene, &accel, &points, &ShadeDirect { samples: 1, seed: 0 }, &RunCtx::new("t", &cancel, None)).unwrap();
+        let tree = PointTree::build(&points, &b);
+        let acc = || Value::new(Accel::build(&scene, BuildQuality::Fast));
+        let wavelets: PointWavelets = first(
+            &run_on::<SurfelWavelets>(&[("resolution", i(32))], vec![Value::new(scene.clone()), acc(), Value::new(points.clone())])
+                .unwrap(),
+        );
+        let coded: CodedWavelets = first(
+            &run_on::<WaveletTree>(
+                &[("report_uncoded", relume_core::ParamValue::Bool(false))],
+                vec![Value::new(tree.clone()), Value::new(wavelets.clone())],
+            )
+            .unwrap(),
+        );
+        let receivers: Receivers = first(&run_on::<crate::pbgi::gbuffer::GBuffer>(&[], vec![Value::new(scene.clone()), acc()]).unwrap());
+        Setup { points, tree, wavelets, coded, receivers }
+    }
+}

@@ -465,6 +465,17 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
             "coding_ratio",
         ],
         "WaveletGather" => &["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver"],
+        "ViewTree" => &[
+            "bounces",
+            "pairs_per_point",
+            "nodes_rasterised_per_point",
+            "near_leaves_per_point",
+            "group_buffers",
+            "points_reusing_a_group_buffer",
+            "coded_bytes",
+            "terms_per_point",
+            "walk_seconds",
+        ],
         "SampleSurface" => &["points"],
         "BrdfPca" => &[
             "bases",

@@ -242,11 +242,65 @@ impl SparseCubeHaar {
         }
         CubeHaar { n: self.n, coeffs }
     }
+
+    /// The sum of two approximations of the same side (indices merged, ascending; entries
+    /// that cancel to zero are dropped).
+    pub fn sum(&self, other: &SparseCubeHaar) -> SparseCubeHaar {
+        assert_eq!(self.n, other.n, "sums of maps of one side");
+        let (mut index, mut value) = (Vec::with_capacity(self.index.len() + other.index.len()), vec![]);
+        let (mut a, mut b) = (0, 0);
+        while a < self.index.len() || b < other.index.len() {
+            let ia = self.index.get(a).copied().unwrap_or(u32::MAX);
+            let ib = other.index.get(b).copied().unwrap_or(u32::MAX);
+            let (i, v) = match ia.cmp(&ib) {
+                std::cmp::Ordering::Less => (ia, self.value[a]),
+                std::cmp::Ordering::Greater => (ib, other.value[b]),
+                std::cmp::Ordering::Equal => (ia, self.value[a] + other.value[b]),
+            };
+            a += usize::from(ia <= ib);
+            b += usize::from(ib <= ia);
+            if v != Vec3::ZERO {
+                index.push(i);
+                value.push(v);
+            }
+        }
+        SparseCubeHaar { n: self.n, index, value }
+    }
+
+    /// At most `k` terms: the largest by their strongest channel, in index order (itself
+    /// when it holds no more). Says whether terms were dropped.
+    pub fn limit(self, k: usize) -> (SparseCubeHaar, bool) {
+        if self.index.len() <= k {
+            return (self, false);
+        }
+        let weight: Vec<f64> = self.value.iter().map(|v| v.abs().max_element() as f64).collect();
+        let keep = largest(&weight, k);
+        let index = keep.iter().map(|&k| self.index[k as usize]).collect();
+        let value = keep.iter().map(|&k| self.value[k as usize]).collect();
+        (SparseCubeHaar { n: self.n, index, value }, true)
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sparse_sums_merge_indices_and_limits_keep_the_strongest() {
+        let a = SparseCubeHaar { n: 2, index: vec![0, 3, 7], value: vec![Vec3::ONE, Vec3::X, Vec3::splat(2.0)] };
+        let b = SparseCubeHaar { n: 2, index: vec![1, 3, 23], value: vec![Vec3::Y, -Vec3::X, Vec3::Z] };
+        let s = a.sum(&b);
+        assert_eq!(s.index, vec![0, 1, 7, 23], "index 3 cancels");
+        assert_eq!(s.dense().coeffs, {
+            let mut d = a.dense().coeffs;
+            d.iter_mut().zip(b.dense().coeffs).for_each(|(x, y)| *x += y);
+            d
+        });
+        let (l, cut) = s.clone().limit(2);
+        assert!(cut);
+        assert_eq!((l.index, l.value), (vec![0, 7], vec![Vec3::ONE, Vec3::splat(2.0)]));
+        assert_eq!(s.clone().limit(4), (s, false));
+    }
 
     #[test]
     fn a_texels_terms_give_its_value_without_the_whole_inverse() {

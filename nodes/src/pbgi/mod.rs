@@ -13,6 +13,9 @@ pub mod shade_direct;
 pub mod surfel_wavelets;
 pub mod texel_cache;
 pub mod traversal;
+pub mod view_pairs;
+pub mod view_tree;
+pub mod view_walk;
 pub mod wavelet_gather;
 pub mod wavelet_radiance;
 pub mod wavelet_tree;
@@ -29,4 +32,5 @@ pub fn register(reg: &mut Registry) {
     reg.add::<surfel_wavelets::SurfelWavelets>();
     reg.add::<wavelet_tree::WaveletTree>();
     reg.add::<wavelet_gather::WaveletGather>();
+    reg.add::<view_tree::ViewTree>();
 }

@@ -3,7 +3,7 @@
 use super::incident::{DirectSampler, Incident};
 use super::wavelet_radiance::outgoing_intensity;
 use crate::brdf;
-use crate::math::cube_haar::{largest, CubeHaar, SparseCubeHaar};
+use crate::math::cube_haar::{CubeHaar, SparseCubeHaar};
 use crate::types::accel::Accel;
 use crate::types::{PointWavelets, Scene, SurfacePoints};
 use glam::Vec3;
@@ -71,15 +71,10 @@ impl SurfelWavelets {
             return (empty, Outcome::Kept);
         }
         let w = CubeHaar::forward(&outgoing_intensity(m, nrm, &inc.weighted(), n)).keep_above(self.threshold);
-        if w.index.len() <= self.cap() {
-            return (w, Outcome::Kept);
+        match w.limit(self.cap()) {
+            (w, false) => (w, Outcome::Kept),
+            (w, true) => (w, Outcome::Capped),
         }
-        // The largest by their strongest channel, in index order.
-        let weight: Vec<f64> = w.value.iter().map(|v| v.abs().max_element() as f64).collect();
-        let keep = largest(&weight, self.cap());
-        let index = keep.iter().map(|&k| w.index[k as usize]).collect();
-        let value = keep.iter().map(|&k| w.value[k as usize]).collect();
-        (SparseCubeHaar { n, index, value }, Outcome::Capped)
     }
 }
 

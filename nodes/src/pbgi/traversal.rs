@@ -253,11 +253,16 @@ impl<'a, R: NodeRadiance> Traversal<'a, R> {
 /// normal `n` (`v`: node centre − receiver): the least of the sphere's top and the slab's,
 /// the slab bounding the disks along the cone axis and the sphere across it.
 fn top_above_horizon(node: &HotNode, v: Vec3, n: Vec3) -> f32 {
+    height_above_plane(node.axis, node.slab, node.bound, v, n)
+}
+
+/// `top_above_horizon` for a node given by its cone axis, slab and bound (`TreeNode`'s).
+pub fn height_above_plane(axis: Vec3, slab: [f32; 2], bound: f32, v: Vec3, n: Vec3) -> f32 {
     let vn = v.dot(n);
-    let along = node.axis.dot(n);
+    let along = axis.dot(n);
     let across = (1.0 - along * along).max(0.0).sqrt();
-    let slab = (along * node.slab[0]).max(along * node.slab[1]) + across * node.bound;
-    vn + slab.min(node.bound)
+    let slab = (along * slab[0]).max(along * slab[1]) + across * bound;
+    vn + slab.min(bound)
 }
 
 #[cfg(test)]

@@ -72,57 +72,15 @@ impl WaveletGather {
 mod tests {
     use super::*;
     use crate::pbgi::pbgi_gather::{gather, PbgiGather};
-    use crate::pbgi::shade_direct::{shade_direct, ShadeDirect};
-    use crate::pbgi::surfel_wavelets::SurfelWavelets;
-    use crate::pbgi::wavelet_tree::WaveletTree;
-    use crate::scene::builder::SceneBuilder;
-    use crate::testing::{cancels_midway, f, first, i, run_on};
-    use crate::types::accel::{Accel, BuildQuality};
-    use crate::types::{Light, Material, PointWavelets, Scene, SurfacePoints};
+    use crate::testing::{cancels_midway, f, first, i, run_on, wpbgi_setup};
+    use crate::types::{Material, SurfacePoints};
     use glam::Vec3;
     use relume_core::{CancelToken, Value};
 
-    /// A floor and a back wall under a point light, seen from the front at 12 × 12.
-    fn corner(wall: Material) -> (Scene, SurfacePoints) {
-        let grey = Material::Lambert { albedo: Vec3::splat(0.6) };
-        let scene = SceneBuilder::new(Vec3::new(0.0, 1.2, 2.5), Vec3::new(0.0, 0.4, 0.0), 50.0, 12, 12)
-            .quad("floor", Vec3::new(-1.0, 0.0, 1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -2.0), grey, Vec3::ZERO)
-            .quad("wall", Vec3::new(-1.0, 0.0, -1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 1.5, 0.0), wall, Vec3::ZERO)
-            .light(Light::Point { position: Vec3::new(0.3, 1.2, 0.6), intensity: Vec3::splat(3.0) })
-            .build();
-        let pts = crate::geometry::sample_surface::sample_surface(
-            &scene,
-            &crate::geometry::sample_surface::SampleSurface {
-                method: crate::geometry::sample_surface::Method::AreaCdf,
-                count: 3000,
-                seed: 2,
-                emitters: true,
-            },
-        )
-        .unwrap();
-        (scene, pts)
-    }
-
-    /// The diffuse tree, the coded wavelets and the receivers of `corner`.
+    /// The diffuse tree, the coded wavelets and the receivers of `wpbgi_setup::corner`.
     fn setup(wall: Material) -> (PointTree, CodedWavelets, Receivers) {
-        let (scene, pts) = corner(wall);
-        let accel = Accel::build(&scene, BuildQuality::Fast);
-        let cancel = CancelToken::new();
-        let (b, _) = shade_direct(&scene, &accel, &pts, &ShadeDirect { samples: 1, seed: 0 }, &RunCtx::new("t", &cancel, None)).unwrap();
-        let tree = PointTree::build(&pts, &b);
-        let acc = || Value::new(Accel::build(&scene, BuildQuality::Fast));
-        let w: PointWavelets = first(
-            &run_on::<SurfelWavelets>(&[("resolution", i(32))], vec![Value::new(scene.clone()), acc(), Value::new(pts.clone())]).unwrap(),
-        );
-        let coded: CodedWavelets = first(
-            &run_on::<WaveletTree>(
-                &[("report_uncoded", relume_core::ParamValue::Bool(false))],
-                vec![Value::new(tree.clone()), Value::new(w)],
-            )
-            .unwrap(),
-        );
-        let r: Receivers = first(&run_on::<crate::pbgi::gbuffer::GBuffer>(&[], vec![Value::new(scene.clone()), acc()]).unwrap());
-        (tree, coded, r)
+        let s = wpbgi_setup::setup(wall);
+        (s.tree, s.coded, s.receivers)
     }
 
     fn mean(img: &Image) -> f64 {
@@ -180,7 +138,7 @@ mod tests {
     fn coded_wavelets_of_another_tree_are_refused_and_a_run_can_be_cancelled() {
         let (tree, coded, r) = setup(Material::Lambert { albedo: Vec3::splat(0.6) });
         let other = {
-            let (_, pts) = corner(Material::Lambert { albedo: Vec3::ONE });
+            let (_, pts) = wpbgi_setup::corner(Material::Lambert { albedo: Vec3::ONE });
             let n = pts.len() / 2;
             let half = SurfacePoints {
                 position: pts.position[..n].to_vec(),

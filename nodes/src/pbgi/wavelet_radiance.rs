@@ -76,23 +76,23 @@ pub fn outgoing_intensity(material: &Material, normal: Vec3, incident: &[(Vec3, 
     for (t, d) in map.texels.iter_mut().zip(texel_directions(n).iter()) {
         *t *= d.dot(nn).max(0.0);
     }
-    cap_exitance(&mut map, material, nn, incident);
+    let irradiance: Vec3 = incident.iter().filter(|(wi, _)| wi.dot(nn) > 0.0).map(|&(_, w)| w).sum();
+    cap_exitance(&mut map, material, irradiance);
     map
 }
 
 /// Scales a channel of J down where the map sends out more than the surfel can reflect:
-/// its irradiance (the incident weights from above its plane) times the material's largest
-/// albedo (kd + ks; Lambert's albedo). The BRDFs here conserve energy, but a map samples
+/// its `irradiance` (the incident weights from above its plane, or a microbuffer's sum)
+/// times the material's largest albedo (kd + ks; Lambert's albedo). The BRDFs here conserve energy, but a map samples
 /// them at texel centres, and at grazing light the reflected lobe is squeezed against the
 /// horizon into less than a texel (measured: Cook-Torrance m = 0.0375, light at 89.9°, 32²
 /// map: 3.3× the irradiance). Maps within the bound are left as they are.
-fn cap_exitance(map: &mut CubeMap, material: &Material, normal: Vec3, incident: &[(Vec3, Vec3)]) {
+pub fn cap_exitance(map: &mut CubeMap, material: &Material, irradiance: Vec3) {
     let most = match *material {
         Material::Lambert { albedo } => albedo,
         Material::BlinnPhong { kd, ks, .. } | Material::CookTorrance { kd, ks, .. } => kd + ks,
         Material::Dielectric { .. } => Vec3::ONE,
     };
-    let irradiance: Vec3 = incident.iter().filter(|(wi, _)| wi.dot(normal) > 0.0).map(|&(_, w)| w).sum();
     let bound = (irradiance * most).as_dvec3();
     let mut sent = glam::DVec3::ZERO;
     for (t, &w) in map.texels.iter().zip(texel_solid_angles(map.n).iter()) {
