@@ -13,9 +13,9 @@
 //!   may hold a receiver: if it is too large from R's farthest point as well (d + b_R), every
 //!   receiver below R would open it and S is split; otherwise only the nearer receivers
 //!   would, and R is split. So a sender is split no sooner than a per-receiver traversal
-//!   would split it. A receiver whose centre lies inside the sender splits the sender:
-//!   PIPELINES.md notes that [P]'s text and figure 5.2's caption disagree on this case; this
-//!   follows the caption;
+//!   would split it. A receiver group wholly inside the sender splits the sender: PIPELINES.md
+//!   notes that [P]'s text and figure 5.2's caption disagree on this case; this follows the
+//!   caption. A group only partly inside splits itself (its points outside may accept S);
 //! - **receiver too large** when R's sphere, seen from S's (π b_R² / (d − b_S)²), exceeds
 //!   `view_omega` ([P]: 0.005 sr): the directions from R's points to S then differ by more
 //!   than a microbuffer pixel can tell, and R is split;
@@ -67,9 +67,9 @@ pub fn classify(tree: &PointTree, r: u32, s: u32, t: &PairTest) -> Pair {
     let br = if rn.is_leaf() { 0.0 } else { rn.bound };
     let too_large = |dist: f32| dist <= sn.bound || sn.area > t.sender_omega * dist * dist;
     if too_large(d - br) {
-        // Split the sender when every receiver below R would open it (or R's centre lies
-        // inside it); when only the nearer ones would, split the receivers.
-        let split_sender = !sn.is_leaf() && (d <= sn.bound || too_large(d + br));
+        // Split the sender when every receiver below R would open it (R wholly inside it
+        // among them); when only the nearer ones would, split the receivers.
+        let split_sender = !sn.is_leaf() && too_large(d + br);
         return match (split_sender, rn.is_leaf()) {
             (true, _) => Pair::SplitSender,
             (false, false) => Pair::SplitReceiver,

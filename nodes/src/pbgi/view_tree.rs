@@ -321,12 +321,13 @@ mod tests {
             };
             let a = pick(&|k| pbgi.pixels[k][0] as f64);
             let b = pick(&|k| view[k]);
-            // Measured: floor 0.01553 against 0.01498, wall 0.00951 against 0.00954. The floor's
-            // 3.6 % is the order of rasterisation: the per-receiver walk over the same wavelet
-            // tree gives 0.01550, and the view tree with every pair decided at the leaves
-            // (the same nodes per point, another order) 0.01491; sorted near to far, 0.01387.
-            // The microbuffer's depth layers depend on the order splats arrive in.
-            assert!(a > 0.0 && ((b - a) / a).abs() < 0.05, "object {object}: PbgiGather {a}, view tree {b}");
+            // Measured: floor 0.015532 against 0.015506, wall 0.022057 against 0.021960. Each
+            // point rasterises its nodes in the order its own traversal would (descending
+            // index); without group buffers the view tree gives the per-receiver walk's
+            // bytes (`view_walk`'s tests), and the microbuffer's depth layers depend on
+            // that order (the pairs' order instead cost 3.6 % on the floor, sorted near to
+            // far 10 %).
+            assert!(a > 0.0 && ((b - a) / a).abs() < 0.015, "object {object}: PbgiGather {a}, view tree {b}");
         }
         let rms = |v: &dyn Fn(usize) -> f64| ((0..n).map(|k| v(k).powi(2)).sum::<f64>() / n as f64).sqrt();
         let diff = rms(&|k| view[k] - pbgi.pixels[k][0] as f64) / rms(&|k| pbgi.pixels[k][0] as f64);
