@@ -1,5 +1,7 @@
 //! Wavelet PBGI on the ring (`graphs/wpbgi_ring.ron`): the caustic the glossy ring throws on
-//! the plane against the path tracer's, and which nodes an edit of the coding re-runs.
+//! the plane against the path tracer's, and which nodes an edit of the coding re-runs; on
+//! the glossy Cornell bunny (`graphs/wpbgi_cornell_bunny.ron`), the error against classic
+//! PBGI's.
 
 use glam::Vec3;
 use relume_core::Value;
@@ -135,4 +137,19 @@ fn coincident_points_get_wavelets_code_and_gather_finitely() {
     let img = img.get::<Image>().unwrap();
     assert!(finite_and_not_negative(img));
     assert!(img.as_floats().iter().any(|x| *x > 0.0), "the stacked disks are seen from below");
+}
+
+#[test]
+fn on_the_glossy_cornell_bunny_the_lobes_bring_the_image_closer_than_classic_pbgi() {
+    let g = load_graph(
+        "wpbgi_cornell_bunny.ron",
+        &[("scene.width", "64"), ("scene.height", "64"), ("points.count", "8000"), ("reference.spp", "1024")],
+    );
+    let r = run_outputs(&engine(), &g, &["image", "wpbgi_error", "pbgi_error"]);
+    let m = |n: &str, k: &str| r.output(n).unwrap().get::<Metrics>().unwrap().get(k).unwrap();
+    assert!(finite_and_not_negative(r.output("image").unwrap().get::<Image>().unwrap()));
+    // Measured here: rel. MSE 1.28e-3 against classic PBGI's 1.73e-3 (at 256² with 10,000
+    // points, 9.7e-4 against 1.43e-3).
+    let (w, p) = (m("wpbgi_error", "rel_mse"), m("pbgi_error", "rel_mse"));
+    assert!(w < 0.9 * p, "wavelet PBGI {w}, classic {p}");
 }
