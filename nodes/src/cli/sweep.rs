@@ -465,6 +465,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
             "coding_ratio",
         ],
         "WaveletGather" => &["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver"],
+        "PreviewSplat" => &["receivers", "receivers_missed", "nodes_splatted"],
         "ViewTree" => &[
             "bounces",
             "pairs_per_point",

@@ -9,6 +9,7 @@ pub mod incident;
 pub mod microbuffer;
 pub mod pbgi_gather;
 pub mod point_tree;
+pub mod preview_splat;
 pub mod shade_direct;
 pub mod surfel_wavelets;
 pub mod texel_cache;
@@ -33,4 +34,5 @@ pub fn register(reg: &mut Registry) {
     reg.add::<wavelet_tree::WaveletTree>();
     reg.add::<wavelet_gather::WaveletGather>();
     reg.add::<view_tree::ViewTree>();
+    reg.add::<preview_splat::PreviewSplat>();
 }
