@@ -25,6 +25,9 @@ pub const RUN_DEBOUNCE: Duration = Duration::from_millis(150);
 const RECOVERY_EVERY: Duration = Duration::from_secs(5);
 /// Graph output name used to view a port that is not one of the graph's outputs.
 const VIEW_OUTPUT: &str = "__view";
+/// Graph output that, where a graph has one (an image), is computed and shown before the
+/// viewed image: a fast approximation such as `PreviewSplat`'s ([P] 5.4).
+pub const PREVIEW_OUTPUT: &str = "preview";
 
 pub struct EditorApp {
     pub registry: Registry,
@@ -52,6 +55,11 @@ pub struct EditorApp {
     /// The revision whose other outputs run once its viewed image is in (a run computes the
     /// viewed image first, so an edit shows before the error figures that compare it).
     rest_after: Option<u64>,
+    /// The revision whose viewed image runs once its preview is in (graphs with a `preview`
+    /// output show it first, while the slower image is computed).
+    view_after_preview: Option<u64>,
+    /// The viewer shows the preview of the current run, not the viewed image yet.
+    pub preview_shown: bool,
     pub report: Option<RunReport>,
     /// What the viewer shows: a graph output name, or `node.port`.
     pub view_target: Option<String>,
@@ -86,6 +94,8 @@ impl EditorApp {
             edit_started: None,
             edit_to_image_ms: None,
             rest_after: None,
+            view_after_preview: None,
+            preview_shown: false,
             report: None,
             view_target: None,
             last_outputs: Vec::new(),
@@ -278,12 +288,19 @@ impl EditorApp {
         }
         self.pending_run = None;
         self.edit_started.get_or_insert_with(Instant::now);
-        // The viewed image first, alone; the other outputs when it is in (`take_in`).
+        // The preview first where the graph has one, then the viewed image, alone; the other
+        // outputs when it is in (`take_in`).
         let view = self.view_output_name();
+        self.view_after_preview = None;
         match view.filter(|v| outputs.len() > 1 && outputs.contains(v)) {
             Some(v) => {
                 self.rest_after = Some(self.doc.revision);
-                self.runner.start(g, vec![v], self.doc.revision);
+                if self.preview_output().is_some_and(|p| p != v && outputs.contains(&p)) {
+                    self.view_after_preview = Some(self.doc.revision);
+                    self.runner.start(g, vec![PREVIEW_OUTPUT.into()], self.doc.revision);
+                } else {
+                    self.runner.start(g, vec![v], self.doc.revision);
+                }
             }
             None => {
                 self.rest_after = None;
@@ -293,10 +310,19 @@ impl EditorApp {
         self.status = "running...".into();
     }
 
+    /// The graph's preview output, where it has an image output of that name.
+    fn preview_output(&self) -> Option<String> {
+        self.image_outputs().into_iter().find(|o| o == PREVIEW_OUTPUT)
+    }
+
     /// Whether no run is under way, waiting (the viewed image's and the rest's) or ended but
     /// not taken in yet.
     pub fn is_idle(&self) -> bool {
-        !self.runner.is_running() && !self.runner.has_finished() && self.pending_run.is_none() && self.rest_after.is_none()
+        !self.runner.is_running()
+            && !self.runner.has_finished()
+            && self.pending_run.is_none()
+            && self.rest_after.is_none()
+            && self.view_after_preview.is_none()
     }
 
     /// The output name under which a run delivers the viewed image.
@@ -312,6 +338,7 @@ impl EditorApp {
         self.runner.cancel();
         self.pending_run = None;
         self.rest_after = None;
+        self.view_after_preview = None;
         self.planned = None;
         self.status = "run cancelled".into();
     }
@@ -350,6 +377,21 @@ impl EditorApp {
         let live = self.runner.live_states();
         self.planned = None;
         match f.outcome {
+            Ok((report, outputs)) if f.revision == self.doc.revision && self.view_after_preview == Some(f.revision) => {
+                // The preview is in: show it, then compute the viewed image.
+                self.view_after_preview = None;
+                let preview = outputs.iter().find(|(n, _)| n == PREVIEW_OUTPUT).and_then(|(_, v)| v.get::<Image>()).cloned();
+                if let Some(img) = preview {
+                    self.viewer.set_image(Some(Arc::new(img)));
+                    self.preview_shown = true;
+                }
+                self.status = format!("preview in {}; the image is running...", crate::fmt_ms(report.total_ms));
+                self.report = Some(report);
+                if let Some(v) = self.view_output_name() {
+                    let (g, _) = self.run_request();
+                    self.runner.start(g, vec![v], self.doc.revision);
+                }
+            }
             Ok((report, outputs)) => {
                 self.status = format!("ran in {} ({} ran, {} cached)", crate::fmt_ms(report.total_ms), report.ran, report.cached);
                 self.report = Some(report);
@@ -370,6 +412,7 @@ impl EditorApp {
                 self.status = m;
                 self.edit_started = None;
                 self.rest_after = None;
+                self.view_after_preview = None;
             }
         }
         self.done_states = Some((f.revision, live));
@@ -381,6 +424,7 @@ impl EditorApp {
         let img = self.last_outputs.iter().find(|(n, _)| *n == name).and_then(|(_, v)| v.get::<Image>()).cloned();
         if img.is_some() {
             self.viewer.set_image(img.map(Arc::new));
+            self.preview_shown = false;
         }
     }
 

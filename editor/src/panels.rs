@@ -195,6 +195,10 @@ fn viewer(app: &mut EditorApp, ui: &mut egui::Ui) {
         if before != app.view_target {
             app.show_target();
         }
+        if app.preview_shown {
+            ui.label(egui::RichText::new("preview").strong())
+                .on_hover_text("the graph's `preview` output, shown while the viewed image is computed");
+        }
     });
     app.viewer.controls(ui);
     let h = ui.available_width().min(420.0);

@@ -457,3 +457,55 @@ fn turning_the_sky_changing_the_material_and_orbiting_on_ptt_envlit_update_the_i
     ];
     edits_update_the_image(&ctx, &mut app, edits);
 }
+
+#[test]
+fn vpbgi_cornell_shows_the_preview_splat_before_the_gathered_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let i = ParamValue::Int;
+    let mut app = open_shipped(
+        dir.path(),
+        "vpbgi_cornell.ron",
+        &[
+            ("scene", "width", i(32)),
+            ("scene", "height", i(32)),
+            ("points", "count", i(1500)),
+            ("direct", "pixel_samples", i(2)),
+            ("reference", "spp", i(4)),
+            ("pt", "spp", i(1)),
+            ("preview", "level", i(8)),
+        ],
+    );
+    assert_eq!(app.view_target.as_deref(), Some("image"));
+    let ctx = egui::Context::default();
+    first_run(&ctx, &mut app);
+    assert!(!app.preview_shown, "after a whole run the viewer shows the image");
+    let img = app.viewer.image().expect("the image is shown").clone();
+
+    // A second bounce reaches the view tree: its preview comes first, from the view tree and
+    // the splat alone, while the gather is still to run.
+    app.set_param("views", "bounces", i(2)).unwrap();
+    app.edit_to_image_ms = None;
+    let t0 = Instant::now();
+    while !app.preview_shown {
+        assert!(t0.elapsed() < Duration::from_secs(600), "no preview: {}", app.status);
+        assert!(app.edit_to_image_ms.is_none(), "the image came before its preview");
+        frame(&ctx, &mut app);
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let mut ran = app.report.as_ref().unwrap().ran_ids();
+    ran.sort();
+    assert_eq!(ran, ["preview", "views"]);
+    let preview = app.viewer.image().unwrap().clone();
+    assert!(!std::sync::Arc::ptr_eq(&img, &preview) && preview.pixels != img.pixels);
+    assert!(app.status.starts_with("preview in"), "{}", app.status);
+
+    // Then the gathered image replaces it, then the error figures.
+    frames_until_refreshed(&ctx, &mut app);
+    assert!(!app.preview_shown);
+    let mut ran = app.report.as_ref().unwrap().ran_ids();
+    ran.sort();
+    assert_eq!(ran, ["gather", "vpbgi_image"]);
+    assert!(!std::sync::Arc::ptr_eq(&preview, app.viewer.image().unwrap()));
+    until_idle(&ctx, &mut app);
+    assert!(app.report.as_ref().unwrap().ran_ids().contains(&"vpbgi_error"));
+}

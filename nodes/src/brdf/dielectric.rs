@@ -45,3 +45,23 @@ pub fn reflect_probability(ior: f32, wo: Vec3) -> f32 {
     let eta = if wo.z > 0.0 { ior } else { 1.0 / ior };
     fresnel_dielectric(wo.z.abs(), eta).0
 }
+
+/// Both Dirac lobes for ωo, as (ωi, weight) with weight the factor on the radiance arriving
+/// from ωi: reflection (F) and refraction ((1 − F)/η², weight 0 under total internal
+/// reflection), the two outcomes of [`sample`] with their probabilities folded in, so that
+/// Σ weight · L(ωi) is the outgoing radiance. ωo must not lie in the surface plane (both
+/// weights are 0 there, as for an invalid `ior`).
+pub fn lobes(ior: f32, wo: Vec3) -> [(Vec3, f32); 2] {
+    let reflected = Vec3::new(-wo.x, -wo.y, wo.z);
+    if !(ior > 0.0 && ior.is_finite() && wo.is_finite()) || wo.z == 0.0 {
+        return [(reflected, 0.0), (-wo, 0.0)];
+    }
+    let outside = wo.z > 0.0;
+    let eta = if outside { ior } else { 1.0 / ior };
+    let (fr, cos_t) = fresnel_dielectric(wo.z.abs(), eta);
+    if fr >= 1.0 {
+        return [(reflected, 1.0), (-wo, 0.0)];
+    }
+    let refracted = Vec3::new(-wo.x / eta, -wo.y / eta, if outside { -cos_t } else { cos_t });
+    [(reflected, fr), (refracted, (1.0 - fr) / (eta * eta))]
+}

@@ -593,6 +593,37 @@ fn dielectric_reflection_and_refraction_probabilities_sum_to_one() {
 }
 
 #[test]
+fn dielectric_lobes_are_the_two_samples_with_their_probabilities_folded_in() {
+    // What a gather reads the two lobes with (the spherical microbuffer): each lobe's weight
+    // is its sample's probability times its throughput weight, in the sample's direction.
+    for ior in [1.0f32, 1.05, 1.5, 2.4, 1.0 / 1.5] {
+        for k in 0..40 {
+            let theta = 0.5 + 89.0 * k as f64 / 39.0;
+            for wo in [dir(theta, 0.9), -dir(theta, 0.9)] {
+                let [(wr, kr), (wt, kt)] = dielectric::lobes(ior, wo);
+                let (r, t) = both_lobes(ior, wo);
+                let weight = |s: &BsdfSample| s.f.x * s.wi.z.abs();
+                let r = r.filter(|s| s.wi.z * wo.z > 0.0);
+                let t = t.filter(|s| s.wi.z * wo.z < 0.0);
+                match r {
+                    Some(s) => assert!((wr - s.wi).length() < 1e-6 && (kr - weight(&s)).abs() < 1e-6, "ior {ior} θ {theta}"),
+                    None => assert_eq!(kr, 0.0),
+                }
+                match t {
+                    Some(s) => assert!((wt - s.wi).length() < 1e-6 && (kt - weight(&s)).abs() < 1e-6, "ior {ior} θ {theta}"),
+                    None => assert_eq!(kt, 0.0, "ior {ior} θ {theta}: total internal reflection"),
+                }
+                assert!(kr + kt * (if wo.z > 0.0 { ior * ior } else { 1.0 / (ior * ior) }) <= 1.0 + 1e-6);
+            }
+        }
+    }
+    // Index 1: straight through with weight 1, nothing reflected.
+    let wo = dir(30.0, 0.4);
+    assert_eq!(dielectric::lobes(1.0, wo)[1], (-wo, 1.0));
+    assert_eq!(dielectric::lobes(1.0, wo)[0].1, 0.0);
+}
+
+#[test]
 fn dielectric_refraction_obeys_snell_and_scales_radiance_by_inverse_eta_squared() {
     for ior in [1.333f32, 1.5, 2.4] {
         for theta in [10.0, 35.0, 60.0, 85.0] {

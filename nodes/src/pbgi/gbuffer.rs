@@ -8,15 +8,21 @@ use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
 /// The camera's primary hits at pixel centres, as receivers: pixel, position, shading normal
 /// turned toward the camera, direction to the camera, object and material. Pixels that see
-/// the background, the back of a one-sided surface or a dielectric get no receiver.
+/// the background or the back of a one-sided surface get no receiver, nor do those that
+/// see a smooth dielectric unless `dielectrics` is on (only `WaveletGather` shades them,
+/// through its spherical microbuffer; the other gathers leave them black).
 #[derive(Params)]
-pub struct GBuffer;
+pub struct GBuffer {
+    /// make receivers of the pixels that see a smooth dielectric (glass) too
+    #[param(default = false)]
+    pub dielectrics: bool,
+}
 
 inputs!(pub GBufferIn { scene: Scene, accel: Accel });
 outputs!(pub GBufferOut { receivers: Receivers });
 
 /// Receivers of every pixel centre, row by row in parallel.
-pub fn gbuffer(scene: &Scene, accel: &Accel, cx: &RunCtx) -> Result<Receivers, NodeError> {
+pub fn gbuffer(scene: &Scene, accel: &Accel, dielectrics: bool, cx: &RunCtx) -> Result<Receivers, NodeError> {
     let cam = CameraRays::new(&scene.camera);
     let (w, h) = (scene.camera.width, scene.camera.height);
     let rows: Vec<Vec<(u32, Surface, glam::Vec3)>> = cx.par_map(h, |y| {
@@ -26,7 +32,7 @@ pub fn gbuffer(scene: &Scene, accel: &Accel, cx: &RunCtx) -> Result<Receivers, N
                 let hit = accel.intersect(o, d, 0.0, f32::INFINITY)?;
                 let s = Surface::at(scene, &hit, o, d);
                 let m = s.material(scene);
-                (d.dot(s.ng) < 0.0 && !matches!(m, Material::Dielectric { .. })).then_some((i as u32, s, -d))
+                (d.dot(s.ng) < 0.0 && (dielectrics || !matches!(m, Material::Dielectric { .. }))).then_some((i as u32, s, -d))
             })
             .collect()
     })?;
@@ -54,7 +60,7 @@ impl GBuffer {
     }
 
     fn run(&self, i: GBufferIn, cx: &RunCtx) -> Result<GBufferOut, NodeError> {
-        let r = gbuffer(i.scene, i.accel, cx)?;
+        let r = gbuffer(i.scene, i.accel, self.dielectrics, cx)?;
         cx.metric("receivers", r.len() as f64);
         Ok(GBufferOut { receivers: r })
     }
@@ -72,7 +78,7 @@ mod tests {
         let scene = test_scene::spheres();
         let accel = Accel::build(&scene, BuildQuality::Fast);
         let cancel = CancelToken::new();
-        let r = gbuffer(&scene, &accel, &RunCtx::new("t", &cancel, None)).unwrap();
+        let r = gbuffer(&scene, &accel, false, &RunCtx::new("t", &cancel, None)).unwrap();
         assert!(r.len() > 100 && r.len() <= 16 * 16, "{}", r.len());
         for i in 0..r.len() {
             assert!(r.normal[i].dot(r.wo[i]) > 0.0, "faces the camera");
@@ -82,6 +88,26 @@ mod tests {
         let mut px = r.pixel.clone();
         px.dedup();
         assert_eq!(px.len(), r.len(), "one receiver per pixel, in pixel order");
+    }
+
+    #[test]
+    fn pixels_on_glass_become_receivers_only_when_asked() {
+        use crate::scene::builder::SceneBuilder;
+        use glam::Vec3;
+        let grey = Material::Lambert { albedo: Vec3::splat(0.5) };
+        let glass = Material::Dielectric { ior: 1.5, medium: None };
+        let scene = SceneBuilder::new(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 40.0, 16, 16)
+            .sphere("glass", Vec3::ZERO, 0.6, glass, Vec3::ZERO, false)
+            .quad("floor", Vec3::new(-2.0, -1.0, 2.0), Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -4.0), grey, Vec3::ZERO)
+            .build();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let cancel = CancelToken::new();
+        let run = |d| gbuffer(&scene, &accel, d, &RunCtx::new("t", &cancel, None)).unwrap();
+        let (without, with) = (run(false), run(true));
+        let on_glass = |r: &Receivers| r.material.iter().filter(|m| matches!(m, Material::Dielectric { .. })).count();
+        assert_eq!(on_glass(&without), 0);
+        assert!(on_glass(&with) > 20 && with.len() == without.len() + on_glass(&with), "{} {}", with.len(), without.len());
+        assert!((0..with.len()).all(|i| with.normal[i].dot(with.wo[i]) > 0.0), "seen from outside");
     }
 
     #[test]

@@ -76,7 +76,39 @@ impl Microbuffer {
         }
     }
 
-    #[cfg(test)]
+    /// The radiance seen along local direction `d` (z ≥ 0): a Dirac lobe's read of the
+    /// buffer. Bilinear over the pixel centres around (d.x, d.y) inside the disk, and divided
+    /// by the coverage where that exceeds 1: a pixel over-covered by one layer's splats (which
+    /// `layer_write` lets add up, so that a convolution's sum keeps their energy) shows the
+    /// radiance of its surface, not a multiple of it; a gap (coverage below 1) stays as dark
+    /// as it is.
+    pub fn radiance_toward(&self, d: Vec3) -> Vec3 {
+        if self.n == 1 {
+            return self.radiance[0] / self.coverage[0].max(1.0);
+        }
+        let nf = self.n as f32;
+        let (fx, fy) = ((d.x + 1.0) * 0.5 * nf - 0.5, (d.y + 1.0) * 0.5 * nf - 0.5);
+        let (x0, y0) = (fx.floor(), fy.floor());
+        let (tx, ty) = (fx - x0, fy - y0);
+        let (mut rad, mut cov, mut weight) = (Vec3::ZERO, 0.0f32, 0.0f32);
+        for (dx, dy, w) in [(0, 0, (1.0 - tx) * (1.0 - ty)), (1, 0, tx * (1.0 - ty)), (0, 1, (1.0 - tx) * ty), (1, 1, tx * ty)] {
+            let (x, y) = (x0 as i64 + dx, y0 as i64 + dy);
+            if w <= 0.0 || x < 0 || y < 0 || x >= self.n as i64 || y >= self.n as i64 {
+                continue;
+            }
+            let i = y as usize * self.n + x as usize;
+            if self.dirs[i].is_some() {
+                rad += self.radiance[i] * w;
+                cov += self.coverage[i] * w;
+                weight += w;
+            }
+        }
+        if weight <= 0.0 {
+            return self.radiance[self.pixel_of(d)] / self.coverage[self.pixel_of(d)].max(1.0);
+        }
+        (rad / weight) / (cov / weight).max(1.0)
+    }
+
     fn pixel_of(&self, d: Vec3) -> usize {
         let n = self.n as f32;
         let x = (((d.x + 1.0) * 0.5 * n) as usize).min(self.n - 1);

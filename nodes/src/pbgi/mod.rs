@@ -11,6 +11,7 @@ pub mod pbgi_gather;
 pub mod point_tree;
 pub mod preview_splat;
 pub mod shade_direct;
+pub mod spherical_microbuffer;
 pub mod surfel_wavelets;
 pub mod texel_cache;
 pub mod traversal;

@@ -2,7 +2,6 @@
 
 use super::microbuffer::Microbuffer;
 use super::traversal::{count_metrics, microbuffer_params, tree_extent, GatherBuffer, GatherCounts, NodeRadiance, Traversal};
-use crate::brdf;
 use crate::math::frame::Frame;
 use crate::math::morton::morton2;
 use crate::types::{Image, Metrics, PointTree, Receivers};
@@ -54,7 +53,7 @@ pub fn gather_with<R: NodeRadiance, B: GatherBuffer>(
             .map(|&i| {
                 let i = i as usize;
                 let mut counts = GatherCounts::default();
-                if brdf::is_delta(&r.material[i]) {
+                if !mb.shades(&r.material[i]) {
                     return (Vec3::ZERO, counts);
                 }
                 let frame = Frame::from_normal(r.normal[i]);

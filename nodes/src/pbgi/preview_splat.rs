@@ -90,13 +90,7 @@ impl PreviewSplat {
 
     fn run(&self, i: PreviewSplatIn, cx: &RunCtx) -> Result<PreviewSplatOut, NodeError> {
         let (tree, coded, r) = (i.tree, i.coded, i.receivers);
-        if coded.tree.parent.len() != tree.nodes.len() {
-            return Err(NodeError::input(
-                "coded",
-                format!("wavelets coded for a tree of {} nodes, not this tree of {}", coded.tree.parent.len(), tree.nodes.len()),
-            ));
-        }
-        let source = WaveletSource::new(tree, coded);
+        let source = WaveletSource::checked(tree, coded)?;
         let level = &coded.tree.level;
         let tasks = cx.par_map(r.len().div_ceil(RECEIVERS_PER_TASK), |task| {
             let mut stack = Vec::new();
@@ -141,22 +135,34 @@ mod tests {
     /// coded maps, and receivers at every point and between them, looking down from above.
     fn plane(l: f32) -> (PointTree, CodedWavelets, Receivers) {
         let position: Vec<Vec3> = (0..1600).map(|k| Vec3::new((k % 40) as f32 * 0.05, (k / 40) as f32 * 0.05, 0.0)).collect();
+        let (tree, coded) = disks(position, l);
+        (tree, coded, receivers())
+    }
+
+    /// Disks of radius 0.028 at `position` facing up, each sending radiance `l` everywhere
+    /// above: their tree and coded maps (split level 6, nothing dropped).
+    fn disks(position: Vec<Vec3>, l: f32) -> (PointTree, CodedWavelets) {
+        let count = position.len();
         let pts = SurfacePoints {
-            position: position.clone(),
-            normal: vec![Vec3::Z; 1600],
-            radius: vec![0.028; 1600],
-            object: vec![0; 1600],
-            material: vec![Material::Lambert { albedo: Vec3::splat(std::f32::consts::PI * l) }; 1600],
+            position,
+            normal: vec![Vec3::Z; count],
+            radius: vec![0.028; count],
+            object: vec![0; count],
+            material: vec![Material::Lambert { albedo: Vec3::splat(std::f32::consts::PI * l) }; count],
         };
-        let tree = PointTree::build(&pts, &vec![Vec3::splat(l); 1600]);
+        let tree = PointTree::build(&pts, &vec![Vec3::splat(l); count]);
         let map = outgoing_intensity(&pts.material[0], Vec3::Z, &[(Vec3::Z, Vec3::ONE)], 8);
         let w = CubeHaar::forward(&map).keep_above(0.0);
-        let maps = PointWavelets::from_points(8, &vec![w; 1600]);
+        let maps = PointWavelets::from_points(8, &vec![w; count]);
         let coded = CodedWavelets { n: 8, tree: code_tree(&tree, &maps, 6, Threshold::Coefficient(0.0)) };
-        // Receivers at 30 × 30 places inside the grid, seen from straight above.
+        (tree, coded)
+    }
+
+    /// Receivers at 30 × 30 places inside the 40 × 40 grid of `plane`, seen from straight above.
+    fn receivers() -> Receivers {
         let position: Vec<Vec3> =
             (0..900).map(|k| Vec3::new(0.2 + (k % 30) as f32 * 0.05 + 0.013, 0.2 + (k / 30) as f32 * 0.05 + 0.021, 0.0)).collect();
-        let r = Receivers {
+        Receivers {
             width: 30,
             height: 30,
             pixel: (0..900).collect(),
@@ -165,8 +171,28 @@ mod tests {
             wo: vec![Vec3::Z; 900],
             object: vec![0; 900],
             material: vec![Material::Lambert { albedo: Vec3::ONE }; 900],
-        };
-        (tree, coded, r)
+        }
+    }
+
+    #[test]
+    fn coincident_points_one_point_and_a_level_below_the_leaves_stay_finite_and_bounded() {
+        // QUALITY.md §2 "PBGI": a hundred disks at one place, a tree of one point, and a level
+        // deeper than the tree (its leaves splat). Every pixel is a weighted mean of what the
+        // nodes send (0.5), so none may exceed it; pixels no kernel reaches stay black.
+        let centre = Vec3::new(0.95, 0.95, 0.0);
+        for (what, position, level) in
+            [("coincident", vec![centre; 100], 3), ("one point", vec![centre], 12), ("below the leaves", vec![centre; 100], 64)]
+        {
+            let (tree, coded) = disks(position, 0.5);
+            let out =
+                run_on::<PreviewSplat>(&[("level", i(level))], vec![Value::new(tree), Value::new(coded), Value::new(receivers())]).unwrap();
+            let img: Image = first(&out);
+            assert!(img.as_floats().iter().all(|x| x.is_finite() && (0.0..=0.5 * 1.02).contains(x)), "{what}");
+            let lit = img.pixels.iter().filter(|p| p[0] > 0.0).count();
+            let missed = out[1].get::<Metrics>().unwrap().get("receivers_missed").unwrap();
+            // The disks' kernel (1.5 × 0.028) reaches the one receiver 0.013, 0.021 from them.
+            assert!(lit >= 1 && lit as f64 + missed == 900.0, "{what}: {lit} lit, {missed} missed");
+        }
     }
 
     #[test]

@@ -111,6 +111,11 @@ pub trait Raster {
     /// The solid angle one pixel stands for where local direction `d` lands (the traversal
     /// rasterises a node whose solid angle is at most `threshold` times this).
     fn pixel_solid_angle(&self, d: Vec3) -> f32;
+    /// Whether what lies wholly under the receiver's horizon is skipped (a hemispherical
+    /// buffer); a receiver that transmits light sees the whole sphere.
+    fn culls_horizon(&self) -> bool {
+        true
+    }
     /// Rasterises node `node` seen in local direction `d` at distance `dist`, of solid angle
     /// `omega` and radiance `l`. A raster that refines may hand nodes back for another visit
     /// by pushing them on `stack`.
@@ -134,6 +139,11 @@ impl Raster for Microbuffer {
 /// A buffer a gather fills per receiver: prepared for the receiver's material and outgoing
 /// direction (local), filled by a traversal, then convolved into its outgoing radiance.
 pub trait GatherBuffer: Raster + Clone + Send + Sync {
+    /// Whether the buffer can shade a receiver of material `m` (hemispherical buffers cannot
+    /// shade Dirac lobes: such receivers get no indirect light from them).
+    fn shades(&self, m: &crate::types::Material) -> bool {
+        !crate::brdf::is_delta(m)
+    }
     fn begin(&mut self, m: &crate::types::Material, wo: Vec3);
     fn end(&mut self, m: &crate::types::Material, wo: Vec3) -> Vec3;
 }
@@ -222,7 +232,7 @@ impl<'a, R: NodeRadiance> Traversal<'a, R> {
     #[allow(clippy::too_many_arguments)]
     fn visit(&self, i: u32, v: Vec3, d: f32, frame: &Frame, mb: &mut impl Raster, stack: &mut Vec<u32>, counts: &mut GatherCounts) {
         let node = &self.hot[i as usize];
-        if top_above_horizon(node, v, frame.n) <= self.eps {
+        if mb.culls_horizon() && top_above_horizon(node, v, frame.n) <= self.eps {
             return;
         }
         let inside = d <= node.bound;

@@ -1,8 +1,8 @@
 //! WaveletGather node.
 
 use super::adaptive_microbuffer::AdaptiveMicrobuffer;
-use super::microbuffer::Microbuffer;
 use super::pbgi_gather::gather_with;
+use super::spherical_microbuffer::SphericalMicrobuffer;
 use super::traversal::{count_metrics, microbuffer_params, tree_extent, Traversal};
 use super::wavelet_radiance::WaveletSource;
 use crate::types::{CodedWavelets, Image, Metrics, PointTree, Receivers};
@@ -19,7 +19,11 @@ microbuffer_params! {
     /// 4.6.2, `adaptive_microbuffer`): it starts at `resolution`², its pixels split up to
     /// `max_level` times where the receiver's BRDF weighs more than the mean, and again where
     /// a node's radiance over 2^(splits by light) exceeds `gamma`; the nodes a split pixel held
-    /// are visited again. Outputs the indirect image and per-receiver counts.
+    /// are visited again. Receivers on smooth dielectrics (a `GBuffer` with `dielectrics`)
+    /// gather on the uniform buffer's spherical form ([P] 5.3.5, `spherical_microbuffer`:
+    /// both hemispheres, nothing culled under the horizon) and read it along their
+    /// reflected and refracted directions; the adaptive buffer leaves them black. Outputs
+    /// the indirect image and per-receiver counts.
     #[derive(Params)]
     pub struct WaveletGather {
         /// adaptive microbuffer: most 2 × 2 splits of a pixel (0: the uniform microbuffer)
@@ -44,16 +48,10 @@ impl WaveletGather {
     }
 
     fn run(&self, i: WaveletGatherIn, cx: &RunCtx) -> Result<WaveletGatherOut, NodeError> {
-        if i.coded.tree.parent.len() != i.tree.nodes.len() {
-            return Err(NodeError::input(
-                "coded",
-                format!("wavelets coded for a tree of {} nodes, not this tree of {}", i.coded.tree.parent.len(), i.tree.nodes.len()),
-            ));
-        }
-        let source = WaveletSource::new(i.tree, i.coded);
+        let source = WaveletSource::checked(i.tree, i.coded)?;
         let t = Traversal::with_source(i.tree, &source, self.threshold, 1e-5 * tree_extent(i.tree));
         let (img, counts) = if self.max_level == 0 {
-            gather_with(&t, i.receivers, Microbuffer::new(self.resolution), cx)?
+            gather_with(&t, i.receivers, SphericalMicrobuffer::new(self.resolution), cx)?
         } else {
             if self.resolution < 2 {
                 return Err(NodeError::param("resolution", "the adaptive microbuffer starts at 2 × 2 or more"));

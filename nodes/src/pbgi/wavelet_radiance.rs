@@ -143,6 +143,18 @@ impl<'a> WaveletSource<'a> {
         WaveletSource { tree, coded, owner: super::texel_cache::new_owner() }
     }
 
+    /// `new`, after checking that `coded` was coded along this tree (the error names the
+    /// input port `coded`, as the nodes that read both take them).
+    pub fn checked(tree: &'a PointTree, coded: &'a CodedWavelets) -> Result<Self, relume_core::NodeError> {
+        if coded.tree.parent.len() != tree.nodes.len() {
+            return Err(relume_core::NodeError::input(
+                "coded",
+                format!("wavelets coded for a tree of {} nodes, not this tree of {}", coded.tree.parent.len(), tree.nodes.len()),
+            ));
+        }
+        Ok(Self::new(tree, coded))
+    }
+
     /// Node i's radiant intensity per unit area toward `dir` (the coded J, negative values
     /// of the approximation clamped to 0).
     pub fn intensity_per_area(&self, i: u32, dir: Vec3) -> Vec3 {

@@ -1,0 +1,244 @@
+//! The spherical microbuffer ([P] 5.3.5): a receiver that transmits light (a refracting
+//! surface) sees the whole sphere of directions, not the hemisphere above its surface. The
+//! buffer is two Nusselt hemispheres of the same side: the front one over +z (the normal's
+//! side, `Microbuffer` itself) and the back one over −z, stored mirrored (a local direction
+//! (x, y, z) with z < 0 lands at (x, y, −z) in it), so that each keeps the hemispherical
+//! buffer's equal projected solid angle per pixel and its rasteriser.
+//!
+//! A receiver that does not transmit uses the front hemisphere only, and the traversal culls
+//! what lies under its horizon exactly as for `Microbuffer`: for such receivers the gather's
+//! result is the hemispherical buffer's, byte for byte (tested). A transmitting receiver keeps
+//! everything around it: no horizon culling, nodes rasterised into the hemisphere their
+//! centre lies in, near leaves ray-cast into both.
+//!
+//! Outgoing radiance: the smooth dielectric's two Dirac lobes ([`crate::brdf::dielectric::lobes`])
+//! read the buffer in their directions, F · L(reflected) from the front and
+//! (1 − F)/η² · L(refracted) from the back (nearest pixel). With ior = 1 this is exactly the
+//! back pixel straight behind: light goes through unchanged (QUALITY.md §2 "refraction").
+
+use super::microbuffer::Microbuffer;
+use super::traversal::{GatherBuffer, Raster};
+use crate::brdf;
+use crate::types::Material;
+use glam::Vec3;
+
+/// Mirrors a local direction or point through the receiver's tangent plane.
+fn mirror(d: Vec3) -> Vec3 {
+    Vec3::new(d.x, d.y, -d.z)
+}
+
+#[derive(Clone)]
+pub struct SphericalMicrobuffer {
+    /// Directions with z ≥ 0 (the normal's side).
+    pub front: Microbuffer,
+    /// Directions with z < 0, mirrored to z > 0.
+    pub back: Microbuffer,
+    /// Whether the receiver under way sees the whole sphere (it transmits).
+    whole: bool,
+}
+
+impl SphericalMicrobuffer {
+    /// Two N × N hemispheres (N ≥ 1).
+    pub fn new(n: usize) -> Self {
+        SphericalMicrobuffer { front: Microbuffer::new(n), back: Microbuffer::new(n), whole: false }
+    }
+
+    /// Whether receivers of material `m` see the whole sphere: those that transmit light.
+    pub fn transmits(m: &Material) -> bool {
+        matches!(m, Material::Dielectric { .. })
+    }
+
+    /// Whether the buffer is set for the whole sphere (`begin` with a transmitting material).
+    pub fn whole(&self) -> bool {
+        self.whole
+    }
+
+    /// The radiance the buffer holds toward local direction `d` (the pixel it lands in, in
+    /// the hemisphere it points into); 0 behind a front-only buffer.
+    pub fn radiance_toward(&self, d: Vec3) -> Vec3 {
+        if d.z >= 0.0 {
+            self.front.radiance_toward(d)
+        } else if self.whole {
+            self.back.radiance_toward(mirror(d))
+        } else {
+            Vec3::ZERO
+        }
+    }
+
+    /// Outgoing radiance toward local `wo` of a receiver of material `m` after the buffer is
+    /// filled: the dielectric's lobes read in their directions; any other material convolves
+    /// the front hemisphere (`Microbuffer::convolve`).
+    pub fn outgoing(&self, m: &Material, wo: Vec3) -> Vec3 {
+        match *m {
+            Material::Dielectric { ior, .. } if self.whole => {
+                brdf::dielectric::lobes(ior, wo).iter().map(|&(wi, weight)| self.radiance_toward(wi) * weight).sum()
+            }
+            _ => self.front.convolve(m, wo),
+        }
+    }
+}
+
+impl Raster for SphericalMicrobuffer {
+    fn pixel_solid_angle(&self, d: Vec3) -> f32 {
+        self.front.pixel_solid_angle(d)
+    }
+
+    fn culls_horizon(&self) -> bool {
+        !self.whole
+    }
+
+    fn splat(&mut self, node: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, stack: &mut Vec<u32>) {
+        if d.z >= 0.0 {
+            Raster::splat(&mut self.front, node, d, dist, omega, l, stack)
+        } else if self.whole {
+            Raster::splat(&mut self.back, node, mirror(d), dist, omega, l, stack)
+        }
+    }
+
+    fn disk(&mut self, node: u32, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
+        self.front.disk(node, c, nrm, r, l, eps);
+        if self.whole {
+            // Mirroring the disk with the directions keeps which side of it each ray meets.
+            self.back.disk(node, mirror(c), mirror(nrm), r, l, eps);
+        }
+    }
+}
+
+impl GatherBuffer for SphericalMicrobuffer {
+    fn shades(&self, _: &Material) -> bool {
+        true
+    }
+
+    fn begin(&mut self, m: &Material, _: Vec3) {
+        self.whole = Self::transmits(m);
+        self.front.clear();
+        if self.whole {
+            self.back.clear();
+        }
+    }
+
+    fn end(&mut self, m: &Material, wo: Vec3) -> Vec3 {
+        self.outgoing(m, wo)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::frame::Frame;
+    use crate::pbgi::traversal::{GatherCounts, Traversal};
+    use crate::types::{PointTree, SurfacePoints};
+
+    /// 400 disks of radiance `l` on the plane z = `z` facing `facing` (±z), 2 × 2 wide.
+    fn plane(z: f32, facing: Vec3, l: Vec3) -> (SurfacePoints, Vec<Vec3>) {
+        let position: Vec<Vec3> = (0..400).map(|k| Vec3::new((k % 20) as f32 * 0.1 - 0.95, (k / 20) as f32 * 0.1 - 0.95, z)).collect();
+        let pts = SurfacePoints {
+            position,
+            normal: vec![facing; 400],
+            radius: vec![0.06; 400],
+            object: vec![0; 400],
+            material: vec![Material::Lambert { albedo: Vec3::ONE }; 400],
+        };
+        (pts, vec![l; 400])
+    }
+
+    /// A red plane above (z = 0.5, facing down) and a blue one below (z = −0.5, facing up):
+    /// their points and radiance.
+    fn two_planes() -> (SurfacePoints, Vec<Vec3>) {
+        let (mut pts, mut rad) = plane(0.5, -Vec3::Z, Vec3::new(1.0, 0.0, 0.0));
+        let (lower, lower_rad) = plane(-0.5, Vec3::Z, Vec3::new(0.0, 0.0, 2.0));
+        pts.position.extend(lower.position);
+        pts.normal.extend(lower.normal);
+        pts.radius.extend(lower.radius);
+        pts.object.extend(lower.object);
+        pts.material.extend(lower.material);
+        rad.extend(lower_rad);
+        (pts, rad)
+    }
+
+    /// The gather of one receiver between `two_planes` at the origin, normal +z, material
+    /// `m`, looking along local `wo`, into a spherical buffer of side `n`.
+    fn between_planes(m: &Material, wo: Vec3, n: usize) -> (Vec3, SphericalMicrobuffer, GatherCounts) {
+        let (pts, rad) = two_planes();
+        let tree = PointTree::build(&pts, &rad);
+        let t = Traversal::new(&tree, 1.0, 1e-5);
+        let mut mb = SphericalMicrobuffer::new(n);
+        let mut counts = GatherCounts::default();
+        mb.begin(m, wo);
+        t.run(&[tree.root], Vec3::ZERO, &Frame::from_normal(Vec3::Z), &mut mb, &mut Vec::new(), &mut counts, |_, _| false);
+        (mb.end(m, wo), mb, counts)
+    }
+
+    fn glass(ior: f32) -> Material {
+        Material::Dielectric { ior, medium: None }
+    }
+
+    #[test]
+    fn an_opaque_receiver_gets_the_hemispherical_buffers_bytes() {
+        let m = Material::BlinnPhong { kd: Vec3::splat(0.4), ks: Vec3::splat(0.3), exponent: 20.0 };
+        let wo = Vec3::new(0.3, -0.2, 0.9).normalize();
+        let (l, mb, _) = between_planes(&m, wo, 16);
+        assert!(!mb.whole());
+        assert!(mb.back.radiance.iter().all(|l| *l == Vec3::ZERO), "nothing behind an opaque receiver");
+        // The same traversal into the plain buffer.
+        let (pts, rad) = two_planes();
+        let tree = PointTree::build(&pts, &rad);
+        let t = Traversal::new(&tree, 1.0, 1e-5);
+        let mut plain = Microbuffer::new(16);
+        GatherBuffer::begin(&mut plain, &m, wo);
+        t.run(&[tree.root], Vec3::ZERO, &Frame::from_normal(Vec3::Z), &mut plain, &mut Vec::new(), &mut GatherCounts::default(), |_, _| {
+            false
+        });
+        assert_eq!(l.to_array(), plain.end(&m, wo).to_array());
+        assert_eq!(mb.front.radiance, plain.radiance);
+        // Red only: the blue plane lies under the horizon.
+        assert!(l.x > 0.0 && l.y == 0.0 && l.z == 0.0, "{l}");
+    }
+
+    #[test]
+    fn index_one_sees_straight_through_and_a_dielectric_sees_both_sides() {
+        // ior 1: no reflection, the ray goes on unbent: exactly the back pixel behind, the
+        // blue plane's radiance 2 (within the coverage of the pixel it lands in).
+        for wo in [Vec3::Z, Vec3::new(0.2, 0.1, 0.97).normalize()] {
+            let (l, mb, _) = between_planes(&glass(1.0), wo, 16);
+            assert!(mb.whole());
+            assert_eq!(l.to_array(), mb.radiance_toward(-wo).to_array());
+            assert!(l.x == 0.0 && (l.z - 2.0).abs() < 0.1, "ior 1 along {wo}: {l}");
+        }
+        // Glass: F of the red plane above plus (1 − F)/η² of the blue plane below; at normal
+        // incidence F = 0.04.
+        let (l, _, _) = between_planes(&glass(1.5), Vec3::Z, 16);
+        assert!((l.x - 0.04).abs() < 0.004 && (l.z - 0.96 / 2.25 * 2.0).abs() < 0.05, "{l}");
+    }
+
+    #[test]
+    fn total_internal_reflection_and_extreme_indices_stay_finite_and_bounded() {
+        // Inside the glass (wo.z < 0) past the critical angle: all reflection, from the back
+        // hemisphere (the blue plane), nothing from the front.
+        // 50° from the normal, past the critical angle (41.8°).
+        let wo = Vec3::new(50f32.to_radians().sin(), 0.0, -50f32.to_radians().cos());
+        let (l, _, _) = between_planes(&glass(1.5), wo, 16);
+        assert!(l.x == 0.0 && l.z > 1.5 && l.z <= 2.0 * 1.001, "total internal reflection: {l}");
+        // Every index and direction, 1 × 1 to 64 × 64 buffers: finite, and never more than the
+        // brightest radiance around (2) times the largest lobe weight (1 for reflection,
+        // ior² for refraction into the thinner side).
+        for ior in [1.0, 1.33, 1.5, 2.4] {
+            for n in [1, 8, 64] {
+                for wo in [Vec3::Z, Vec3::new(0.999, 0.0, 0.04).normalize(), -Vec3::Z, Vec3::new(0.3, 0.4, -0.8).normalize()] {
+                    let (l, _, _) = between_planes(&glass(ior), wo, n);
+                    assert!(l.is_finite() && l.min_element() >= 0.0, "ior {ior}, n {n}, wo {wo}: {l}");
+                    assert!(l.max_element() <= 2.0 * ior * ior * 1.001, "ior {ior}, n {n}, wo {wo}: {l}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_transmitting_receiver_culls_nothing_under_its_horizon() {
+        let (_, _, opaque) = between_planes(&Material::Lambert { albedo: Vec3::ONE }, Vec3::Z, 8);
+        let (_, mb, whole) = between_planes(&glass(1.5), Vec3::Z, 8);
+        assert!(whole.rasterised + whole.near_leaves > opaque.rasterised + opaque.near_leaves, "{whole:?} {opaque:?}");
+        assert!(mb.back.radiance.iter().any(|l| l.z > 0.0) && mb.back.radiance.iter().all(|l| l.x == 0.0));
+        assert!(mb.front.radiance.iter().all(|l| l.z == 0.0));
+    }
+}
