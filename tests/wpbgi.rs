@@ -6,7 +6,7 @@
 use glam::Vec3;
 use relume_core::Value;
 use relume_nodes::types::{Image, Metrics};
-use relume_tests::{add_output, engine, load_graph, ran, run, run_kind, run_outputs, tests_dir};
+use relume_tests::{add_output, engine, graphs_dir, load_graph, ran, run, run_kind, run_outputs, tests_dir};
 
 /// `wpbgi_ring.ron` on a test scene (`tests/scenes`) with `count` points, 8² maps and a
 /// `resolution`² microbuffer.
@@ -152,4 +152,34 @@ fn on_the_glossy_cornell_bunny_the_lobes_bring_the_image_closer_than_classic_pbg
     // points, 9.7e-4 against 1.43e-3).
     let (w, p) = (m("wpbgi_error", "rel_mse"), m("pbgi_error", "rel_mse"));
     assert!(w < 0.9 * p, "wavelet PBGI {w}, classic {p}");
+}
+
+#[test]
+fn glass_receivers_gather_through_the_spherical_microbuffer_and_leave_the_rest_alone() {
+    // `glass` (SCENES.md): the smooth sphere over the floor. With `gbuffer.dielectrics` the
+    // pixels on the glass become receivers and read their spherical buffer along the
+    // reflected and refracted directions; every other pixel keeps its bytes.
+    let scene = graphs_dir().join("scenes/glass.ron").display().to_string();
+    let graph = |dielectrics: &str| {
+        load_graph(
+            "wpbgi_ring.ron",
+            &[
+                ("scene.path", &scene),
+                ("scene.width", "48"),
+                ("scene.height", "48"),
+                ("points.count", "3000"),
+                ("wavelets.resolution", "8"),
+                ("gather.resolution", "8"),
+                ("gbuffer.dielectrics", dielectrics),
+            ],
+        )
+    };
+    let (without, with) = (indirect(&graph("false")), indirect(&graph("true")));
+    assert!(finite_and_not_negative(&without) && finite_and_not_negative(&with));
+    let changed: Vec<usize> = (0..with.pixels.len()).filter(|&k| with.pixels[k] != without.pixels[k]).collect();
+    assert!(changed.iter().all(|&k| without.pixels[k] == [0.0; 3]), "only pixels on the glass change");
+    // The sphere's lower half reflects the lit floor (Fresnel grows toward its rim).
+    let lit = changed.iter().filter(|&&k| with.pixels[k][0] > 0.0).count();
+    // Measured: all 460 of 460 at 48².
+    assert!(changed.len() > 200 && lit * 10 > changed.len() * 9, "{lit} of {} glass pixels lit", changed.len());
 }
