@@ -87,6 +87,7 @@ pub fn graph_edits() -> Vec<GraphEdit> {
         ("wpbgi_ring.ron", "coded.threshold", |k| format!("{}", 0.002 + k as f64 * 1e-9)),
         ("wpbgi_cornell_bunny.ron", "coded.threshold", |k| format!("{}", 0.002 + k as f64 * 1e-9)),
         ("vpbgi_cornell.ron", "views.view_threshold", |k| format!("{}", 0.08 + k as f64 * 1e-6)),
+        ("vpbgi_glass.ron", "views.view_threshold", |k| format!("{}", 0.08 + k as f64 * 1e-6)),
     ]
 }
 

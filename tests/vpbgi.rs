@@ -1,6 +1,7 @@
 //! View-tree PBGI on the Cornell box (`graphs/vpbgi_cornell.ron`): a second bounce brings the
 //! image closer to the path tracer at max_depth 4, and which nodes an edit of `bounces`
-//! re-runs.
+//! re-runs; through the glass sphere (`graphs/vpbgi_glass.ron`): the caustic and the floor
+//! seen through it.
 
 use relume_nodes::types::{Image, Metrics};
 use relume_tests::{engine, load_graph, ran, run, run_outputs};
@@ -48,4 +49,54 @@ fn changing_bounces_reruns_the_view_tree_onward_only() {
     assert_eq!(ran(&run(&e, &g)), onward);
     g.set_param_text(&reg, "views.view_threshold", "0.01").unwrap();
     assert_eq!(ran(&run(&e, &g)), onward);
+}
+
+/// Σ over the three channels of the pixels with x ∈ [x0, x1) × width, y ∈ [y0, y1) × height.
+fn region_sum(img: &Image, x: [f32; 2], y: [f32; 2]) -> f64 {
+    let (w, h) = (img.width as f32, img.height as f32);
+    let mut s = 0.0;
+    for py in (y[0] * h) as usize..(y[1] * h) as usize {
+        for px in (x[0] * w) as usize..(x[1] * w) as usize {
+            s += img.pixels[py * img.width + px].iter().map(|&c| c as f64).sum::<f64>();
+        }
+    }
+    s
+}
+
+#[test]
+fn through_the_glass_sphere_the_points_carry_the_lamps_caustic_and_the_floor_behind() {
+    // `vpbgi_glass.ron` at 64²: the caustic lies on the floor under the sphere, toward the
+    // camera (x 0.23–0.40, y 0.54–0.67 of the image). Its energy there comes only through the
+    // glass: none with the direct light alone (bounces 0), and with two bounces within a
+    // stated tolerance of the path tracer's at max_depth 5.
+    let g = |bounces: &str| {
+        load_graph(
+            "vpbgi_glass.ron",
+            &[
+                ("scene.width", "64"),
+                ("scene.height", "64"),
+                ("direct.pixel_samples", "4"),
+                ("views.bounces", bounces),
+                ("reference.spp", "4096"),
+            ],
+        )
+    };
+    let e = engine();
+    let two = run_outputs(&e, &g("2"), &["image", "reference"]);
+    let zero = run_outputs(&e, &g("0"), &["image"]);
+    let img = |r: &relume_core::RunResult, n: &str| r.output(n).unwrap().get::<Image>().unwrap().clone();
+    let (with, without, reference) = (img(&two, "image"), img(&zero, "image"), img(&two, "reference"));
+    assert!(with.as_floats().iter().all(|x| x.is_finite() && *x >= 0.0));
+    let caustic = |i: &Image| region_sum(i, [0.23, 0.40], [0.54, 0.67]);
+    let glass = |i: &Image| region_sum(i, [0.3, 0.7], [0.25, 0.5]);
+    let (c2, c0, cr) = (caustic(&with), caustic(&without), caustic(&reference));
+    // Measured: 256.4 with two bounces, 105.6 with the direct light alone (the lit floor
+    // around it), 183.2 for the path tracer: the points' caustic is there, and 1.40x too
+    // bright (README; an open point of issue 17).
+    assert!(c2 > 1.8 * c0, "caustic region: two bounces {c2}, direct light alone {c0}");
+    assert!(c2 > 0.8 * cr && c2 < 1.6 * cr, "caustic region: two bounces {c2}, the path tracer {cr}");
+    // The sphere's upper half shows the floor behind it only through the bounces (measured
+    // 36.1 against 5.9), though still a third of the path tracer's 103.3.
+    let (g2, g0, gr) = (glass(&with), glass(&without), glass(&reference));
+    assert!(g2 > 4.0 * g0 && g2 < gr, "glass: two bounces {g2}, none {g0}, the path tracer {gr}");
 }

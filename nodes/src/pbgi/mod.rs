@@ -15,6 +15,7 @@ pub mod spherical_microbuffer;
 pub mod surfel_wavelets;
 pub mod texel_cache;
 pub mod traversal;
+pub mod twin_dielectrics;
 pub mod view_pairs;
 pub mod view_tree;
 pub mod view_walk;
@@ -36,4 +37,5 @@ pub fn register(reg: &mut Registry) {
     reg.add::<wavelet_gather::WaveletGather>();
     reg.add::<view_tree::ViewTree>();
     reg.add::<preview_splat::PreviewSplat>();
+    reg.add::<twin_dielectrics::TwinDielectrics>();
 }

@@ -1,11 +1,11 @@
 //! SurfelWavelets node.
 
 use super::incident::{DirectSampler, Incident};
-use super::wavelet_radiance::outgoing_intensity;
+use super::wavelet_radiance::{interface_intensity, outgoing_intensity};
 use crate::brdf;
 use crate::math::cube_haar::{CubeHaar, SparseCubeHaar};
 use crate::types::accel::Accel;
-use crate::types::{PointWavelets, Scene, SurfacePoints};
+use crate::types::{Material, PointWavelets, Scene, SurfacePoints};
 use glam::Vec3;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
@@ -16,8 +16,11 @@ use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, Port
 /// the point tree averages: see `wavelet_radiance::outgoing_intensity`), then the
 /// non-standard Haar transform per face. Coefficients with every channel below `threshold`
 /// are dropped ([P]: 0.002), and at most `max_terms` kept per point (the largest; the
-/// report counts the points capped). Points no light reaches, black points and smooth
-/// dielectrics (whose mirror light a point cannot carry) keep no terms. Lobes narrower than
+/// report counts the points capped). Points no light reaches and black points keep no
+/// terms. A point on a smooth dielectric sends toward its front the light reflected from
+/// its front and refracted through from behind, each Dirac lobe into one texel
+/// (`wavelet_radiance::interface_intensity`; `TwinDielectrics` gives it a twin for the other
+/// side). Lobes narrower than
 /// the map resolves are widened to it, and a map that would send out more than the point
 /// receives is scaled down (`wavelet_radiance::band_limited`, `outgoing_intensity`: narrow
 /// lobes and grazing light, QUALITY.md §2). The output holds at
@@ -63,14 +66,32 @@ impl SurfelWavelets {
         let n = self.resolution;
         let (m, x, nrm) = (&pts.material[i], pts.position[i], pts.normal[i]);
         let empty = SparseCubeHaar { n, index: vec![], value: vec![] };
-        if brdf::is_delta(m) || brdf::albedo_hint(m) == Vec3::ZERO || !sampler.reachable(x, nrm) {
-            return (empty, Outcome::Skipped);
-        }
-        sampler.incident(i, x, nrm, inc);
-        if inc.delta.is_empty() && inc.extended.is_empty() {
-            return (empty, Outcome::Kept);
-        }
-        let w = CubeHaar::forward(&outgoing_intensity(m, nrm, &inc.weighted(), n)).keep_above(self.threshold);
+        let map = if let Material::Dielectric { ior, .. } = *m {
+            // Both sides of the interface: light from the front is reflected, light from
+            // behind is refracted through (`interface_intensity`).
+            let mut side = |s: Vec3| {
+                if !sampler.reachable(x, s) {
+                    return vec![];
+                }
+                sampler.incident(i, x, s, inc);
+                inc.weighted()
+            };
+            let (front, back) = (side(nrm), side(-nrm));
+            if front.is_empty() && back.is_empty() {
+                return (empty, Outcome::Kept);
+            }
+            interface_intensity(ior, nrm, &front, &back, n)
+        } else {
+            if brdf::albedo_hint(m) == Vec3::ZERO || !sampler.reachable(x, nrm) {
+                return (empty, Outcome::Skipped);
+            }
+            sampler.incident(i, x, nrm, inc);
+            if inc.delta.is_empty() && inc.extended.is_empty() {
+                return (empty, Outcome::Kept);
+            }
+            outgoing_intensity(m, nrm, &inc.weighted(), n)
+        };
+        let w = CubeHaar::forward(&map).keep_above(self.threshold);
         match w.limit(self.cap()) {
             (w, false) => (w, Outcome::Kept),
             (w, true) => (w, Outcome::Capped),
@@ -129,7 +150,7 @@ impl SurfelWavelets {
 mod tests {
     use super::*;
     use crate::pbgi::shade_direct::{shade_direct, ShadeDirect};
-    use crate::testing::{cancels_midway, first, i, run_on};
+    use crate::testing::{cancels_midway, f, first, i, run_on};
     use crate::types::accel::BuildQuality;
     use crate::types::{Light, Material};
     use relume_core::{CancelToken, Value};
@@ -182,7 +203,7 @@ mod tests {
     }
 
     #[test]
-    fn the_term_cap_keeps_the_largest_and_black_or_mirror_points_keep_none() {
+    fn the_term_cap_keeps_the_largest_and_black_points_keep_none() {
         let (scene, accel, pts) = floor_under_a_lamp(Material::BlinnPhong { kd: Vec3::splat(0.2), ks: Vec3::splat(0.6), exponent: 80.0 });
         let full = run(&scene, &accel, &pts, &[("resolution", i(16)), ("samples", i(2))]);
         let capped = run(&scene, &accel, &pts, &[("resolution", i(16)), ("samples", i(2)), ("max_terms", i(20))]);
@@ -198,11 +219,52 @@ mod tests {
                 }
             }
         }
-        for black in [Material::Lambert { albedo: Vec3::ZERO }, Material::Dielectric { ior: 1.5, medium: None }] {
-            let (scene, accel, pts) = floor_under_a_lamp(black);
-            let w = run(&scene, &accel, &pts, &[("resolution", i(8))]);
-            assert!(w.index.is_empty() && w.len() == pts.len());
+        let (scene, accel, pts) = floor_under_a_lamp(Material::Lambert { albedo: Vec3::ZERO });
+        let w = run(&scene, &accel, &pts, &[("resolution", i(8))]);
+        assert!(w.index.is_empty() && w.len() == pts.len());
+    }
+
+    #[test]
+    fn a_glass_floor_and_its_twins_send_out_exactly_what_arrives_split_by_fresnel() {
+        // A glass floor under the lamp, each point with its twin facing down: the lit side
+        // reflects F of the light up, the twin sends 1 − F of it down through the glass, and
+        // together they send out exactly the irradiance (every sample split, none lost).
+        // A point light only, so that a point and its twin see the same light.
+        let glass = Material::Dielectric { ior: 1.5, medium: None };
+        let scene = crate::scene::builder::SceneBuilder::new(Vec3::new(0.0, 3.0, 0.1), Vec3::ZERO, 40.0, 8, 8)
+            .quad("floor", Vec3::new(-1.0, 0.0, 1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -2.0), glass, Vec3::ZERO)
+            .light(Light::Point { position: Vec3::new(0.5, 1.5, 0.0), intensity: Vec3::splat(2.0) })
+            .build();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let sample = crate::geometry::sample_surface::SampleSurface {
+            method: crate::geometry::sample_surface::Method::AreaCdf,
+            count: 60,
+            seed: 1,
+            emitters: false,
+        };
+        let pts = crate::geometry::sample_surface::sample_surface(&scene, &sample).unwrap();
+        let pts = crate::pbgi::twin_dielectrics::twin_dielectrics(&pts);
+        let half = pts.len() / 2;
+        let w = run(&scene, &accel, &pts, &[("resolution", i(16)), ("samples", i(4)), ("threshold", f(0.0))]);
+        let sampler = DirectSampler::new(&scene, &accel, 4, 0);
+        let mut inc = Incident::default();
+        let exitance = |k: usize| w.sparse(k).dense().inverse().integral();
+        let mut lit = 0;
+        for k in 0..half {
+            sampler.incident(k, pts.position[k], pts.normal[k], &mut inc);
+            let e: Vec3 = inc.weighted().iter().map(|s| s.1).sum();
+            let (up, down) = (exitance(k), exitance(half + k));
+            assert!((up + down - e).abs().max_element() <= 1e-4 * e.max_element() + 1e-6, "point {k}: {up} + {down} vs {e}");
+            // Reflectance 0.04 at normal incidence, more toward grazing.
+            assert!(up.x >= 0.039 * e.x && up.x <= 0.2 * e.x + 1e-6, "point {k}: {up} of {e}");
+            lit += (e.x > 0.0) as usize;
+            // What each sends lies on its own side.
+            let map = w.sparse(half + k).dense().inverse();
+            for (t, d) in map.texels.iter().zip(crate::math::cubemap::texel_directions(16).iter()) {
+                assert!(d.dot(pts.normal[half + k]) > -0.1 || t.abs().max_element() < 1e-3, "point {k}: sent behind");
+            }
         }
+        assert!(lit > half / 2, "{lit} of {half} lit");
     }
 
     #[test]

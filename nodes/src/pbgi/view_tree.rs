@@ -2,7 +2,8 @@
 
 use super::brdf_wavelets::{to_cube, BrdfWavelets};
 use super::microbuffer::Microbuffer;
-use super::traversal::tree_extent;
+use super::spherical_microbuffer::SphericalMicrobuffer;
+use super::traversal::{tree_extent, GatherBuffer, GatherCounts, Traversal};
 use super::view_walk::{ViewWalk, WalkCounts};
 use super::wavelet_radiance::{band_limited, cap_exitance, code_tree, WaveletSource};
 use crate::brdf;
@@ -33,7 +34,9 @@ pub enum Walk {
 /// (`SurfelWavelets`); the points' maps are coded along the tree again (post-order,
 /// `WaveletTree`'s coding with `split` and `threshold`), and the next bounce gathers from
 /// that. `bounces` = 0 codes the direct light alone (the input of a one-bounce gather);
-/// each bounce adds one to the light a final `WaveletGather` shows. Mirrors send nothing.
+/// each bounce adds one to the light a final `WaveletGather` shows. Points on smooth
+/// dielectrics (with their twins, `TwinDielectrics`) gather the whole sphere on their own
+/// (`spherical_microbuffer`) and send what their reflected and refracted lobes read.
 /// A reused group buffer stands for its points' own frames (within `reuse_angle`).
 #[derive(Params)]
 pub struct ViewTree {
@@ -72,11 +75,13 @@ pub struct ViewTree {
 inputs!(pub ViewTreeIn { tree: PointTree, points: SurfacePoints, wavelets: PointWavelets });
 outputs!(pub ViewTreeOut { coded: CodedWavelets, stats: Metrics });
 
-/// What a point reflects with: Lambert's constant, the BRDF's wavelets, or nothing.
+/// What a point reflects with: Lambert's constant, the BRDF's wavelets, a smooth
+/// dielectric's two lobes read from a spherical buffer, or nothing.
 enum Reflector {
     None,
     Lambert(Vec3),
     Glossy(usize),
+    Interface,
 }
 
 impl ViewTree {
@@ -91,6 +96,7 @@ impl ViewTree {
             .material
             .iter()
             .map(|m| match *m {
+                Material::Dielectric { .. } => Reflector::Interface,
                 _ if brdf::is_delta(m) || brdf::albedo_hint(m) == Vec3::ZERO => Reflector::None,
                 Material::Lambert { albedo } => Reflector::Lambert(albedo),
                 _ => Reflector::Glossy(glossy.iter().position(|g| g == m).unwrap_or_else(|| {
@@ -119,7 +125,8 @@ impl ViewTree {
         direct: SparseCubeHaar,
     ) -> (SparseCubeHaar, bool) {
         let map = match *how {
-            Reflector::None => return (direct, false),
+            // Interfaces gather on their own (`interfaces`), everything else sends nothing.
+            Reflector::None | Reflector::Interface => return (direct, false),
             Reflector::Lambert(albedo) => {
                 let own = Frame::from_normal(normal);
                 let lo = mb.convolve_in(&Material::Lambert { albedo }, normal, frame, &own);
@@ -139,6 +146,54 @@ impl ViewTree {
         };
         let reflected = CubeHaar::forward(&map).keep_above(self.wavelet_threshold);
         direct.sum(&reflected).limit(self.cap(side))
+    }
+
+    /// What the points on smooth dielectrics (`glass`) send after this bounce: each gathers
+    /// the whole sphere around it on its own (`spherical_microbuffer`, the per-receiver
+    /// traversal: the view tree's pairs cull by the horizon) and sends toward every texel on
+    /// its front the light its two lobes read there (reflected from its front, refracted from
+    /// behind) times the cosine, plus what it sends of the direct light.
+    #[allow(clippy::too_many_arguments)]
+    fn interfaces(
+        &self,
+        glass: &[usize],
+        t: &Traversal<WaveletSource>,
+        pts: &SurfacePoints,
+        direct: &PointWavelets,
+        side: usize,
+        cx: &RunCtx,
+    ) -> Result<(Vec<(SparseCubeHaar, bool)>, WalkCounts), NodeError> {
+        let results = cx.par_map_init(
+            glass.len(),
+            || (SphericalMicrobuffer::new(self.resolution), Vec::new()),
+            |(mb, stack), k| {
+                let p = glass[k];
+                let (m, normal) = (&pts.material[p], pts.normal[p]);
+                let frame = Frame::from_normal(normal);
+                let mut c = GatherCounts::default();
+                mb.begin(m, Vec3::Z);
+                t.run(&[t.tree.root], pts.position[p], &frame, mb, stack, &mut c, |_, _| false);
+                let mut map = CubeMap::constant(side, Vec3::ZERO);
+                for (tex, d) in map.texels.iter_mut().zip(texel_directions(side).iter()) {
+                    let cos = d.dot(normal);
+                    if cos > 0.0 {
+                        *tex = mb.outgoing(m, frame.to_local(*d)) * cos;
+                    }
+                }
+                let sent = CubeHaar::forward(&map).keep_above(self.wavelet_threshold);
+                let counts = WalkCounts { pairs: c.visited, rasterised: c.rasterised, near: c.near_leaves, ..Default::default() };
+                (direct.sparse(p).sum(&sent).limit(self.cap(side)), counts)
+            },
+        )?;
+        let mut total = WalkCounts::default();
+        let out = results
+            .into_iter()
+            .map(|(w, c)| {
+                total += c;
+                w
+            })
+            .collect();
+        Ok((out, total))
     }
 }
 
@@ -181,6 +236,7 @@ impl ViewTree {
         let threshold = Threshold::Coefficient(self.wavelet_threshold);
         let mut coded = CodedWavelets { n: direct.n, tree: code_tree(tree, direct, self.split, threshold) };
         let (brdfs, how) = self.reflectors(pts, side);
+        let glass: Vec<usize> = (0..pts.len()).filter(|&p| matches!(how[p], Reflector::Interface)).collect();
         let mut total = WalkCounts::default();
         let mut capped = 0usize;
         let mut walk_seconds = 0.0;
@@ -211,6 +267,15 @@ impl ViewTree {
             for (p, (w, cut)) in out {
                 capped += usize::from(cut);
                 per_point[p as usize] = w;
+            }
+            if !glass.is_empty() {
+                let t = Traversal::with_source(tree, &source, self.threshold, 1e-5 * tree_extent(tree));
+                let (sent, counts) = self.interfaces(&glass, &t, pts, direct, side, cx)?;
+                for (&p, (w, cut)) in glass.iter().zip(sent) {
+                    capped += usize::from(cut);
+                    per_point[p] = w;
+                }
+                total += counts;
             }
             let maps = PointWavelets::from_points(side, &per_point);
             drop(per_point);

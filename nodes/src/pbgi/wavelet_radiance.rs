@@ -81,6 +81,46 @@ pub fn outgoing_intensity(material: &Material, normal: Vec3, incident: &[(Vec3, 
     map
 }
 
+/// What one side of a smooth dielectric interface sends per unit area (J, as
+/// `outgoing_intensity`) of the direct light: `front` is the light arriving on the normal's
+/// side, `back` the light arriving from behind, both as (direction toward the light,
+/// irradiance) samples. The point sends toward its front only (its twin, facing the other
+/// way, sends the rest: `TwinDielectrics`): front light reflected about the normal with the
+/// Fresnel reflectance F, and back light refracted through to the front with 1 − F, none past
+/// the critical angle. `ior` is n(behind) / n(front). Each lobe is a Dirac one: its flux per
+/// unit area lands in the texel of its direction (J = flux / the texel's solid angle), the
+/// narrowest lobe the map holds, so the map sends out exactly F and 1 − F of what arrives.
+pub fn interface_intensity(ior: f32, normal: Vec3, front: &[(Vec3, Vec3)], back: &[(Vec3, Vec3)], n: usize) -> CubeMap {
+    let mut map = CubeMap::constant(n, Vec3::ZERO);
+    let frame = Frame::from_normal(normal.normalize_or(Vec3::Z));
+    let omega = texel_solid_angles(n);
+    let mut deposit = |dir: Vec3, flux: Vec3| {
+        let k = texel_of_side(n, dir);
+        map.texels[k] += flux / omega[k];
+    };
+    for &(wi, e) in front {
+        let wl = frame.to_local(wi);
+        if wl.z > 0.0 {
+            // Reflection of light from wi: the lobe toward wo = mirror(wi) reads wi with F.
+            let wo = Vec3::new(-wl.x, -wl.y, wl.z);
+            deposit(frame.to_world(wo), e * brdf::dielectric::lobes(ior, wo)[0].1);
+        }
+    }
+    for &(wi, e) in back {
+        let wl = frame.to_local(wi);
+        // Snell from behind (index ior) to the front (index 1): sin θt = ior sin θi.
+        let (sx, sy) = (-wl.x * ior, -wl.y * ior);
+        let s2 = sx * sx + sy * sy;
+        if wl.z >= 0.0 || s2 >= 1.0 {
+            continue;
+        }
+        let wo = Vec3::new(sx, sy, (1.0 - s2).sqrt());
+        // The reflectance is the same either way through the interface.
+        deposit(frame.to_world(wo), e * (1.0 - brdf::dielectric::lobes(ior, wo)[0].1));
+    }
+    map
+}
+
 /// Scales a channel of J down where the map sends out more than the surfel can reflect:
 /// its `irradiance` (the incident weights from above its plane, or a microbuffer's sum)
 /// times the material's largest albedo (kd + ks; Lambert's albedo). The BRDFs here conserve energy, but a map samples
