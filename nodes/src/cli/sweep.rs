@@ -466,6 +466,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         ],
         "WaveletGather" => &["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver"],
         "PreviewSplat" => &["receivers", "receivers_missed", "nodes_splatted"],
+        "TwinDielectrics" => &["points", "twins"],
         "ViewTree" => &[
             "bounces",
             "pairs_per_point",
