@@ -9,7 +9,9 @@
 //! what lies under its horizon exactly as for `Microbuffer`: for such receivers the gather's
 //! result is the hemispherical buffer's, byte for byte (tested). A transmitting receiver keeps
 //! everything around it: no horizon culling, nodes rasterised into the hemisphere their
-//! centre lies in, near leaves ray-cast into both.
+//! centre lies in, near leaves ray-cast into both, except the disks of its own surface (a
+//! centre within twice the disk's radius): the points around a receiver overlap beneath it,
+//! and an opaque receiver's horizon culling is what keeps them out of its view.
 //!
 //! Outgoing radiance: the smooth dielectric's two Dirac lobes ([`crate::brdf::dielectric::lobes`])
 //! read the buffer in their directions, F · L(reflected) from the front and
@@ -21,6 +23,10 @@ use super::traversal::{GatherBuffer, Raster};
 use crate::brdf;
 use crate::types::Material;
 use glam::Vec3;
+
+/// A transmitting receiver skips near leaves whose centre lies within this many of their
+/// radii: the disks of its own surface.
+const OWN_SURFACE: f32 = 2.0;
 
 /// Mirrors a local direction or point through the receiver's tangent plane.
 fn mirror(d: Vec3) -> Vec3 {
@@ -96,6 +102,12 @@ impl Raster for SphericalMicrobuffer {
     }
 
     fn disk(&mut self, node: u32, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
+        if self.whole && c.length() < OWN_SURFACE * r {
+            // A disk this close is the receiver's own surface: the points around it overlap
+            // beneath it (and its twin lies on it), and without the horizon culling that an
+            // opaque receiver has, their disks would cover the view into the glass.
+            return;
+        }
         self.front.disk(node, c, nrm, r, l, eps);
         if self.whole {
             // Mirroring the disk with the directions keeps which side of it each ray meets.
@@ -231,6 +243,32 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_transmitting_receiver_looks_past_the_disks_of_its_own_surface() {
+        // The receiver lies in a layer of black disks overlapping beneath it (its own surface:
+        // the points around it and their twins), facing into the glass. Index 1 must still
+        // see straight through to the blue plane below, radiance 2.
+        let (mut pts, mut rad) = two_planes();
+        for k in 0..400 {
+            let p = Vec3::new((k % 20) as f32 * 0.05 - 0.475, (k / 20) as f32 * 0.05 - 0.475, -1e-4);
+            pts.position.push(p);
+            pts.normal.push(-Vec3::Z);
+            pts.radius.push(0.04);
+            pts.object.push(1);
+            pts.material.push(glass(1.0));
+            rad.push(Vec3::ZERO);
+        }
+        let tree = PointTree::build(&pts, &rad);
+        let t = Traversal::new(&tree, 1.0, 1e-5);
+        let mut mb = SphericalMicrobuffer::new(16);
+        mb.begin(&glass(1.0), Vec3::Z);
+        let mut counts = GatherCounts::default();
+        t.run(&[tree.root], Vec3::ZERO, &Frame::from_normal(Vec3::Z), &mut mb, &mut Vec::new(), &mut counts, |_, _| false);
+        let l = mb.end(&glass(1.0), Vec3::Z);
+        assert!(counts.near_leaves > 0, "{counts:?}");
+        assert!((l.z - 2.0).abs() < 0.1, "straight through its own surface: {l}");
     }
 
     #[test]

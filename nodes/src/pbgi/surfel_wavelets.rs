@@ -99,7 +99,7 @@ impl SurfelWavelets {
     }
 }
 
-#[node(category = "pbgi")]
+#[node(category = "pbgi", version = 2)]
 impl SurfelWavelets {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         let points = inputs[2].map(|s| s.bytes / SurfacePoints::BYTES_PER_POINT as u64);

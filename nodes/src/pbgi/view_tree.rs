@@ -197,7 +197,7 @@ impl ViewTree {
     }
 }
 
-#[node(category = "pbgi")]
+#[node(category = "pbgi", version = 2)]
 impl ViewTree {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         // Known only from the inputs' content: `run` checks before each bounce.
