@@ -30,6 +30,22 @@ pub struct Microbuffer {
     pub coverage: Vec<f32>,
 }
 
+/// The pixels a disk can cover (`Microbuffer::disk_bounds`): a box of the grid, inclusive,
+/// and a cone around `axis`.
+#[derive(Clone, Copy, Debug)]
+pub struct DiskBounds {
+    pub lo: (usize, usize),
+    pub hi: (usize, usize),
+    cos_cone: f32,
+    axis: Vec3,
+}
+
+impl DiskBounds {
+    pub fn contains(&self, x: usize, y: usize) -> bool {
+        (self.lo.0..=self.hi.0).contains(&x) && (self.lo.1..=self.hi.1).contains(&y)
+    }
+}
+
 /// Splats closer than this factor in depth count as the same layer.
 const LAYER: f32 = 1.25;
 
@@ -49,6 +65,17 @@ impl Microbuffer {
         self.depth.fill(f32::INFINITY);
         self.radiance.fill(Vec3::ZERO);
         self.coverage.fill(0.0);
+    }
+
+    /// Clears the pixels of columns `x0..=x1` in rows `y0..=y1` only (a buffer written there
+    /// alone).
+    pub fn clear_rect(&mut self, (x0, y0, x1, y1): (usize, usize, usize, usize)) {
+        for y in y0..=y1 {
+            let row = y * self.n + x0..=y * self.n + x1;
+            self.depth[row.clone()].fill(f32::INFINITY);
+            self.radiance[row.clone()].fill(Vec3::ZERO);
+            self.coverage[row].fill(0.0);
+        }
     }
 
     /// Copies another buffer of the same resolution (the factorised gather's shared buffer).
@@ -143,43 +170,52 @@ impl Microbuffer {
     /// all local): each pixel's centre ray is intersected with the disk. The front side shows
     /// `l`, the back side occludes in black.
     pub fn disk_exact(&mut self, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
-        self.disk_exact_where(c, nrm, r, l, eps, |_| true)
+        let b = self.disk_bounds(c, r);
+        for y in b.lo.1..=b.hi.1 {
+            for x in b.lo.0..=b.hi.0 {
+                self.disk_pixel(y * self.n + x, &b, c, nrm, r, l, eps);
+            }
+        }
     }
 
-    /// `disk_exact` on the pixels `keep` accepts only.
-    pub fn disk_exact_where(&mut self, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32, keep: impl Fn(usize) -> bool) {
+    /// The pixels a disk (centre `c`, radius `r`, local) can cover: those inside its bounding
+    /// cone (all of them when the receiver is within the disk's radius of its centre).
+    pub fn disk_bounds(&self, c: Vec3, r: f32) -> DiskBounds {
         let dist = c.length();
-        // Only pixels inside the disk's bounding cone can see it (all of them when the
-        // receiver is within the disk's radius of its centre).
-        let (lo, hi, cos_cone, axis) = if dist > r * 1.001 {
+        if dist > r * 1.001 {
             let alpha = (r / dist).asin();
             let axis = c / dist;
             let n = self.n as f32;
             let reach = alpha.sin() + 2.0 / n;
             let lo = |v: f32| (((v - reach + 1.0) * 0.5 * n).floor().max(0.0)) as usize;
             let hi = |v: f32| (((v + reach + 1.0) * 0.5 * n).ceil().min(n - 1.0)) as usize;
-            ((lo(axis.x), lo(axis.y)), (hi(axis.x), hi(axis.y)), (alpha + 1e-3).min(std::f32::consts::PI).cos(), axis)
-        } else {
-            ((0, 0), (self.n - 1, self.n - 1), -2.0, Vec3::Z)
-        };
-        for y in lo.1..=hi.1 {
-            for x in lo.0..=hi.0 {
-                let i = y * self.n + x;
-                let Some(w) = self.dirs[i] else { continue };
-                if w.dot(axis) < cos_cone || !keep(i) {
-                    continue;
-                }
-                let denom = w.dot(nrm);
-                if denom.abs() < 1e-8 {
-                    continue;
-                }
-                let t = c.dot(nrm) / denom;
-                if t <= eps || (w * t - c).length_squared() > r * r {
-                    continue;
-                }
-                self.write(i, t, if denom < 0.0 { l } else { Vec3::ZERO }, 1.0);
+            DiskBounds {
+                lo: (lo(axis.x), lo(axis.y)),
+                hi: (hi(axis.x), hi(axis.y)),
+                cos_cone: (alpha + 1e-3).min(std::f32::consts::PI).cos(),
+                axis,
             }
+        } else {
+            DiskBounds { lo: (0, 0), hi: (self.n - 1, self.n - 1), cos_cone: -2.0, axis: Vec3::Z }
         }
+    }
+
+    /// `disk_exact` at pixel `i` alone (`b` from `disk_bounds`; the caller keeps `i` in its box).
+    #[allow(clippy::too_many_arguments)]
+    pub fn disk_pixel(&mut self, i: usize, b: &DiskBounds, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
+        let Some(w) = self.dirs[i] else { return };
+        if w.dot(b.axis) < b.cos_cone {
+            return;
+        }
+        let denom = w.dot(nrm);
+        if denom.abs() < 1e-8 {
+            return;
+        }
+        let t = c.dot(nrm) / denom;
+        if t <= eps || (w * t - c).length_squared() > r * r {
+            return;
+        }
+        self.write(i, t, if denom < 0.0 { l } else { Vec3::ZERO }, 1.0);
     }
 
     /// Outgoing radiance of a receiver whose own frame differs from the buffer's (the
