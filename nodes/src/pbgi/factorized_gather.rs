@@ -52,7 +52,7 @@ pub fn factorized_gather(
         let mut near = Vec::new();
         let mut cluster_counts = GatherCounts::default();
         let r_cluster = c.radius;
-        t.run(&[tree.root], r.position[a], &frame, &mut shared, &mut stack, &mut cluster_counts, |i, d| {
+        t.run(&[tree.outer_root()], r.position[a], &frame, &mut shared, &mut stack, &mut cluster_counts, |i, d| {
             let is_near = r_cluster > p.epsilon * d;
             if is_near {
                 near.push(i);

@@ -46,6 +46,12 @@ impl DiskBounds {
     }
 }
 
+/// A Dirac read (`Microbuffer::radiance_toward`) takes a pixel covered at least this much for
+/// its surface, normalising by the coverage. Measured on `vpbgi_glass` at 64² against 4,096
+/// spp (region sums of the floor seen through the sphere, 103 in the path tracer): 60 when
+/// only over-coverage was normalised (1), 94 at 0.5, 102 at 0.25, 110 at 0.05.
+const READ_COVERAGE: f32 = 0.25;
+
 /// Splats closer than this factor in depth count as the same layer.
 const LAYER: f32 = 1.25;
 
@@ -105,13 +111,14 @@ impl Microbuffer {
 
     /// The radiance seen along local direction `d` (z ≥ 0): a Dirac lobe's read of the
     /// buffer. Bilinear over the pixel centres around (d.x, d.y) inside the disk, and divided
-    /// by the coverage where that exceeds 1: a pixel over-covered by one layer's splats (which
-    /// `layer_write` lets add up, so that a convolution's sum keeps their energy) shows the
-    /// radiance of its surface, not a multiple of it; a gap (coverage below 1) stays as dark
-    /// as it is.
+    /// by the coverage where that exceeds `READ_COVERAGE`: a pixel over-covered by one layer's
+    /// splats (which `layer_write` lets add up, so that a convolution's sum keeps their energy)
+    /// shows the radiance of its surface, not a multiple of it, and so does one the points
+    /// under-cover (random disks leave gaps in a surface as often as they pile up). Only
+    /// below `READ_COVERAGE` does the read fade toward black (what is mostly background).
     pub fn radiance_toward(&self, d: Vec3) -> Vec3 {
         if self.n == 1 {
-            return self.radiance[0] / self.coverage[0].max(1.0);
+            return self.radiance[0] / self.coverage[0].max(READ_COVERAGE);
         }
         let nf = self.n as f32;
         let (fx, fy) = ((d.x + 1.0) * 0.5 * nf - 0.5, (d.y + 1.0) * 0.5 * nf - 0.5);
@@ -131,9 +138,9 @@ impl Microbuffer {
             }
         }
         if weight <= 0.0 {
-            return self.radiance[self.pixel_of(d)] / self.coverage[self.pixel_of(d)].max(1.0);
+            return self.radiance[self.pixel_of(d)] / self.coverage[self.pixel_of(d)].max(READ_COVERAGE);
         }
-        (rad / weight) / (cov / weight).max(1.0)
+        (rad / weight) / (cov / weight).max(READ_COVERAGE)
     }
 
     fn pixel_of(&self, d: Vec3) -> usize {

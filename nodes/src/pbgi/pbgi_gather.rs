@@ -59,7 +59,7 @@ pub fn gather_with<R: NodeRadiance, B: GatherBuffer>(
                 let frame = Frame::from_normal(r.normal[i]);
                 let wo = frame.to_local(r.wo[i]);
                 mb.begin(&r.material[i], wo);
-                t.run(&[t.tree.root], r.position[i], &frame, &mut mb, &mut stack, &mut counts, |_, _| false);
+                mb.gather(t, &r.material[i], r.position[i], &frame, &mut stack, &mut counts);
                 (mb.end(&r.material[i], wo), counts)
             })
             .collect::<Vec<_>>()

@@ -14,14 +14,16 @@ use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 /// point's outgoing radiance), each point's clamped cosine projected as Â_l Y_l^m(n_i) with
 /// Â = π, 2π/3, π/4; a parent's area and SH are the sums of its children's. Seen from ω, an
 /// inner node's projected area is the SH estimate clamped to what its normal cone allows,
-/// and its radiance is power / area; leaves are exact.
+/// and its radiance is power / area; leaves are exact. Points facing the inside of glass
+/// (`TwinDielectrics`' inner twins) are split off first, into the root's second subtree: what
+/// they send travels inside the glass only, and the gathers traverse each side apart.
 #[derive(Params)]
 pub struct BuildPointTree;
 
 inputs!(pub BuildPointTreeIn { points: SurfacePoints, radiance: PointRadiance });
 outputs!(pub BuildPointTreeOut { tree: PointTree });
 
-#[node(category = "pbgi", kind = "PointTree")]
+#[node(category = "pbgi", kind = "PointTree", version = 2)]
 impl BuildPointTree {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // 2N − 1 nodes and the points' radiance.

@@ -48,7 +48,8 @@ impl PreviewSplat {
     ) -> Option<Vec3> {
         let (mut sum, mut weight) = (Vec3::ZERO, 0.0f32);
         stack.clear();
-        stack.push(tree.root);
+        // The outside of all glass: inner twins send into it only (`PointTree::sides`).
+        stack.push(tree.outer_root());
         while let Some(i) = stack.pop() {
             let node = &tree.nodes[i as usize];
             let d = x.distance(node.center);

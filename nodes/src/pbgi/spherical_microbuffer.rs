@@ -19,9 +19,10 @@
 //! back pixel straight behind: light goes through unchanged (QUALITY.md §2 "refraction").
 
 use super::microbuffer::Microbuffer;
-use super::traversal::{GatherBuffer, Raster};
+use super::traversal::{GatherBuffer, GatherCounts, NodeRadiance, Raster, Traversal};
 use crate::brdf;
-use crate::types::Material;
+use crate::math::frame::Frame;
+use crate::types::{faces_inside, Material};
 use glam::Vec3;
 
 /// A transmitting receiver skips near leaves whose centre lies within this many of their
@@ -41,12 +42,15 @@ pub struct SphericalMicrobuffer {
     pub back: Microbuffer,
     /// Whether the receiver under way sees the whole sphere (it transmits).
     whole: bool,
+    /// While one side's subtree is traversed (`gather`): `Some(true)` writes the front
+    /// hemisphere only, `Some(false)` the back one only.
+    only_front: Option<bool>,
 }
 
 impl SphericalMicrobuffer {
     /// Two N × N hemispheres (N ≥ 1).
     pub fn new(n: usize) -> Self {
-        SphericalMicrobuffer { front: Microbuffer::new(n), back: Microbuffer::new(n), whole: false }
+        SphericalMicrobuffer { front: Microbuffer::new(n), back: Microbuffer::new(n), whole: false, only_front: None }
     }
 
     /// Whether receivers of material `m` see the whole sphere: those that transmit light.
@@ -95,8 +99,10 @@ impl Raster for SphericalMicrobuffer {
 
     fn splat(&mut self, node: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, stack: &mut Vec<u32>) {
         if d.z >= 0.0 {
-            Raster::splat(&mut self.front, node, d, dist, omega, l, stack)
-        } else if self.whole {
+            if self.only_front != Some(false) {
+                Raster::splat(&mut self.front, node, d, dist, omega, l, stack)
+            }
+        } else if self.whole && self.only_front != Some(true) {
             Raster::splat(&mut self.back, node, mirror(d), dist, omega, l, stack)
         }
     }
@@ -108,8 +114,10 @@ impl Raster for SphericalMicrobuffer {
             // opaque receiver has, their disks would cover the view into the glass.
             return;
         }
-        self.front.disk(node, c, nrm, r, l, eps);
-        if self.whole {
+        if self.only_front != Some(false) {
+            self.front.disk(node, c, nrm, r, l, eps);
+        }
+        if self.whole && self.only_front != Some(true) {
             // Mirroring the disk with the directions keeps which side of it each ray meets.
             self.back.disk(node, mirror(c), mirror(nrm), r, l, eps);
         }
@@ -132,6 +140,33 @@ impl GatherBuffer for SphericalMicrobuffer {
     fn end(&mut self, m: &Material, wo: Vec3) -> Vec3 {
         self.outgoing(m, wo)
     }
+
+    /// A transmitting receiver on a tree whose inner twins are kept apart (`PointTree::sides`)
+    /// fills its front hemisphere from its own side's subtree and its back one from the other
+    /// side's: the light sent into the glass is seen from inside it only, and what is outside
+    /// from outside only. Otherwise the hemispherical buffer's traversal (the whole tree for
+    /// a transmitting receiver when nothing is kept apart).
+    fn gather<R: NodeRadiance>(
+        &mut self,
+        t: &Traversal<R>,
+        m: &Material,
+        p: Vec3,
+        frame: &Frame,
+        stack: &mut Vec<u32>,
+        counts: &mut GatherCounts,
+    ) {
+        match t.tree.sides {
+            Some([outer, inner]) if self.whole => {
+                let (own, other) = if faces_inside(m) { (inner, outer) } else { (outer, inner) };
+                for (root, front) in [(own, true), (other, false)] {
+                    self.only_front = Some(front);
+                    t.run(&[root], p, frame, self, stack, counts, |_, _| false);
+                }
+                self.only_front = None;
+            }
+            _ => t.run(&[t.tree.outer_root()], p, frame, self, stack, counts, |_, _| false),
+        }
+    }
 }
 
 #[cfg(test)]
@@ -152,6 +187,64 @@ mod tests {
             material: vec![Material::Lambert { albedo: Vec3::ONE }; 400],
         };
         (pts, vec![l; 400])
+    }
+
+    /// A glass ball of radius 1 at the origin as points and inner twins (`TwinDielectrics`):
+    /// the outer points send nothing, the twins radiance 1 into the glass. `ior` 1 keeps the
+    /// twins with the outer points in one tree (`faces_inside` is false), 1.5 apart.
+    fn lit_inside(ior: f32) -> PointTree {
+        let k = 600;
+        let outer: Vec<Vec3> = (0..k)
+            .map(|i| {
+                // A Fibonacci sphere: even, deterministic.
+                let z = 1.0 - 2.0 * (i as f32 + 0.5) / k as f32;
+                let phi = i as f32 * 2.399_963;
+                let s = (1.0 - z * z).sqrt();
+                Vec3::new(s * phi.cos(), s * phi.sin(), z)
+            })
+            .collect();
+        let glass = Material::Dielectric { ior, medium: None };
+        let pts = SurfacePoints {
+            position: outer.clone(),
+            normal: outer.clone(),
+            radius: vec![0.09; k],
+            object: vec![0; k],
+            material: vec![glass; k],
+        };
+        let pts = crate::pbgi::twin_dielectrics::twin_dielectrics(&pts);
+        let rad: Vec<Vec3> = (0..2 * k).map(|i| if i < k { Vec3::ZERO } else { Vec3::ONE }).collect();
+        PointTree::build(&pts, &rad)
+    }
+
+    #[test]
+    fn the_light_sent_into_glass_is_seen_from_inside_it_only() {
+        // An opaque receiver outside the ball, facing it, and a point of its surface. With the
+        // twins kept apart the receiver sees the ball black (only light sent outward reaches
+        // it) and the surface point reads the twins' light behind it; mixed into one tree,
+        // the twins' light leaks out between the outer disks.
+        let lambert = Material::Lambert { albedo: Vec3::ONE };
+        let glass = Material::Dielectric { ior: 1.5, medium: None };
+        let outside = |tree: &PointTree| {
+            let t = Traversal::new(tree, 1.0, 1e-5);
+            let mut mb = SphericalMicrobuffer::new(16);
+            let (frame, mut c) = (Frame::from_normal(Vec3::Z), GatherCounts::default());
+            mb.begin(&lambert, Vec3::Z);
+            mb.gather(&t, &lambert, Vec3::new(0.0, 0.0, -2.0), &frame, &mut Vec::new(), &mut c);
+            mb.end(&lambert, Vec3::Z)
+        };
+        let (apart, mixed) = (lit_inside(1.5), lit_inside(1.0));
+        assert!(apart.sides.is_some() && mixed.sides.is_none());
+        assert_eq!(outside(&apart), Vec3::ZERO);
+        assert!(outside(&mixed).x > 0.01, "the leak this mends: {}", outside(&mixed));
+        // The bottom point of the ball (normal −z): its back hemisphere looks into the glass.
+        let t = Traversal::new(&apart, 1.0, 1e-5);
+        let mut mb = SphericalMicrobuffer::new(16);
+        let (frame, mut c) = (Frame::from_normal(-Vec3::Z), GatherCounts::default());
+        mb.begin(&glass, Vec3::Z);
+        mb.gather(&t, &glass, Vec3::new(0.0, 0.0, -1.0), &frame, &mut Vec::new(), &mut c);
+        let (front, back) = (mb.radiance_toward(Vec3::Z), mb.radiance_toward(-Vec3::Z));
+        assert_eq!(front, Vec3::ZERO);
+        assert!((back.x - 1.0).abs() < 0.1, "straight through the glass: {back}");
     }
 
     /// A red plane above (z = 0.5, facing down) and a blue one below (z = −0.5, facing up):

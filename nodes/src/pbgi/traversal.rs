@@ -146,6 +146,21 @@ pub trait GatherBuffer: Raster + Clone + Send + Sync {
     }
     fn begin(&mut self, m: &crate::types::Material, wo: Vec3);
     fn end(&mut self, m: &crate::types::Material, wo: Vec3) -> Vec3;
+    /// Fills the buffer (after `begin`) for a receiver of material `m` at `p` in `frame`:
+    /// a hemispherical buffer sees the outside of all glass (`PointTree::outer_root`).
+    #[allow(clippy::too_many_arguments)]
+    fn gather<R: NodeRadiance>(
+        &mut self,
+        t: &Traversal<R>,
+        m: &crate::types::Material,
+        p: Vec3,
+        frame: &Frame,
+        stack: &mut Vec<u32>,
+        counts: &mut GatherCounts,
+    ) {
+        let _ = m;
+        t.run(&[t.tree.outer_root()], p, frame, self, stack, counts, |_, _| false);
+    }
 }
 
 impl GatherBuffer for Microbuffer {

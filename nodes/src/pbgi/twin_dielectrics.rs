@@ -11,7 +11,9 @@ use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, Port
 /// Each twin sends what its side of the interface sends: the outer one the light reflected
 /// outside and transmitted out of the glass, the inner one the light reflected inside and
 /// transmitted into it (`SurfelWavelets` for the direct light, `ViewTree`'s spherical gathers
-/// for the bounces). Put it between `SampleSurface` and every node that reads the points.
+/// for the bounces). `PointTree` keeps the twins in a subtree of their own (its `sides`),
+/// so that their light is seen from inside the glass only. Put it between `SampleSurface`
+/// and every node that reads the points.
 #[derive(Params)]
 pub struct TwinDielectrics;
 

@@ -172,7 +172,7 @@ impl ViewTree {
                 let frame = Frame::from_normal(normal);
                 let mut c = GatherCounts::default();
                 mb.begin(m, Vec3::Z);
-                t.run(&[t.tree.root], pts.position[p], &frame, mb, stack, &mut c, |_, _| false);
+                mb.gather(t, m, pts.position[p], &frame, stack, &mut c);
                 let mut map = CubeMap::constant(side, Vec3::ZERO);
                 for (tex, d) in map.texels.iter_mut().zip(texel_directions(side).iter()) {
                     let cos = d.dot(normal);
@@ -197,7 +197,7 @@ impl ViewTree {
     }
 }
 
-#[node(category = "pbgi", version = 2)]
+#[node(category = "pbgi", version = 4)]
 impl ViewTree {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         // Known only from the inputs' content: `run` checks before each bounce.
@@ -258,9 +258,11 @@ impl ViewTree {
                 self.reflect(&how[p], &brdfs, pts.normal[p], mb, frame, side, direct.sparse(p))
             };
             let start = std::time::Instant::now();
+            // Points on glass gather on their own (`interfaces`): the walks leave them out.
+            let serves = |p: u32| !matches!(how[p as usize], Reflector::Interface);
             let (out, counts) = match self.walk {
-                Walk::ViewTree => walk.run(cx, &done)?,
-                Walk::PerReceiver => walk.run_per_receiver(cx, &done)?,
+                Walk::ViewTree => walk.run_serving(cx, &serves, &done)?,
+                Walk::PerReceiver => walk.run_per_receiver_serving(cx, &serves, &done)?,
             };
             walk_seconds += start.elapsed().as_secs_f64();
             let mut per_point = vec![SparseCubeHaar { n: side, index: vec![], value: vec![] }; pts.len()];

@@ -94,6 +94,18 @@ impl<R: NodeRadiance> ViewWalk<'_, R> {
         cx: &RunCtx,
         done: &(impl Fn(u32, &Microbuffer, &Frame) -> T + Sync),
     ) -> Result<(Vec<(u32, T)>, WalkCounts), NodeError> {
+        self.run_serving(cx, &|_| true, done)
+    }
+
+    /// `run` for the points `serves` accepts only (the others get no result): the receiver
+    /// subtrees with no such point are not walked at all, and a leaf outside it rasterises
+    /// nothing. `ViewTree` gathers the points on glass on their own, in spherical buffers.
+    pub fn run_serving<T: Send>(
+        &self,
+        cx: &RunCtx,
+        serves: &(impl Fn(u32) -> bool + Sync),
+        done: &(impl Fn(u32, &Microbuffer, &Frame) -> T + Sync),
+    ) -> Result<(Vec<(u32, T)>, WalkCounts), NodeError> {
         cx.check()?;
         let progress = Progress::new(self.tree, cx);
         let mut out = Vec::new();
@@ -101,9 +113,11 @@ impl<R: NodeRadiance> ViewWalk<'_, R> {
         if self.tree.nodes.is_empty() {
             return Ok((out, counts));
         }
-        let root = self.tree.root;
+        let (root, senders) = (self.tree.root, self.tree.outer_root());
         let test = self.pair_test();
-        self.descend(root, 0, vec![root], vec![], None, &test, done, &progress, &mut out, &mut counts)?;
+        let served = served_nodes(self.tree, serves);
+        let ctx = Descent { test: &test, served: &served, progress: &progress };
+        self.descend(root, 0, vec![senders], vec![], None, &ctx, done, &mut out, &mut counts)?;
         Ok((out, counts))
     }
 
@@ -115,12 +129,15 @@ impl<R: NodeRadiance> ViewWalk<'_, R> {
         candidates: Vec<u32>,
         mut pending: Vec<u32>,
         group: Option<Group>,
-        test: &PairTest,
+        ctx: &Descent,
         done: &(impl Fn(u32, &Microbuffer, &Frame) -> T + Sync),
-        progress: &Progress,
         out: &mut Vec<(u32, T)>,
         counts: &mut WalkCounts,
     ) -> Result<(), NodeError> {
+        let (test, progress) = (ctx.test, ctx.progress);
+        if !ctx.served[r as usize] {
+            return progress.leaves(leaves_below(self.tree, r));
+        }
         let tree = self.tree;
         let (mut work, mut down, mut near) = (candidates, Vec::new(), Vec::new());
         while let Some(s) = work.pop() {
@@ -155,7 +172,7 @@ impl<R: NodeRadiance> ViewWalk<'_, R> {
                 }
             }
             out.push((rn.point, done(rn.point, &mb, &frame)));
-            progress.leaf()?;
+            progress.leaves(1)?;
             return Ok(());
         };
         // A group whose normals agree rasterises what it accepted (and what is pending from
@@ -178,12 +195,12 @@ impl<R: NodeRadiance> ViewWalk<'_, R> {
             let (left, right) = rayon::join(
                 || {
                     let (mut o, mut c) = (Vec::new(), WalkCounts::default());
-                    let r = self.descend(a, depth + 1, down.clone(), pending.clone(), group.clone(), test, done, progress, &mut o, &mut c);
+                    let r = self.descend(a, depth + 1, down.clone(), pending.clone(), group.clone(), ctx, done, &mut o, &mut c);
                     r.map(|_| (o, c))
                 },
                 || {
                     let (mut o, mut c) = (Vec::new(), WalkCounts::default());
-                    let r = self.descend(b, depth + 1, down.clone(), pending.clone(), group.clone(), test, done, progress, &mut o, &mut c);
+                    let r = self.descend(b, depth + 1, down.clone(), pending.clone(), group.clone(), ctx, done, &mut o, &mut c);
                     r.map(|_| (o, c))
                 },
             );
@@ -193,8 +210,8 @@ impl<R: NodeRadiance> ViewWalk<'_, R> {
             }
             Ok(())
         } else {
-            self.descend(a, depth + 1, down.clone(), pending.clone(), group.clone(), test, done, progress, out, counts)?;
-            self.descend(b, depth + 1, down, pending, group, test, done, progress, out, counts)
+            self.descend(a, depth + 1, down.clone(), pending.clone(), group.clone(), ctx, done, out, counts)?;
+            self.descend(b, depth + 1, down, pending, group, ctx, done, out, counts)
         }
     }
 
@@ -230,8 +247,20 @@ impl<R: NodeRadiance> ViewWalk<'_, R> {
         cx: &RunCtx,
         done: &(impl Fn(u32, &Microbuffer, &Frame) -> T + Sync),
     ) -> Result<(Vec<(u32, T)>, WalkCounts), NodeError> {
+        self.run_per_receiver_serving(cx, &|_| true, done)
+    }
+
+    /// `run_per_receiver` for the points `serves` accepts only.
+    pub fn run_per_receiver_serving<T: Send>(
+        &self,
+        cx: &RunCtx,
+        serves: &(impl Fn(u32) -> bool + Sync),
+        done: &(impl Fn(u32, &Microbuffer, &Frame) -> T + Sync),
+    ) -> Result<(Vec<(u32, T)>, WalkCounts), NodeError> {
         let t = Traversal::with_source(self.tree, self.source, self.threshold, self.eps);
-        let leaves: Vec<u32> = (0..self.tree.nodes.len() as u32).filter(|&i| self.tree.nodes[i as usize].is_leaf()).collect();
+        let nodes = &self.tree.nodes;
+        let leaves: Vec<u32> =
+            (0..nodes.len() as u32).filter(|&i| nodes[i as usize].is_leaf() && serves(nodes[i as usize].point)).collect();
         let results = cx.par_map_init(
             leaves.len(),
             || (Microbuffer::new(self.resolution), Vec::new()),
@@ -240,7 +269,7 @@ impl<R: NodeRadiance> ViewWalk<'_, R> {
                 let frame = Frame::from_normal(node.cone_axis);
                 let mut c = GatherCounts::default();
                 mb.clear();
-                t.run(&[self.tree.root], node.center, &frame, mb, stack, &mut c, |_, _| false);
+                t.run(&[self.tree.outer_root()], node.center, &frame, mb, stack, &mut c, |_, _| false);
                 let counts = WalkCounts { pairs: c.visited, rasterised: c.rasterised, near: c.near_leaves, ..Default::default() };
                 ((node.point, done(node.point, mb, &frame)), counts)
             },
@@ -257,6 +286,40 @@ impl<R: NodeRadiance> ViewWalk<'_, R> {
     }
 }
 
+/// What every step of a walk's descent reads: the pair test, which receiver subtrees hold a
+/// point the walk serves, and the progress.
+struct Descent<'a, 'c, 'r> {
+    test: &'a PairTest,
+    served: &'a [bool],
+    progress: &'a Progress<'c, 'r>,
+}
+
+/// Per tree node, whether a point below it is one `serves` accepts (children follow their
+/// parent in the tree's order, so one pass from the end sees them first).
+fn served_nodes(tree: &PointTree, serves: &(impl Fn(u32) -> bool + Sync)) -> Vec<bool> {
+    let mut served = vec![false; tree.nodes.len()];
+    for i in (0..tree.nodes.len()).rev() {
+        let n = &tree.nodes[i];
+        served[i] = match n.children {
+            None => serves(n.point),
+            Some([a, b]) => served[a as usize] || served[b as usize],
+        };
+    }
+    served
+}
+
+/// The leaves below tree node `r` (itself, for a leaf).
+fn leaves_below(tree: &PointTree, r: u32) -> u64 {
+    let (mut stack, mut n) = (vec![r], 0);
+    while let Some(i) = stack.pop() {
+        match tree.nodes[i as usize].children {
+            None => n += 1,
+            Some([a, b]) => stack.extend([a, b]),
+        }
+    }
+    n
+}
+
 /// Leaves done, reported now and then; stops the walk when the run is cancelled.
 struct Progress<'c, 'r> {
     cx: &'c RunCtx<'r>,
@@ -269,9 +332,12 @@ impl<'c, 'r> Progress<'c, 'r> {
         Progress { cx, done: AtomicU64::new(0), total: tree.nodes.len().div_ceil(2) as u64 }
     }
 
-    fn leaf(&self) -> Result<(), NodeError> {
-        let k = self.done.fetch_add(1, Ordering::Relaxed) + 1;
-        if k.is_multiple_of(1024) {
+    fn leaves(&self, n: u64) -> Result<(), NodeError> {
+        if n == 0 {
+            return Ok(());
+        }
+        let k = self.done.fetch_add(n, Ordering::Relaxed) + n;
+        if k / 1024 != (k - n) / 1024 {
             self.cx.check()?;
             self.cx.progress(k, self.total);
         }
@@ -349,6 +415,32 @@ mod tests {
         let (_, _, c_own, _) = both(&tree, 2.0);
         assert_eq!((c_own.pairs, c_own.reused, c_own.group_buffers), (c_view.pairs, 0, 0));
         assert!(c_own.rasterised > c_view.rasterised);
+    }
+
+    #[test]
+    fn a_walk_serving_some_points_gives_them_their_bytes_and_skips_the_rest() {
+        // Half the points (those of index below half the count): each gets
+        // what the full walk gives it, the other plane's get nothing and cost fewer pairs.
+        let tree = facing_planes(0.5);
+        let w = ViewWalk { reuse_cos: 2.0, ..walk(&tree) };
+        let cancel = CancelToken::new();
+        let cx = RunCtx::new("t", &cancel, None);
+        let half = tree.nodes.iter().filter(|n| n.is_leaf()).count() as u32 / 2;
+        let serves = |p: u32| p < half;
+        let (all, c_all) = w.run(&cx, &lambert).unwrap();
+        for (some, c_some) in [w.run_serving(&cx, &serves, &lambert).unwrap(), w.run_per_receiver_serving(&cx, &serves, &lambert).unwrap()]
+        {
+            let want: Vec<(u32, Vec3)> = all.iter().copied().filter(|(p, _)| serves(*p)).collect();
+            let mut got = some;
+            got.sort_by_key(|x| x.0);
+            let mut want = want;
+            want.sort_by_key(|x| x.0);
+            assert_eq!(got.len(), half as usize);
+            assert_eq!(got, want);
+            assert!(c_some.rasterised + c_some.near < c_all.rasterised + c_all.near, "{c_some:?} against {c_all:?}");
+        }
+        let (none, c_none) = w.run_serving(&cx, &|_| false, &lambert).unwrap();
+        assert_eq!((none.len(), c_none.pairs), (0, 0));
     }
 
     #[test]

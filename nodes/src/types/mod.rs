@@ -27,7 +27,7 @@ pub use image_rows::{gather_rows, row_spec, ImageRows, Layer};
 pub use material::{Material, Medium};
 pub use metrics::Metrics;
 pub use photons::{CausticMap, PhotonDeposits, Photons};
-pub use point_tree::{PointTree, TreeNode, MIN_AREA_FRACTION};
+pub use point_tree::{faces_inside, PointTree, TreeNode, MIN_AREA_FRACTION};
 pub use points::SurfacePoints;
 pub use receivers::{PointRadiance, Receivers};
 pub use scene::{Camera, EnvMap, Environment, Light, Object, Scene};

@@ -57,6 +57,21 @@ pub struct PointTree {
     /// Outgoing radiance B of each point, by point index (what leaves send, exactly).
     #[serde(with = "super::pod_vec")]
     pub point_radiance: Vec<Vec3>,
+    /// Where the points facing the inside of glass (`faces_inside`: `TwinDielectrics`' inner
+    /// twins) were kept apart: the root's two children, [the other points' subtree, theirs].
+    /// The light an inner twin sends travels inside the glass only, so what sees the
+    /// outside traverses the first and a glass point's view inward the second; a tree that
+    /// mixed them carried the light sent into the glass to receivers outside it (issue 17).
+    /// `None` when there are no such points or nothing else.
+    #[serde(default)]
+    pub sides: Option<[u32; 2]>,
+}
+
+/// Whether a point of material `m` faces the inside of glass: a dielectric of relative
+/// index below 1, the inner twin of a glass of index above 1 (`TwinDielectrics`). A glass of
+/// index exactly 1 bends nothing; its twins stay with the outer points.
+pub fn faces_inside(m: &super::Material) -> bool {
+    matches!(m, super::Material::Dielectric { ior, .. } if *ior < 1.0)
 }
 
 /// The nodes on disk as one flat array of 4-byte words (52 per node), so that a tree of
@@ -170,7 +185,7 @@ impl PointTree {
             radius: &points.radius,
             radiance,
         };
-        let mut idx: Vec<u32> = (0..n as u32).collect();
+        let (mut idx, inner): (Vec<u32>, Vec<u32>) = (0..n as u32).partition(|&i| !faces_inside(&points.material[i as usize]));
         let empty = TreeNode {
             center: Vec3::ZERO,
             radius: 0.0,
@@ -186,12 +201,32 @@ impl PointTree {
         };
         let mut nodes = vec![empty; 2 * n - 1];
         let progress = Progress { cx, done: AtomicU64::new(0), total: n as u64 };
-        build_rec(&mut idx, &input, &mut nodes, 0, Some(&progress))?;
-        Ok(PointTree { nodes, root: 0, point_radiance: radiance.to_vec() })
+        if idx.is_empty() || inner.is_empty() {
+            idx.extend(inner);
+            build_rec(&mut idx, &input, &mut nodes, 0, Some(&progress))?;
+            return Ok(PointTree { nodes, root: 0, point_radiance: radiance.to_vec(), sides: None });
+        }
+        // The root's children: the outer points' subtree, then the inner twins'.
+        let m = idx.len();
+        let (head, rest) = nodes.split_at_mut(1);
+        let (outer_nodes, inner_nodes) = rest.split_at_mut(2 * m - 1);
+        let mut inner = inner;
+        build_rec(&mut idx, &input, outer_nodes, 1, Some(&progress))?;
+        build_rec(&mut inner, &input, inner_nodes, 2 * m as u32, Some(&progress))?;
+        head[0] = merge(&outer_nodes[0], &inner_nodes[0], [1, 2 * m as u32]);
+        idx.extend(inner);
+        tighten(&mut head[0], &idx, &input);
+        Ok(PointTree { nodes, root: 0, point_radiance: radiance.to_vec(), sides: Some([1, 2 * m as u32]) })
     }
 
     pub fn len(&self) -> usize {
         self.nodes.len()
+    }
+
+    /// Where what sees the outside of all glass starts its traversal: the outer points'
+    /// subtree when the inner twins are kept apart (`sides`), else the root.
+    pub fn outer_root(&self) -> u32 {
+        self.sides.map_or(self.root, |s| s[0])
     }
 
     pub fn is_empty(&self) -> bool {
@@ -502,6 +537,7 @@ impl PointTree {
             return self.root == 0;
         }
         (self.root as usize) < n
+            && self.sides.is_none_or(|s| s.iter().all(|&i| (i as usize) < n))
             && self.nodes.iter().enumerate().all(|(i, node)| match node.children {
                 Some([l, r]) => l as usize == i + 1 && r > l && (r as usize) < n,
                 None => (node.point as usize) < self.point_radiance.len(),
@@ -542,6 +578,42 @@ mod tests {
         let phi = 2.0 * std::f32::consts::PI * uniform(seed, i, d + 1);
         let s = (1.0 - z * z).max(0.0).sqrt();
         Vec3::new(s * phi.cos(), s * phi.sin(), z)
+    }
+
+    #[test]
+    fn inner_twins_get_their_own_subtree_under_the_root() {
+        // Glass points and their twins (relative index 1/1.5, facing inside) next to opaque
+        // ones: the root's children hold exactly the outer and the inner points.
+        let n = 40;
+        let mut pts =
+            points_from((0..n).map(|i| unit(3, i as u64, 0)).collect(), (0..n).map(|i| unit(3, i as u64, 0)).collect(), vec![0.1; n]);
+        for i in 0..n / 2 {
+            pts.material[i] = Material::Dielectric { ior: 1.5, medium: None };
+        }
+        let pts = crate::pbgi::twin_dielectrics::twin_dielectrics(&pts);
+        let tree = PointTree::build(&pts, &vec![Vec3::ONE; pts.len()]);
+        let [outer, inner] = tree.sides.expect("twins kept apart");
+        assert_eq!(tree.nodes[tree.root as usize].children, Some([outer, inner]));
+        assert_eq!(tree.outer_root(), outer);
+        let points_below = |r: u32| {
+            let (mut stack, mut out) = (vec![r], vec![]);
+            while let Some(i) = stack.pop() {
+                match tree.nodes[i as usize].children {
+                    Some(c) => stack.extend(c),
+                    None => out.push(tree.nodes[i as usize].point),
+                }
+            }
+            out.sort();
+            out
+        };
+        assert_eq!(points_below(outer), (0..n as u32).collect::<Vec<_>>());
+        assert_eq!(points_below(inner), (n as u32..(n + n / 2) as u32).collect::<Vec<_>>());
+        assert!(tree.links_hold());
+        let back = PointTree::decode(&tree.encode()).unwrap();
+        assert_eq!(back, tree);
+        // No twins, or nothing but twins: one tree as before.
+        let plain = PointTree::build(&points_from(vec![Vec3::ZERO, Vec3::X], vec![Vec3::Z; 2], vec![0.1; 2]), &[Vec3::ONE; 2]);
+        assert_eq!((plain.sides, plain.outer_root()), (None, plain.root));
     }
 
     fn points_from(position: Vec<Vec3>, normal: Vec<Vec3>, radius: Vec<f32>) -> SurfacePoints {
