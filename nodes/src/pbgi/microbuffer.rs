@@ -115,7 +115,10 @@ impl Microbuffer {
     /// splats (which `layer_write` lets add up, so that a convolution's sum keeps their energy)
     /// shows the radiance of its surface, not a multiple of it, and so does one the points
     /// under-cover (random disks leave gaps in a surface as often as they pile up). Only
-    /// below `READ_COVERAGE` does the read fade toward black (what is mostly background).
+    /// below `READ_COVERAGE` does the read fade toward black (what is mostly background). A
+    /// pixel with less than that between two covered ones, left and right or above and below,
+    /// is a gap between splats, not background (the round splats of two groups leave one
+    /// along their straight boundary): it reads as the mean of those two (`gap_filled`).
     pub fn radiance_toward(&self, d: Vec3) -> Vec3 {
         if self.n == 1 {
             return self.radiance[0] / self.coverage[0].max(READ_COVERAGE);
@@ -132,8 +135,9 @@ impl Microbuffer {
             }
             let i = y as usize * self.n + x as usize;
             if self.dirs[i].is_some() {
-                rad += self.radiance[i] * w;
-                cov += self.coverage[i] * w;
+                let (r, c) = self.gap_filled(x as usize, y as usize);
+                rad += r * w;
+                cov += c * w;
                 weight += w;
             }
         }
@@ -141,6 +145,29 @@ impl Microbuffer {
             return self.radiance[self.pixel_of(d)] / self.coverage[self.pixel_of(d)].max(READ_COVERAGE);
         }
         (rad / weight) / (cov / weight).max(READ_COVERAGE)
+    }
+
+    /// Pixel (x, y)'s radiance sum and coverage, or, for a gap between two covered pixels on
+    /// either side of it (in a row or a column), their mean surface radiance at coverage 1.
+    fn gap_filled(&self, x: usize, y: usize) -> (Vec3, f32) {
+        let i = y * self.n + x;
+        if self.coverage[i] >= READ_COVERAGE {
+            return (self.radiance[i], self.coverage[i]);
+        }
+        let covered = |x: usize, y: usize| {
+            let k = y * self.n + x;
+            (x < self.n && y < self.n && self.dirs[k].is_some() && self.coverage[k] >= READ_COVERAGE)
+                .then(|| self.radiance[k] / self.coverage[k])
+        };
+        let pair = |a: Option<Vec3>, b: Option<Vec3>| a.zip(b).map(|(a, b)| (a + b) * 0.5);
+        let (left, up) = (x.checked_sub(1), y.checked_sub(1));
+        let across = left.and_then(|l| pair(covered(l, y), covered(x + 1, y)));
+        let down = up.and_then(|u| pair(covered(x, u), covered(x, y + 1)));
+        match (across, down) {
+            (Some(a), Some(b)) => ((a + b) * 0.5, 1.0),
+            (Some(a), None) | (None, Some(a)) => (a, 1.0),
+            (None, None) => (self.radiance[i], self.coverage[i]),
+        }
     }
 
     fn pixel_of(&self, d: Vec3) -> usize {
@@ -400,6 +427,22 @@ mod tests {
         }
         let total: f32 = mb.coverage.iter().sum();
         assert!((total - 2.4).abs() < 0.05, "eight splats of 0.3 pixel of one layer add up to 2.4: {total}");
+    }
+
+    #[test]
+    fn a_dirac_read_fills_a_gap_between_covered_pixels_but_not_an_edge() {
+        // Row 4 of an 8 × 8 buffer covered at x = 2, 3, 5, 6 (radiance 2 and 4 at coverage
+        // 1, 2 at x = 3 and 5): x = 4 is a gap, x = 1 lies beyond the edge.
+        let mut mb = Microbuffer::new(8);
+        for (x, l, c) in [(2, 2.0, 1.0), (3, 4.0, 2.0), (5, 8.0, 2.0), (6, 4.0, 1.0)] {
+            mb.radiance[4 * 8 + x] = Vec3::splat(l);
+            mb.coverage[4 * 8 + x] = c;
+            mb.depth[4 * 8 + x] = 1.0;
+        }
+        let at = |x: usize| mb.radiance_toward(nusselt_dir(8, 4 * 8 + x).unwrap());
+        assert_eq!(at(3), Vec3::splat(2.0), "normalised by its coverage");
+        assert_eq!(at(4), Vec3::splat(3.0), "the mean of 2 and 4, left and right");
+        assert_eq!(at(1), Vec3::ZERO, "an edge stays background");
     }
 
     #[test]

@@ -197,7 +197,7 @@ impl ViewTree {
     }
 }
 
-#[node(category = "pbgi", version = 4)]
+#[node(category = "pbgi", version = 5)]
 impl ViewTree {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         // Known only from the inputs' content: `run` checks before each bounce.

@@ -44,7 +44,7 @@ microbuffer_params! {
 inputs!(pub WaveletGatherIn { tree: PointTree, coded: CodedWavelets, receivers: Receivers });
 outputs!(pub WaveletGatherOut { indirect: Image, stats: Metrics });
 
-#[node(category = "pbgi", version = 5)]
+#[node(category = "pbgi", version = 6)]
 impl WaveletGather {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         let image = inputs[2].and_then(|s| s.dims).map(|[w, h]| PortSize::image(w, h));
