@@ -97,9 +97,40 @@ pub fn face_solid_angles(n: usize) -> Vec<f64> {
 
 /// The texel of a map of side `n` that direction `d` falls in.
 pub fn texel_of_side(n: usize, d: Vec3) -> usize {
-    let (face, u, v) = locate(d);
-    let t = |x: f32| (((x + 1.0) * 0.5 * n as f32) as usize).min(n - 1);
-    (face * n + t(v)) * n + t(u)
+    CubeAt::of(d).texel(n)
+}
+
+/// Where a direction falls on the cube (`locate`: its face and (u, v) there), found once
+/// and read from maps of any side: a shader that reads several maps at one direction
+/// locates it once.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CubeAt {
+    pub face: usize,
+    pub u: f32,
+    pub v: f32,
+}
+
+impl CubeAt {
+    pub fn of(d: Vec3) -> CubeAt {
+        let (face, u, v) = locate(d);
+        CubeAt { face, u, v }
+    }
+
+    /// The texel of a map of side `n` holding this place.
+    pub fn texel(&self, n: usize) -> usize {
+        let t = |x: f32| (((x + 1.0) * 0.5 * n as f32) as usize).min(n - 1);
+        (self.face * n + t(self.v)) * n + t(self.u)
+    }
+
+    /// The bilinear taps between texel centres on a map of side `n`: the texel indices of
+    /// the two rows' starts, the two columns, and the weights toward the second of each.
+    pub fn taps(&self, n: usize) -> ([usize; 2], [usize; 2], f32, f32) {
+        let g = |x: f32| ((x + 1.0) * 0.5 * n as f32 - 0.5).clamp(0.0, (n - 1) as f32);
+        let (x, y) = (g(self.u), g(self.v));
+        let (i0, j0) = (x as usize, y as usize);
+        let (i1, j1) = ((i0 + 1).min(n - 1), (j0 + 1).min(n - 1));
+        ([(self.face * n + j0) * n, (self.face * n + j1) * n], [i0, i1], x - i0 as f32, y - j0 as f32)
+    }
 }
 
 /// A cube map's texels borrowed from wherever they are held (a port value's own array),
@@ -135,14 +166,14 @@ impl CubeView<'_> {
 
     /// Bilinear lookup at direction `d` within its face (as `CubeMap::lookup`).
     pub fn lookup(&self, d: Vec3) -> Vec3 {
-        let (face, u, v) = locate(d);
-        let g = |x: f32| ((x + 1.0) * 0.5 * self.n as f32 - 0.5).clamp(0.0, (self.n - 1) as f32);
-        let (x, y) = (g(u), g(v));
-        let (i0, j0) = (x as usize, y as usize);
-        let (i1, j1) = ((i0 + 1).min(self.n - 1), (j0 + 1).min(self.n - 1));
-        let (fx, fy) = (x - i0 as f32, y - j0 as f32);
-        let t = |i, j| self.texels[(face * self.n + j) * self.n + i];
-        (t(i0, j0) * (1.0 - fx) + t(i1, j0) * fx) * (1.0 - fy) + (t(i0, j1) * (1.0 - fx) + t(i1, j1) * fx) * fy
+        self.lookup_at(&CubeAt::of(d))
+    }
+
+    /// `lookup` at a place already located.
+    pub fn lookup_at(&self, at: &CubeAt) -> Vec3 {
+        let ([r0, r1], [i0, i1], fx, fy) = at.taps(self.n);
+        let t = &self.texels;
+        (t[r0 + i0] * (1.0 - fx) + t[r0 + i1] * fx) * (1.0 - fy) + (t[r1 + i0] * (1.0 - fx) + t[r1 + i1] * fx) * fy
     }
 }
 

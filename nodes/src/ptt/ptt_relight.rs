@@ -8,7 +8,7 @@ use super::screen_hits::ScreenHits;
 use super::transfer_t0::LobeVisibility;
 use super::types::{EnvLight, VertexColors, Visibility};
 use super::vertices::vertex_frame;
-use crate::math::cubemap::{texel_of_side, CubeView};
+use crate::math::cubemap::{CubeAt, CubeView};
 use crate::math::sh::sh_basis_into;
 use crate::types::{Camera, Material, ObjectMaterial, ObjectMaterials, Scene};
 use glam::Vec3;
@@ -56,6 +56,11 @@ inputs!(pub PttRelightIn {
 });
 outputs!(pub PttRelightOut { colors: VertexColors });
 
+/// SH bands of the one-bounce light (SH = BANDS²) and the band of each coefficient.
+const BANDS: usize = 4;
+const _: () = assert!(SH == BANDS * BANDS);
+const BAND_OF: [usize; SH] = [0, 1, 1, 1, 2, 2, 2, 2, 2, 3, 3, 3, 3, 3, 3, 3];
+
 /// How many seen vertices ahead the visibility reads are fetched.
 const PREFETCH_AHEAD: usize = 8;
 
@@ -63,15 +68,18 @@ const PREFETCH_AHEAD: usize = 8;
 /// prefiltered map with a visible-fraction map.
 enum LobeSource<'a> {
     Sharp,
-    Wide { env: CubeView<'a>, vis: usize, zonal: [f32; SH] },
+    Wide { env: CubeView<'a>, vis: usize, zonal: [f32; BANDS] },
 }
 
-/// A dynamic object's shading: Kd, Ks, the tensor's core for its parameter and its position on h.
+/// A dynamic object's shading: Kd, Ks, and its material's BRDF at every sample of the disks
+/// of view directions, for the vertices to blend at their ωo: the tensor's U^ωo · M (n_ωi
+/// a sample, `TuckerBrdf::view_table`) and the lobes' amplitudes (K a sample,
+/// `SpecularLobes::table_at`).
 struct Shading {
     kd: Vec3,
     ks: Vec3,
-    core: Vec<f32>,
-    h: Blend,
+    view: Vec<f32>,
+    amps: Vec<f32>,
 }
 
 /// `m`'s position on the tensor's h axis: its exponent s (Blinn-Phong) or its (m, F0)
@@ -115,10 +123,7 @@ impl PttRelight {
                     .lobe_visibility
                     .map_for(sigma)
                     .ok_or_else(|| NodeError::input("lobe_visibility", format!("no visible-fraction map for the {deg:.3}° lobe")))?;
-                let zonal = std::array::from_fn(|q| {
-                    let l = (q as f64).sqrt() as usize;
-                    (-((l * (l + 1)) as f64) * sigma * sigma / 2.0).exp() as f32
-                });
+                let zonal = std::array::from_fn(|l| (-((l * (l + 1)) as f64) * sigma * sigma / 2.0).exp() as f32);
                 Ok(LobeSource::Wide { env: CubeView { n: pre.n as usize, texels: &pre.texels }, vis, zonal })
             })
             .collect()
@@ -156,16 +161,18 @@ impl PttRelight {
                 ));
             }
             let h = material_position(&i.brdf.family, m)?;
-            let core = i.brdf.core_for(&i.brdf.u_h_at(&h));
+            let view = i.brdf.view_table(&i.brdf.core_for(&i.brdf.u_h_at(&h)));
+            let amps = i.lobes.table_at(&h);
             for &o in &members {
-                out[o as usize] = Some(Shading { kd: Vec3::from(m.kd), ks: Vec3::from(m.ks), core: core.clone(), h });
+                let (view, amps) = (view.clone(), amps.clone());
+                out[o as usize] = Some(Shading { kd: Vec3::from(m.kd), ks: Vec3::from(m.ks), view, amps });
             }
         }
         Ok(out)
     }
 }
 
-#[node(category = "ptt", caching = Keyed)]
+#[node(category = "ptt", caching = Keyed, version = 2)]
 impl PttRelight {
     fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
         MemoryEstimate { outputs: vec![None], working: 0 }
@@ -215,16 +222,18 @@ impl PttRelight {
             let (nv, wo) = (p.normals[v], (eye - scene.positions[v]).normalize_or_zero());
             (p.slot[v] != NO_SLOT && sh.ks != Vec3::ZERO && nv.dot(wo) > 0.0).then(|| (2.0 * nv.dot(wo) * nv - wo).normalize_or_zero())
         };
-        // Per thread: the tensor term's sums, one per row of the core.
-        let scratch = || vec![Vec3::ZERO; i.brdf.ranks[1] as usize];
-        let per = cx.par_map_init(seen.len(), scratch, |rows, k| {
+        let (lobe_count, same_disk) = (i.lobes.lobes(), i.lobes.disk == i.brdf.disk);
+        // Per thread: the row U^ωo · M at a vertex's ωo.
+        let scratch = || vec![0.0f32; cols];
+        let per = cx.par_map_init(seen.len(), scratch, |w, k| {
             // The visibility a few vertices ahead is far apart in memory: fetch it early.
             if let Some(&ahead) = seen.get(k + PREFETCH_AHEAD) {
                 if let Some(m) = mirror(ahead as usize) {
-                    crate::math::prefetch(&i.visibility.of(ahead as usize)[texel_of_side(bits_side, m) / 32]);
+                    let at = CubeAt::of(m);
+                    crate::math::prefetch(&i.visibility.of(ahead as usize)[at.texel(bits_side) / 32]);
                     for src in &sources {
                         if let LobeSource::Wide { vis, .. } = src {
-                            i.lobe_visibility.prefetch(ahead as usize, *vis, m);
+                            i.lobe_visibility.prefetch(ahead as usize, *vis, &at);
                         }
                     }
                 }
@@ -248,36 +257,51 @@ impl PttRelight {
             }
             let t = t as usize;
             let local = vertex_frame(nv).to_local(wo);
-            // The tensor term: u_o · M · U^I.
-            let u_o = i.brdf.u_o(local);
-            let u = &inc.tensor[t * cols..(t + 1) * cols];
-            // Row b's sum Σ_c U^I_c M_bc, each in column order, the rows side by side (their
-            // chains of adds overlap instead of waiting on each other).
-            rows.fill(Vec3::ZERO);
-            for (c, x) in u.iter().enumerate() {
-                for (b, r) in rows.iter_mut().enumerate() {
-                    *r += *x * sh.core[b * cols + c];
+            // ωo's place on the disks (below the horizon or not finite: no specular part).
+            let Some(bo) = i.brdf.disk.bilinear(local) else { return (diffuse, Vec3::ZERO) };
+            let bl = if same_disk { Some(bo) } else { i.lobes.disk.bilinear(local) };
+            // The tensor term u_o · M · U^I, as (U^ωo · M blended at ωo) · U^I.
+            w.fill(0.0);
+            for (&o, &bw) in bo.idx.iter().zip(&bo.w) {
+                if bw != 0.0 {
+                    let bw = bw as f32;
+                    w.iter_mut().zip(&sh.view[o as usize * cols..][..cols]).for_each(|(x, g)| *x += bw * g);
                 }
             }
-            let mut spec: Vec3 = u_o.iter().zip(rows.iter()).map(|(&uo, r)| uo * *r).sum();
-            // The lobes around the mirror direction.
-            let a: [f32; MAX_LOBES] = i.lobes.amplitudes(&sh.h, local);
+            let u = &inc.tensor[t * cols..(t + 1) * cols];
+            let mut spec: Vec3 = u.iter().zip(w.iter()).map(|(u, w)| *u * *w).sum();
+            // The lobes' amplitudes at ωo, and the light around the mirror direction.
+            let mut a = [0.0f32; MAX_LOBES];
+            for (&o, &bw) in bl.iter().flat_map(|b| b.idx.iter().zip(&b.w)) {
+                if bw != 0.0 {
+                    let bw = bw as f32;
+                    a.iter_mut().zip(&sh.amps[o as usize * lobe_count..][..lobe_count]).for_each(|(x, g)| *x += bw * g);
+                }
+            }
             let m = (2.0 * nv.dot(wo) * nv - wo).normalize_or_zero();
+            // The mirror direction's place on the cube, for every map the lobes read.
+            let at = CubeAt::of(m);
             let mut y = [0.0f32; SH];
             sh_basis_into(m, &mut y);
             let c1 = &inc.bounce[t * SH..(t + 1) * SH];
+            // The one-bounce light at m, band by band: a lobe weighs each band by its zonal
+            // factor.
+            let mut band = [Vec3::ZERO; BANDS];
+            for (q, (c, y)) in c1.iter().zip(&y).enumerate() {
+                band[BAND_OF[q]] += *c * *y;
+            }
             for (k, src) in sources.iter().enumerate() {
                 if a[k] == 0.0 {
                     continue;
                 }
                 let light = match src {
                     LobeSource::Sharp => {
-                        let seen = if i.visibility.visible(v, texel_of_side(bits_side, m)) { 1.0 } else { 0.0 };
-                        env.lookup(m) * seen + c1.iter().zip(&y).map(|(c, y)| *c * *y).sum::<Vec3>()
+                        let seen = if i.visibility.visible(v, at.texel(bits_side)) { 1.0 } else { 0.0 };
+                        env.lookup_at(&at) * seen + band.iter().sum::<Vec3>()
                     }
                     LobeSource::Wide { env, vis, zonal } => {
-                        env.lookup(m) * i.lobe_visibility.lobe_visibility(v, *vis, m)
-                            + c1.iter().zip(y.iter().zip(zonal)).map(|(c, (y, z))| *c * (y * z)).sum::<Vec3>()
+                        env.lookup_at(&at) * i.lobe_visibility.lobe_visibility_at(v, *vis, &at)
+                            + band.iter().zip(zonal).map(|(b, z)| *b * *z).sum::<Vec3>()
                     }
                 };
                 spec += light * a[k];

@@ -7,7 +7,7 @@ use super::env_lighting::lobe_side as fraction_side;
 use super::types::Visibility;
 use super::vertices::vertex_frame;
 use crate::math::cube_haar::{largest, CubeHaar};
-use crate::math::cubemap::{locate, CubeMap};
+use crate::math::cubemap::{CubeAt, CubeMap};
 use crate::math::frame::Frame;
 use crate::types::pod_vec;
 use glam::Vec3;
@@ -147,31 +147,32 @@ impl LobeVisibility {
     /// The visible fraction of lobe map `k` of vertex `v` around the world mirror direction
     /// `d` (bilinear between texel centres on its face, as `CubeMap::lookup`).
     pub fn lobe_visibility(&self, v: usize, k: usize, d: Vec3) -> f32 {
-        let (map, [r0, r1], [i0, i1], fx, fy) = self.taps(v, k, d);
+        self.lobe_visibility_at(v, k, &CubeAt::of(d))
+    }
+
+    /// `lobe_visibility` at a direction already located.
+    pub fn lobe_visibility_at(&self, v: usize, k: usize, at: &CubeAt) -> f32 {
+        let (map, [r0, r1], [i0, i1], fx, fy) = self.taps(v, k, at);
         let at = |r: usize, i: usize| map[r + i] as f32 / 255.0;
         (at(r0, i0) * (1.0 - fx) + at(r0, i1) * fx) * (1.0 - fy) + (at(r1, i0) * (1.0 - fx) + at(r1, i1) * fx) * fy
     }
 
-    /// Asks the processor to fetch the two texel rows `lobe_visibility(v, k, d)` reads (the
-    /// maps are read one vertex after another, far apart in memory: the fetch of the next
-    /// vertices' rows overlaps the shading of this one's).
-    pub fn prefetch(&self, v: usize, k: usize, d: Vec3) {
-        let (map, [r0, r1], [i0, _], _, _) = self.taps(v, k, d);
+    /// Asks the processor to fetch the two texel rows `lobe_visibility_at(v, k, at)` reads
+    /// (the maps are read one vertex after another, far apart in memory: the fetch of the
+    /// next vertices' rows overlaps the shading of this one's).
+    pub fn prefetch(&self, v: usize, k: usize, at: &CubeAt) {
+        let (map, [r0, r1], [i0, _], _, _) = self.taps(v, k, at);
         crate::math::prefetch(&map[r0 + i0]);
         crate::math::prefetch(&map[r1 + i0]);
     }
 
-    /// Map `k` of vertex `v` and where the bilinear lookup at `d` reads it: the two rows'
+    /// Map `k` of vertex `v` and where the bilinear lookup at `at` reads it: the two rows'
     /// starts, the two columns, the weights toward the second of each.
-    fn taps(&self, v: usize, k: usize, d: Vec3) -> (&[u8], [usize; 2], [usize; 2], f32, f32) {
-        let (m, t) = (self.side as usize, self.texels());
+    fn taps(&self, v: usize, k: usize, at: &CubeAt) -> (&[u8], [usize; 2], [usize; 2], f32, f32) {
+        let t = self.texels();
         let map = &self.maps[(v * self.sigmas.len() + k) * t..][..t];
-        let (face, u, w) = locate(d);
-        let g = |x: f32| ((x + 1.0) * 0.5 * m as f32 - 0.5).clamp(0.0, (m - 1) as f32);
-        let (x, y) = (g(u), g(w));
-        let (i0, j0) = (x as usize, y as usize);
-        let (i1, j1) = ((i0 + 1).min(m - 1), (j0 + 1).min(m - 1));
-        (map, [(face * m + j0) * m, (face * m + j1) * m], [i0, i1], x - i0 as f32, y - j0 as f32)
+        let (rows, cols, fx, fy) = at.taps(self.side as usize);
+        (map, rows, cols, fx, fy)
     }
 
     /// Bytes held for `vertices` with `lobes` maps of side `side`.

@@ -501,6 +501,27 @@ impl SpecularLobes {
         out
     }
 
+    /// Per disk sample o, the amplitudes a_k(h, o) of a material at `h` (K entries a row,
+    /// blended over h in f64): what `amplitudes` blends over the disk, for a shader that
+    /// reads one material at many directions.
+    pub fn table_at(&self, h: &Blend) -> Vec<f32> {
+        let k = self.lobes();
+        let mut out = Vec::with_capacity(self.disk.len() * k);
+        for o in 0..self.disk.len() {
+            for l in 0..k {
+                let a: f64 = h
+                    .idx
+                    .iter()
+                    .zip(&h.w)
+                    .filter(|(_, w)| **w != 0.0)
+                    .map(|(&hi, &hw)| hw * self.amplitude(hi as usize, o, l) as f64)
+                    .sum();
+                out.push(a as f32);
+            }
+        }
+        out
+    }
+
     /// f_s over the ωi row of sample (h, o), from the stored amplitudes, in f64.
     pub fn row(&self, h: usize, o: usize) -> Vec<f64> {
         let mut row = vec![0.0; self.disk.len()];
@@ -583,6 +604,21 @@ impl TuckerBrdf {
     /// U^ωo's row at a local ωo (bilinear over the disk; zeros below the horizon), n_ωo entries.
     pub fn u_o(&self, wo: Vec3) -> Vec<f32> {
         self.u_dir(&self.factor_o, self.rank(1), wo)
+    }
+
+    /// Per disk sample o, the row U^ωo(o) · M of a core matrix `m` from `core_for` (n_ωi
+    /// entries a row, summed in f64): u_o · M · u_i is then this table blended over the disk
+    /// at ωo, dotted with u_i, for a shader that reads one material at many directions.
+    pub fn view_table(&self, m: &[f32]) -> Vec<f32> {
+        let (r, ni) = (self.rank(1), self.rank(2));
+        let mut out = Vec::with_capacity(self.disk.len() * ni);
+        for o in 0..self.disk.len() {
+            let u = &self.factor_o[o * r..(o + 1) * r];
+            for c in 0..ni {
+                out.push(u.iter().enumerate().map(|(b, &x)| x as f64 * m[b * ni + c] as f64).sum::<f64>() as f32);
+            }
+        }
+        out
     }
 
     /// U^ωi's row at a local ωi (bilinear over the disk; zeros below the horizon), n_ωi entries.
@@ -727,5 +763,36 @@ mod tests {
         // Z(σ) → 2πσ² for small σ.
         let s = 0.02;
         assert!((gaussian_norm(s) / (2.0 * PI * s * s) - 1.0).abs() < 1e-3);
+    }
+
+    #[test]
+    fn the_per_material_tables_blended_at_a_view_give_the_tensor_and_the_lobes_there() {
+        // What a shader of one material reads at many views: U^ωo · M and the lobes'
+        // amplitudes per disk sample, blended at ωo, against the contraction and `amplitudes`.
+        for (brdf, lobes) in [crate::ptt::brdf::test_support::small_brdf(), crate::ptt::brdf::test_support::small_ct_brdf()] {
+            let h = brdf.family.position(brdf.family.param(1)).unwrap();
+            let m = brdf.core_for(&brdf.u_h_at(&h));
+            let (view, amps, k) = (brdf.view_table(&m), lobes.table_at(&h), lobes.lobes());
+            let ni = brdf.ranks[2] as usize;
+            for wo in [Vec3::new(0.3, -0.2, 0.9), Vec3::new(-0.7, 0.1, 0.2), Vec3::Z, Vec3::new(0.05, 0.99, 0.02)] {
+                let b = brdf.disk.bilinear(wo).unwrap();
+                let blend = |table: &[f32], width: usize, j: usize| -> f64 {
+                    b.idx.iter().zip(&b.w).map(|(&o, &w)| w * table[o as usize * width + j] as f64).sum()
+                };
+                for wi in [Vec3::new(0.1, 0.4, 0.8), Vec3::new(-0.5, -0.5, 0.3)] {
+                    let u_i = brdf.u_i(wi);
+                    let got: f64 = (0..ni).map(|c| blend(&view, ni, c) * u_i[c] as f64).sum();
+                    let want = brdf.contract(&m, &brdf.u_o(wo), &u_i);
+                    assert!((got - want).abs() <= 1e-5 * want.abs().max(1e-3), "{wo} {wi}: {got} against {want}");
+                }
+                let a = lobes.amplitudes(&h, wo);
+                for (l, &want) in a.iter().enumerate().take(k) {
+                    let got = blend(&amps, k, l);
+                    assert!((got - want as f64).abs() <= 1e-5 * (want as f64).abs().max(1e-3), "{wo} lobe {l}: {got} against {want}");
+                }
+            }
+            // Below the horizon there is nothing to blend.
+            assert!(brdf.disk.bilinear(-Vec3::Z).is_none());
+        }
     }
 }
