@@ -43,8 +43,10 @@ fn graph_and_engine() -> (Graph, Engine) {
 
 /// The edits of each kind: (node.param, the k-th value).
 /// "view@1spp" is an orbit with one camera sample per pixel (`hits.spp` 1, as a GPU
-/// rasteriser without multisampling draws; the others keep the graph's 16).
-const KINDS: &[&str] = &["view", "view@1spp", "view+brdf", "view+brdf+lighting"];
+/// rasteriser without multisampling draws), "view@16uniform" one with 16 samples in every
+/// pixel (`hits.adaptive` off); the others keep the graph's 16 samples at edges and one
+/// elsewhere.
+const KINDS: &[&str] = &["view", "view@1spp", "view@16uniform", "view+brdf", "view+brdf+lighting"];
 
 /// The values of the k-th edit of `kind`: (node.param, value), new each time and different
 /// between kinds, so that no edit finds a result another kind's edit left in the cache.
@@ -54,10 +56,11 @@ fn edits(kind: &str, k: u64) -> Vec<(&'static str, String)> {
     let brdf = ("project.s", format!("{}", 20.0 + (k % 100) as f64 + 0.25 + salt));
     let light = ("turn.rotation_deg", format!("{}", (k % 360) as f64 + 0.75 + salt));
     let spp = ("hits.spp", if kind == "view@1spp" { "1" } else { "16" }.to_string());
+    let adaptive = ("hits.adaptive", (kind != "view@1spp" && kind != "view@16uniform").to_string());
     match kind {
-        "view" | "view@1spp" => vec![spp, view],
-        "view+brdf" => vec![spp, view, brdf],
-        _ => vec![spp, view, brdf, light],
+        "view" | "view@1spp" | "view@16uniform" => vec![spp, adaptive, view],
+        "view+brdf" => vec![spp, adaptive, view, brdf],
+        _ => vec![spp, adaptive, view, brdf, light],
     }
 }
 
@@ -103,6 +106,16 @@ fn edit(bencher: divan::Bencher, kind: &str) {
 /// mode), by samples per pixel: what an orbit costs before the shading.
 #[divan::bench(args = [1, 4, 16], sample_count = 10, sample_size = 1)]
 fn camera_hits(bencher: divan::Bencher, spp: i64) {
+    time_camera_hits(bencher, spp, false);
+}
+
+/// As `camera_hits`, adaptive (the graph's): one sample at each pixel's centre, `spp` at edges.
+#[divan::bench(args = [4, 16], sample_count = 10, sample_size = 1)]
+fn camera_hits_adaptive(bencher: divan::Bencher, spp: i64) {
+    time_camera_hits(bencher, spp, true);
+}
+
+fn time_camera_hits(bencher: divan::Bencher, spp: i64, adaptive: bool) {
     use relume_core::{run_standalone, ParamValue, Value};
     use relume_nodes::ptt::camera_hits::CameraHits;
     let loaded = relume_nodes::scene::format::load_scene_file(&graphs_dir().join("scenes/envlit.ron")).expect("envlit loads");
@@ -112,6 +125,6 @@ fn camera_hits(bencher: divan::Bencher, spp: i64) {
     }
     let camera = scene.camera.clone();
     let inputs = [Value::new(scene), Value::new(camera)];
-    bencher
-        .bench_local(|| run_standalone::<CameraHits>(&[("spp", ParamValue::Int(spp))], std::path::Path::new("."), &inputs).expect("runs"));
+    let params = [("spp", ParamValue::Int(spp)), ("adaptive", ParamValue::Bool(adaptive))];
+    bencher.bench_local(|| run_standalone::<CameraHits>(&params, std::path::Path::new("."), &inputs).expect("runs"));
 }

@@ -2,7 +2,7 @@
 
 use super::screen_hits::ScreenHits;
 use crate::render::camera::CameraRays;
-use crate::render::zbuffer::{slots_per_pixel, BandHits, Rasterizer, MAX_SIDE, MISS, SLOT_BYTES};
+use crate::render::zbuffer::{slots_per_pixel, BandHits, Projection, Rasterizer, MAX_SIDE, MISS, SKIP, SLOT_BYTES};
 use crate::types::{Camera, Scene};
 use glam::Vec3;
 use relume_core::memory::fmt_bytes;
@@ -17,22 +17,38 @@ use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, Port
 /// over `spp`, to its pixel; for the samples that hit nothing it keeps their fraction and
 /// the direction through their mean position, where `RasterizeVertexColors` reads the
 /// environment once per pixel (the sky does not change across a pixel as geometry does).
+///
+/// With `adaptive` on (as a GPU's antialiasing spends its samples), one sample at each
+/// pixel's centre is drawn first, and the `spp` samples only in the pixels at an edge:
+/// where the centre of the pixel or of one of its eight neighbours sees another object,
+/// nothing, or a depth more than `depth_step` (relative) away. Elsewhere the pixel is its
+/// centre sample: across one smooth surface the vertices' interpolated colour is nearly
+/// linear over a pixel, and its value at the centre is the pixel's mean. A feature thinner
+/// than a pixel that no centre sample meets is missed, as such schemes miss it.
+///
 /// Only the geometry and the camera reach it: wire the scene as loaded, not the turned
 /// sky, and a sky edit leaves it alone. Runs when the camera or the geometry changes, not
 /// when the colours do: `RasterizeVertexColors` then costs one weighted sum per pixel, and
 /// `PttRelight` shades only the vertices listed as seen. The bytes are the same on any
 /// thread count (bands of rows, triangles in index order, nearest then lowest index).
 ///
-/// Metrics: samples per pixel, triangles drawn after clipping, the fraction of samples that
-/// hit geometry, vertices seen, weights per pixel.
+/// Metrics: samples per pixel, triangles drawn after clipping, the fraction of the image
+/// that hits geometry, the fraction of pixels drawn with `spp` samples, vertices seen,
+/// weights per pixel.
 #[derive(Params)]
 pub struct CameraHits {
-    /// samples per pixel (box filter)
+    /// samples per pixel (box filter), in every pixel or, adaptive, at edges
     #[param(default = 16, range = 1..=1024, unit = "samples/pixel")]
     pub spp: u32,
     /// rotates the in-pixel sample pattern
     #[param(default = 0, range = 0..=u32::MAX)]
     pub seed: u64,
+    /// `spp` samples only where the pixels' centres see an edge; one sample elsewhere
+    #[param(default = false)]
+    pub adaptive: bool,
+    /// adaptive: the relative step in depth between neighbouring centres that is an edge
+    #[param(default = 0.02, range = 0.0..=1.0)]
+    pub depth_step: f64,
 }
 
 inputs!(pub CameraHitsIn { scene: Scene, camera: Camera });
@@ -40,7 +56,7 @@ outputs!(pub CameraHitsOut { hits: ScreenHits });
 
 /// One band's pixels, laid out as `ScreenHits`' arrays are (so that joining the bands
 /// copies slices): entries per pixel, their vertices and weights, the missed fraction and
-/// direction, and the samples that hit.
+/// direction, the summed fraction of each pixel that hit, and the pixels supersampled.
 #[derive(Default)]
 struct Band {
     counts: Vec<u32>,
@@ -48,10 +64,162 @@ struct Band {
     weight: Vec<f32>,
     miss: Vec<f32>,
     miss_dir: Vec<Vec3>,
-    covered: u64,
+    covered: f64,
+    supersampled: usize,
 }
 
-#[node(category = "ptt", version = 2, caching = Keyed)]
+/// What each pixel's centre sample sees, over the whole image (adaptive sampling): its
+/// triangle, barycentrics and inverse depth.
+struct Centres {
+    tri: Vec<u32>,
+    b1: Vec<f32>,
+    b2: Vec<f32>,
+    inv_depth: Vec<f32>,
+}
+
+/// Bytes of z-buffer per pixel for the centre samples.
+const CENTRE_BYTES: u64 = 16;
+
+impl Band {
+    /// Adds `wt` to vertex `v`'s weight in the pixel whose entries start at `start`.
+    fn add_weight(&mut self, start: usize, v: u32, wt: f32) {
+        match self.vertex[start..].iter().position(|&e| e == v) {
+            Some(e) => self.weight[start + e] += wt,
+            None => {
+                self.vertex.push(v);
+                self.weight.push(wt);
+            }
+        }
+    }
+
+    /// Adds pixel (x, y) from its one sample at the centre, on triangle `tri` (or `MISS`) at
+    /// barycentrics (b1, b2): as `add_pixel` with that sample alone.
+    fn add_centre(&mut self, (tri, b1, b2): (u32, f32, f32), (x, y): (usize, usize), scene: &Scene, rays: &CameraRays) {
+        let start = self.vertex.len();
+        if tri == MISS {
+            self.miss.push(1.0);
+            self.miss_dir.push(rays.ray(x as f32 + 0.5, y as f32 + 0.5).1);
+        } else {
+            self.covered += 1.0;
+            for (v, wt) in scene.triangles[tri as usize].into_iter().zip([1.0 - b1 - b2, b1, b2]) {
+                self.add_weight(start, v, wt);
+            }
+            self.miss.push(0.0);
+            self.miss_dir.push(Vec3::ZERO);
+        }
+        self.counts.push((self.vertex.len() - start) as u32);
+    }
+
+    /// Adds pixel (x, y) from its samples' triangles and barycentrics (b1, b2) at `pattern`'s
+    /// positions: each triangle's corners weighted by its summed barycentrics over the
+    /// samples, each vertex once; `tris` is scratch.
+    #[allow(clippy::too_many_arguments)]
+    fn add_pixel(
+        &mut self,
+        (tri, b1, b2): (&[u32], &[f32], &[f32]),
+        pattern: &[(f32, f32)],
+        (x, y): (usize, usize),
+        scene: &Scene,
+        rays: &CameraRays,
+        tris: &mut Vec<(u32, Vec3)>,
+    ) {
+        let n = tri.len();
+        let inv = 1.0 / n as f32;
+        let start = self.vertex.len();
+        let (mut missed, mut ox, mut oy) = (0u32, 0.0f32, 0.0f32);
+        // The pixel's triangles with their summed barycentrics, in order of first hit.
+        tris.clear();
+        let corners = |s: usize| Vec3::new(1.0 - b1[s] - b2[s], b1[s], b2[s]);
+        if tri[0] != MISS && tri.iter().all(|&t| t == tri[0]) {
+            // The common pixel: all its samples on one triangle.
+            self.covered += 1.0;
+            tris.push((tri[0], (0..n).fold(Vec3::ZERO, |sum, s| sum + corners(s))));
+        } else {
+            for (s, &t) in tri.iter().enumerate() {
+                if t == MISS {
+                    let (sx, sy) = pattern[s];
+                    (ox, oy, missed) = (ox + sx, oy + sy, missed + 1);
+                    continue;
+                }
+                match tris.iter_mut().find(|e: &&mut (u32, Vec3)| e.0 == t) {
+                    Some(e) => e.1 += corners(s),
+                    None => tris.push((t, corners(s))),
+                }
+            }
+            self.covered += (n as u32 - missed) as f64 * inv as f64;
+        }
+        for &(t, b) in tris.iter() {
+            for (v, wt) in scene.triangles[t as usize].into_iter().zip(b.to_array()) {
+                self.add_weight(start, v, wt * inv);
+            }
+        }
+        self.counts.push((self.vertex.len() - start) as u32);
+        let (m, d) = if missed > 0 {
+            // The ray through the missed samples' mean position.
+            let m = missed as f32;
+            (m * inv, rays.ray(x as f32 + ox / m, y as f32 + oy / m).1)
+        } else {
+            (0.0, Vec3::ZERO)
+        };
+        self.miss.push(m);
+        self.miss_dir.push(d);
+    }
+}
+
+impl CameraHits {
+    /// Every pixel's centre sample, band by band.
+    fn centres(&self, raster: &Rasterizer, cx: &RunCtx) -> Result<Centres, NodeError> {
+        let bands = cx.par_map_init(raster.bands(), BandHits::default, |hits, b| {
+            raster.band_into(b, hits);
+            let (t, u, v, z) = hits.single();
+            (t.to_vec(), u.to_vec(), v.to_vec(), z.to_vec())
+        })?;
+        Ok(Centres {
+            tri: bands.iter().flat_map(|b| b.0.iter().copied()).collect(),
+            b1: bands.iter().flat_map(|b| b.1.iter().copied()).collect(),
+            b2: bands.iter().flat_map(|b| b.2.iter().copied()).collect(),
+            inv_depth: bands.iter().flat_map(|b| b.3.iter().copied()).collect(),
+        })
+    }
+
+    /// The pixels at an edge, row-major: those whose centre, or a neighbour's, sees another
+    /// object, nothing where the other sees something, or a depth `depth_step` away.
+    fn edges(&self, c: &Centres, object: &[u32], (w, h): (usize, usize)) -> Vec<bool> {
+        let step = self.depth_step as f32;
+        let key: Vec<u32> = c.tri.iter().map(|&t| if t == MISS { u32::MAX } else { object[t as usize] }).collect();
+        let differ = |p: usize, q: usize| {
+            let (zp, zq) = (c.inv_depth[p], c.inv_depth[q]);
+            key[p] != key[q] || (key[p] != u32::MAX && (zp - zq).abs() > step * zp.max(zq))
+        };
+        // Each pair of neighbours once: right, down, and the two diagonals down.
+        let mut edge = vec![false; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let p = y * w + x;
+                let mut mark = |q: usize| {
+                    if differ(p, q) {
+                        (edge[p], edge[q]) = (true, true);
+                    }
+                };
+                if x + 1 < w {
+                    mark(p + 1);
+                }
+                if y + 1 < h {
+                    mark(p + w);
+                    if x > 0 {
+                        mark(p + w - 1);
+                    }
+                    if x + 1 < w {
+                        mark(p + w + 1);
+                    }
+                }
+            }
+        }
+        edge
+    }
+}
+
+#[node(category = "ptt", version = 3, caching = Keyed)]
 impl CameraHits {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         let hits = inputs[1].and_then(|s| s.dims).map(|[w, h]| {
@@ -66,12 +234,14 @@ impl CameraHits {
         let (w, h) = (cam.width, cam.height);
         let pixels = (w * h) as u64;
         let spp = self.spp as usize;
-        // The projected triangles and every band's z-buffer, as if all were held at once.
+        // The projected triangles and every band's z-buffer, as if all were held at once,
+        // and the centre samples when adaptive.
         if w > MAX_SIDE || h > MAX_SIDE {
             return Err(NodeError::input("camera", format!("{w} × {h} pixels: the z-buffer draws at most {MAX_SIDE} pixels a side")));
         }
         let need = scene.triangles.len() as u64 * 2 * 200
             + pixels * (slots_per_pixel(spp) * SLOT_BYTES) as u64
+            + if self.adaptive { pixels * CENTRE_BYTES } else { 0 }
             + ScreenHits::bytes(pixels, pixels * 3, 0);
         if need > cx.memory_budget() {
             return Err(NodeError::over_limit(format!(
@@ -80,16 +250,49 @@ impl CameraHits {
                 fmt_bytes(cx.memory_budget())
             )));
         }
-        let raster = Rasterizer::new(scene, cam, self.spp, self.seed);
+        let projection = Projection::new(scene, cam);
+        // Adaptive: the centres first, then the spp samples in the pixels at an edge, from
+        // only the triangles that reach one.
+        let (raster, centres) = if self.adaptive {
+            let cr = Rasterizer::centres(scene, &projection);
+            let centres = self.centres(&cr, cx)?;
+            let edge = self.edges(&centres, &scene.tri_object, (w, h));
+            let reaches = |[x0, x1, y0, y1]: [u32; 4]| {
+                (y0..y1).any(|y| edge[y as usize * w + x0 as usize..y as usize * w + x1 as usize].contains(&true))
+            };
+            (Rasterizer::for_pixels(scene, &projection, self.spp, self.seed, reaches), Some((centres, edge)))
+        } else {
+            (Rasterizer::with_projection(scene, &projection, self.spp, self.seed), None)
+        };
         cx.check()?;
         let rays = CameraRays::new(cam);
-        let inv = 1.0 / spp as f32;
         // Per thread: the band's hits and z-buffer, and a pixel's triangles, reused.
         let scratch = || (BandHits::default(), Vec::<(u32, Vec3)>::with_capacity(spp));
         let bands: Vec<Band> = cx.par_map_init(raster.bands(), scratch, |(hits, tris), b| {
             let rows = raster.band_rows(b);
-            raster.band_into(b, hits);
             let pixels = rows.len() * w;
+            let places = match &centres {
+                Some((_, edge)) => {
+                    let mut count = 0;
+                    let places: Vec<u32> = edge[rows.start * w..rows.end * w]
+                        .iter()
+                        .map(|&e| {
+                            count += e as u32;
+                            if e {
+                                count - 1
+                            } else {
+                                SKIP
+                            }
+                        })
+                        .collect();
+                    raster.band_pixels_into(b, &places, count as usize, hits);
+                    Some(places)
+                }
+                None => {
+                    raster.band_into(b, hits);
+                    None
+                }
+            };
             let mut out = Band {
                 counts: Vec::with_capacity(pixels),
                 miss: Vec::with_capacity(pixels),
@@ -97,52 +300,21 @@ impl CameraHits {
                 ..Band::default()
             };
             for p in 0..pixels {
-                let (x, y) = (p % w, rows.start + p / w);
-                let start = out.vertex.len();
-                let (mut missed, mut ox, mut oy) = (0u32, 0.0f32, 0.0f32);
-                // The pixel's triangles with their summed barycentrics, in order of first hit.
-                tris.clear();
-                let (tri, b1, b2) = hits.pixel(p);
-                let corners = |s: usize| Vec3::new(1.0 - b1[s] - b2[s], b1[s], b2[s]);
-                if tri[0] != MISS && tri.iter().all(|&t| t == tri[0]) {
-                    // The common pixel: all its samples on one triangle.
-                    out.covered += spp as u64;
-                    tris.push((tri[0], (0..spp).fold(Vec3::ZERO, |sum, s| sum + corners(s))));
-                } else {
-                    for (s, &t) in tri.iter().enumerate() {
-                        if t == MISS {
-                            let (sx, sy) = raster.pattern()[s];
-                            (ox, oy, missed) = (ox + sx, oy + sy, missed + 1);
-                            continue;
-                        }
-                        out.covered += 1;
-                        match tris.iter_mut().find(|e: &&mut (u32, Vec3)| e.0 == t) {
-                            Some(e) => e.1 += corners(s),
-                            None => tris.push((t, corners(s))),
-                        }
+                let xy = (p % w, rows.start + p / w);
+                match (&places, &centres) {
+                    (Some(places), Some((c, _))) if places[p] == SKIP => {
+                        let at = rows.start * w + p;
+                        out.add_centre((c.tri[at], c.b1[at], c.b2[at]), xy, scene, &rays);
+                    }
+                    (Some(places), _) => {
+                        out.supersampled += 1;
+                        out.add_pixel(hits.pixel(places[p] as usize), raster.pattern(), xy, scene, &rays, tris);
+                    }
+                    _ => {
+                        out.supersampled += 1;
+                        out.add_pixel(hits.pixel(p), raster.pattern(), xy, scene, &rays, tris);
                     }
                 }
-                for &(t, b) in tris.iter() {
-                    for (v, wt) in scene.triangles[t as usize].into_iter().zip(b.to_array()) {
-                        match out.vertex[start..].iter().position(|&e| e == v) {
-                            Some(e) => out.weight[start + e] += wt * inv,
-                            None => {
-                                out.vertex.push(v);
-                                out.weight.push(wt * inv);
-                            }
-                        }
-                    }
-                }
-                out.counts.push((out.vertex.len() - start) as u32);
-                let (m, d) = if missed > 0 {
-                    // The ray through the missed samples' mean position.
-                    let m = missed as f32;
-                    (m * inv, rays.ray(x as f32 + ox / m, y as f32 + oy / m).1)
-                } else {
-                    (0.0, Vec3::ZERO)
-                };
-                out.miss.push(m);
-                out.miss_dir.push(d);
             }
             out
         })?;
@@ -159,7 +331,7 @@ impl CameraHits {
             seen: vec![],
         };
         out.offsets.push(0);
-        let mut covered = 0;
+        let (mut covered, mut supersampled) = (0.0, 0);
         let mut seen = vec![false; scene.positions.len()];
         for band in bands {
             let mut at = *out.offsets.last().unwrap();
@@ -173,11 +345,13 @@ impl CameraHits {
             out.miss.extend_from_slice(&band.miss);
             out.miss_dir.extend_from_slice(&band.miss_dir);
             covered += band.covered;
+            supersampled += band.supersampled;
         }
         out.seen = (0..seen.len() as u32).filter(|&v| seen[v as usize]).collect();
         cx.metric("spp", spp as f64);
         cx.metric("triangles", raster.triangles() as f64);
-        cx.metric("covered_fraction", covered as f64 / (pixels * spp as u64) as f64);
+        cx.metric("covered_fraction", covered / pixels as f64);
+        cx.metric("supersampled_fraction", supersampled as f64 / pixels as f64);
         cx.metric("seen", out.seen.len() as f64);
         cx.metric("weights_per_pixel", total as f64 / pixels as f64);
         Ok(CameraHitsOut { hits: out })
@@ -272,6 +446,94 @@ mod tests {
         (big.camera.width, big.camera.height) = (MAX_SIDE + 1, 1);
         let e = run_on::<CameraHits>(&[("spp", i(1))], vec![Value::new(big.clone()), Value::new(big.camera.clone())]).unwrap_err();
         assert!(e.to_string().contains("at most 65535"), "{e}");
+    }
+
+    /// Pixel p's entries, sorted by vertex.
+    fn entries(h: &ScreenHits, p: usize) -> Vec<(u32, f32)> {
+        let r = h.offsets[p] as usize..h.offsets[p + 1] as usize;
+        let mut e: Vec<(u32, f32)> = h.vertex[r.clone()].iter().copied().zip(h.weight[r].iter().copied()).collect();
+        e.sort_by_key(|x| x.0);
+        e
+    }
+
+    fn metric(s: &Scene, params: &[(&str, ParamValue)], name: &str) -> f64 {
+        let run = crate::testing::run_full::<CameraHits>(
+            params,
+            std::path::Path::new("."),
+            vec![Value::new(s.clone()), Value::new(s.camera.clone())],
+        );
+        run.expect("runs").metrics.iter().find(|m| m.0 == name).expect("the metric").1
+    }
+
+    #[test]
+    fn adaptive_hits_are_the_uniform_ones_at_edges_and_the_centre_ray_elsewhere() {
+        let s = ball();
+        let (n, w) = (32 * 24, 32);
+        let uniform = hits(&s, &[("spp", i(8)), ("seed", i(2))]);
+        let adaptive = hits(&s, &[("spp", i(8)), ("seed", i(2)), ("adaptive", ParamValue::Bool(true))]);
+        let accel = crate::types::Accel::build(&s, crate::types::accel::BuildQuality::Fast);
+        let rays = CameraRays::new(&s.camera);
+        let object = |v: u32| s.tri_object[s.triangles.iter().position(|t| t.contains(&v)).unwrap()];
+        let (mut edges, mut inside, mut off) = (0, 0, 0);
+        for p in 0..n {
+            let (u, a) = (entries(&uniform, p), entries(&adaptive, p));
+            let objects: std::collections::BTreeSet<u32> = u.iter().map(|e| object(e.0)).collect();
+            let at_edge = objects.len() > 1 || (uniform.miss[p] > 0.0 && uniform.miss[p] < 1.0);
+            if a == u && uniform.miss[p] == adaptive.miss[p] && (uniform.miss_dir[p] - adaptive.miss_dir[p]).length() < 1e-6 {
+                edges += at_edge as usize;
+                continue;
+            }
+            // Every pixel where the samples see two objects, or some see nothing, is drawn
+            // with all its samples: a straight edge through a pixel always parts its centre
+            // from one of its eight neighbours'.
+            assert!(!at_edge, "pixel {p}: an edge drawn with one sample");
+            // Else the pixel is the ray through its centre.
+            let (x, y) = ((p % w) as f32 + 0.5, (p / w) as f32 + 0.5);
+            let (o, d) = rays.ray(x, y);
+            match accel.intersect(o, d, 0.0, f32::INFINITY) {
+                None => assert!(a.is_empty() && adaptive.miss[p] == 1.0 && (adaptive.miss_dir[p] - d).length() < 1e-6, "pixel {p}"),
+                Some(hit) => {
+                    let corners = s.triangles[hit.tri as usize];
+                    let want = [1.0 - hit.b1 - hit.b2, hit.b1, hit.b2];
+                    for (v, wt) in corners.iter().zip(want) {
+                        let got = a.iter().find(|e| e.0 == *v).map_or(0.0, |e| e.1);
+                        if (got - wt).abs() > 1e-3 {
+                            off += 1;
+                        }
+                    }
+                    assert_eq!(adaptive.miss[p], 0.0);
+                }
+            }
+            inside += 1;
+        }
+        assert!(edges > 40 && inside > 300, "{edges} edge pixels, {inside} drawn from their centre");
+        // Rays and the rasteriser may part on shared edges: rarely.
+        assert!(off * 100 < inside, "{off} weights of {inside} pixels differ from the centre ray's");
+        let ad = [("spp", i(8)), ("seed", i(2)), ("adaptive", ParamValue::Bool(true))];
+        let fraction = metric(&s, &ad, "supersampled_fraction");
+        assert!(fraction > 0.05 && fraction < 0.4, "{fraction}");
+        // The same bytes on one thread.
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        assert_eq!(one.install(|| hits(&s, &ad)).encode(), adaptive.encode());
+    }
+
+    #[test]
+    fn the_depth_step_chooses_how_much_of_one_surface_is_supersampled() {
+        // On the ball, the depth changes between any two centres: with no step allowed
+        // every pixel of it is an edge; with a whole depth's step only its outline is.
+        let s = ball();
+        let with = |step: f64| {
+            metric(
+                &s,
+                &[("spp", i(4)), ("adaptive", ParamValue::Bool(true)), ("depth_step", ParamValue::Float(step))],
+                "supersampled_fraction",
+            )
+        };
+        let (none, all, default) = (with(0.0), with(1.0), with(0.02));
+        let covered = metric(&s, &[("spp", i(4))], "covered_fraction");
+        assert!(none >= covered - 0.01, "step 0: {none} of the pixels supersampled, {covered} covered");
+        assert!(all < none * 0.75 && default > all && default < none, "{all} {default} {none}");
+        assert_eq!(metric(&s, &[("spp", i(4))], "supersampled_fraction"), 1.0, "not adaptive: every pixel");
     }
 
     #[test]

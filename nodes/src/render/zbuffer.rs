@@ -127,6 +127,19 @@ impl BandHits {
         (&self.tri[r.clone()], &self.b1[r.clone()], &self.b2[r])
     }
 
+    /// With one sample a pixel: every pixel's triangle, barycentrics (b1, b2) and inverse
+    /// depth, row-major.
+    pub fn single(&self) -> (&[u32], &[f32], &[f32], &[f32]) {
+        assert_eq!((self.spp, self.stride), (1, 1), "one sample a pixel");
+        (&self.tri, &self.b1, &self.b2, &self.inv_depth)
+    }
+
+    /// The inverse camera depths of pixel `p`'s samples (0 where nothing was hit).
+    #[inline]
+    pub fn inv_depths(&self, p: usize) -> &[f32] {
+        &self.inv_depth[p * self.stride..p * self.stride + self.spp]
+    }
+
     /// Cleared for `pixels` pixels of `stride` slots: nothing hit, nothing near.
     fn reset(&mut self, pixels: usize, spp: usize, stride: usize) {
         let n = pixels * stride;
@@ -140,18 +153,38 @@ impl BandHits {
     }
 }
 
-/// A scene's triangles set up for one camera and sample pattern; `band(i)` rasterises the
-/// rows [i·BAND_ROWS, …).
-pub struct Rasterizer {
-    width: usize,
-    height: usize,
-    pattern: Vec<(f32, f32)>,
+/// An in-pixel sample pattern laid out for the lanes.
+struct Pattern {
+    points: Vec<(f32, f32)>,
     /// The box the pattern spans in a pixel: x from, x to, y from, y to.
     extent: [f32; 4],
     /// The pattern's x and y offsets over a pixel's slots; NaN in the slots past the
     /// pattern, so that no triangle covers them.
     slot_x: Vec<f32>,
     slot_y: Vec<f32>,
+}
+
+impl Pattern {
+    fn new(points: Vec<(f32, f32)>) -> Pattern {
+        let extent = pattern_extent(&points);
+        let slots = slots_per_pixel(points.len());
+        let slot = |s: usize, f: fn(&(f32, f32)) -> f32| points.get(s).map_or(f32::NAN, f);
+        let slot_x = (0..slots).map(|s| slot(s, |p| p.0)).collect();
+        let slot_y = (0..slots).map(|s| slot(s, |p| p.1)).collect();
+        Pattern { points, extent, slot_x, slot_y }
+    }
+}
+
+/// The pixels of a band to draw: per pixel of the band (row-major), its place in the
+/// band's z-buffer, or `SKIP`.
+pub const SKIP: u32 = u32::MAX;
+
+/// A scene's triangles set up for one camera and sample pattern; `band(i)` rasterises
+/// the rows [i·BAND_ROWS, …).
+pub struct Rasterizer {
+    width: usize,
+    height: usize,
+    pattern: Pattern,
     /// The set-up triangles in chunks of `SETUP_CHUNK` scene triangles.
     chunks: Vec<Vec<ScreenTri>>,
     /// Band i's triangles are `bin_tris[bin_start[i]..bin_start[i + 1]]`, in index order,
@@ -219,17 +252,44 @@ const SETUP_CHUNK: usize = 4096;
 /// Bits of a place in a chunk (clipping makes at most two triangles of one).
 const CHUNK_BITS: usize = 13;
 
-impl Rasterizer {
-    /// Projects and bins `scene`'s triangles for `camera` with `spp` samples per pixel; the
-    /// image's sides must be at most `MAX_SIDE`.
-    pub fn new(scene: &Scene, camera: &Camera, spp: u32, seed: u64) -> Rasterizer {
+/// Pixel p has samples from p + `from` to p + `to` along an axis of `n` pixels: it can reach
+/// coordinates ≥ l when p ≥ l − to, and ≤ h when p ≤ h − from (with a margin for the
+/// rounding of the f32 inside test). The first pixel that can reach l, and one past the
+/// last that can reach h, clamped to the image: both are monotone in their coordinate, so
+/// a triangle's span is the least of its corners' firsts to the largest of their lasts.
+fn span_first(l: f64, to: f64, n: usize) -> u32 {
+    ceil_in(l - to - SPAN_MARGIN, n)
+}
+
+fn span_end(h: f64, from: f64, n: usize) -> u32 {
+    let last = h - from + SPAN_MARGIN;
+    if last < 0.0 {
+        0
+    } else {
+        (floor_in(last, n) + 1).min(n as u32)
+    }
+}
+
+/// A scene's vertices projected for one camera: camera coordinates and, in front of the
+/// near plane, pixel position; what every pattern's rasteriser starts from.
+pub struct Projection {
+    width: usize,
+    height: usize,
+    rays: CameraRays,
+    /// Nearer than this, geometry is cut.
+    near: f32,
+    verts: Vec<(Vec3, [f64; 2])>,
+}
+
+impl Projection {
+    /// Projects `scene`'s vertices for `camera`; the image's sides must be at most `MAX_SIDE`.
+    pub fn new(scene: &Scene, camera: &Camera) -> Projection {
         let (width, height) = (camera.width, camera.height);
         assert!(width <= MAX_SIDE && height <= MAX_SIDE, "{width} × {height} pixels: the z-buffer draws at most {MAX_SIDE} a side");
         let rays = CameraRays::new(camera);
-        // Nearer than this, geometry is cut: a hundred-thousandth of the distance to the target.
+        // A hundred-thousandth of the distance to the target.
         let near = (camera.target - camera.origin).length() * 1e-5;
-        // Every vertex projected once: camera coordinates, and pixel position when in front.
-        let verts: Vec<(Vec3, [f64; 2])> = scene
+        let verts = scene
             .positions
             .par_iter()
             .map(|&p| {
@@ -238,33 +298,104 @@ impl Rasterizer {
                 (c, [x, y])
             })
             .collect();
-        let pattern = sample_pattern(spp, seed);
-        let extent = pattern_extent(&pattern);
-        let ext = extent.map(f64::from);
+        Projection { width, height, rays, near, verts }
+    }
+
+    /// Per vertex, the ends of the spans its position gives for samples in the box `ext`
+    /// (`span_first` and `span_end` along x, then y); `BEHIND` set in the first when the
+    /// vertex lies nearer than the near plane (it has no position).
+    fn vertex_spans(&self, ext: [f64; 4]) -> Vec<[u32; 4]> {
+        let (w, h, near) = (self.width, self.height, self.near);
+        let at = |(c, xy): &(Vec3, [f64; 2])| {
+            if c.z < near {
+                return [BEHIND, 0, 0, 0];
+            }
+            [span_first(xy[0], ext[1], w), span_end(xy[0], ext[0], w), span_first(xy[1], ext[3], h), span_end(xy[1], ext[2], h)]
+        };
+        self.verts.par_iter().map(at).collect()
+    }
+}
+
+/// Marks a vertex behind the near plane in `vertex_spans`.
+const BEHIND: u32 = 1 << 31;
+
+impl Rasterizer {
+    /// Projects and bins `scene`'s triangles for `camera` with `spp` samples per pixel; the
+    /// image's sides must be at most `MAX_SIDE`.
+    pub fn new(scene: &Scene, camera: &Camera, spp: u32, seed: u64) -> Rasterizer {
+        Self::with_projection(scene, &Projection::new(scene, camera), spp, seed)
+    }
+
+    /// As `new`, from a projection made once for several rasterisers.
+    pub fn with_projection(scene: &Scene, projection: &Projection, spp: u32, seed: u64) -> Rasterizer {
+        Self::build(scene, projection, Pattern::new(sample_pattern(spp, seed)), |_| true)
+    }
+
+    /// One sample at each pixel's centre, from a projection made once for several
+    /// rasterisers.
+    pub fn centres(scene: &Scene, projection: &Projection) -> Rasterizer {
+        Self::build(scene, projection, Pattern::new(vec![(0.5, 0.5)]), |_| true)
+    }
+
+    /// `spp` samples per pixel, keeping only the triangles whose pixel box (columns x0..x1,
+    /// rows y0..y1 as `[x0, x1, y0, y1]`) `keep` takes: for drawing some pixels
+    /// (`band_pixels_into`) without setting up the triangles that reach none of them.
+    pub fn for_pixels(scene: &Scene, projection: &Projection, spp: u32, seed: u64, keep: impl Fn([u32; 4]) -> bool + Sync) -> Rasterizer {
+        Self::build(scene, projection, Pattern::new(sample_pattern(spp, seed)), keep)
+    }
+
+    fn build(scene: &Scene, proj: &Projection, pattern: Pattern, keep: impl Fn([u32; 4]) -> bool + Sync) -> Rasterizer {
+        let (width, height, near) = (proj.width, proj.height, proj.near);
+        let ext = pattern.extent.map(f64::from);
+        let spans = proj.vertex_spans(ext);
+        let verts = &proj.verts;
         let setup_one = |t: usize, out: &mut Vec<ScreenTri>| {
-            let corners = scene.triangles[t].map(|i| verts[i as usize]);
-            if corners.iter().all(|c| c.0.z >= near) {
-                let xy = corners.map(|c| c.1);
-                out.extend(Self::setup(t as u32, xy, corners.map(|c| c.0.z), CORNER_ATTR, ext, width, height));
+            let ids = scene.triangles[t];
+            let s = ids.map(|i| spans[i as usize]);
+            if (s[0][0] | s[1][0] | s[2][0]) & BEHIND == 0 {
+                // The span from the corners' (most triangles reach no pixel of a sparse
+                // pattern, and stop here).
+                let box_ = [
+                    s[0][0].min(s[1][0]).min(s[2][0]),
+                    s[0][1].max(s[1][1]).max(s[2][1]),
+                    s[0][2].min(s[1][2]).min(s[2][2]),
+                    s[0][3].max(s[1][3]).max(s[2][3]),
+                ];
+                if box_[0] >= box_[1] || box_[2] >= box_[3] || !keep(box_) {
+                    return;
+                }
+                let corners = ids.map(|i| verts[i as usize]);
+                out.extend(Self::setup(t as u32, corners.map(|c| c.1), corners.map(|c| c.0.z), CORNER_ATTR, box_, width, height));
                 return;
             }
-            let poly = [0, 1, 2].map(|k| (corners[k].0, CORNER_ATTR[k]));
+            let poly = [0, 1, 2].map(|k| (verts[ids[k] as usize].0, CORNER_ATTR[k]));
             let (clipped, n) = clip_near(&poly, near);
             // A fan over the clipped polygon: none, one or two triangles.
             for k in 1..n.max(2) - 1 {
                 let c = [clipped[0], clipped[k], clipped[k + 1]];
                 let xy = c.map(|(p, _)| {
-                    let (x, y) = rays.to_pixel(p);
+                    let (x, y) = proj.rays.to_pixel(p);
                     [x, y]
                 });
-                out.extend(Self::setup(t as u32, xy, c.map(|(p, _)| p.z), c.map(|(_, at)| at), ext, width, height));
+                let lo = |d: usize| xy[0][d].min(xy[1][d]).min(xy[2][d]);
+                let hi = |d: usize| xy[0][d].max(xy[1][d]).max(xy[2][d]);
+                let box_ = [
+                    span_first(lo(0), ext[1], width),
+                    span_end(hi(0), ext[0], width),
+                    span_first(lo(1), ext[3], height),
+                    span_end(hi(1), ext[2], height),
+                ];
+                if box_[0] >= box_[1] || box_[2] >= box_[3] || !keep(box_) {
+                    continue;
+                }
+                out.extend(Self::setup(t as u32, xy, c.map(|(p, _)| p.z), c.map(|(_, at)| at), box_, width, height));
             }
         };
         // In chunks of triangles on rayon's threads, concatenated in triangle order.
         let chunks: Vec<Vec<ScreenTri>> = (0..scene.triangles.len().div_ceil(SETUP_CHUNK))
             .into_par_iter()
             .map(|c| {
-                let mut out = Vec::with_capacity(SETUP_CHUNK);
+                let mut out = Vec::new();
                 (c * SETUP_CHUNK..((c + 1) * SETUP_CHUNK).min(scene.triangles.len())).for_each(|t| setup_one(t, &mut out));
                 out
             })
@@ -290,24 +421,20 @@ impl Rasterizer {
                 }
             }
         }
-        let slots = slots_per_pixel(pattern.len());
-        let slot = |s: usize, f: fn(&(f32, f32)) -> f32| pattern.get(s).map_or(f32::NAN, f);
-        let slot_x = (0..slots).map(|s| slot(s, |p| p.0)).collect();
-        let slot_y = (0..slots).map(|s| slot(s, |p| p.1)).collect();
-        Rasterizer { width, height, pattern, extent, slot_x, slot_y, chunks, bin_start, bin_tris }
+        Rasterizer { width, height, pattern, chunks, bin_start, bin_tris }
     }
 
     /// A projected triangle with corners at pixel positions `xy`, camera depths `z` and
-    /// scene-triangle barycentrics `attr`; none when degenerate or when no pixel's samples
-    /// (in the box `ext` of each pixel, as `pattern_extent` gives it) can reach it. Its box
-    /// holds only the pixels whose sample box meets the triangle's bounds: with one sample
-    /// a pixel, a triangle smaller than a pixel usually has none.
+    /// scene-triangle barycentrics `attr`, drawn in the pixels of `box_` (columns x0..x1,
+    /// rows y0..y1: those whose samples can reach its bounds, non-empty); none when
+    /// degenerate. With one sample a pixel, a triangle smaller than a pixel usually has
+    /// no such pixel and is not set up at all.
     fn setup(
         tri: u32,
         xy: [[f64; 2]; 3],
         z: [f32; 3],
         attr: [[f64; 2]; 3],
-        ext: [f64; 4],
+        box_: [u32; 4],
         width: usize,
         height: usize,
     ) -> Option<ScreenTri> {
@@ -316,17 +443,6 @@ impl Rasterizer {
             return None;
         }
         let lo = |d: usize| xy[0][d].min(xy[1][d]).min(xy[2][d]);
-        let hi = |d: usize| xy[0][d].max(xy[1][d]).max(xy[2][d]);
-        // Pixel p has samples from p + from to p + to: it can reach [l, h] when p ≥ l − to
-        // and p ≤ h − from (with a margin for the rounding of the f32 inside test).
-        let span = |l: f64, h: f64, from: f64, to: f64, n: usize| {
-            let last = h - from + SPAN_MARGIN;
-            (ceil_in(l - to - SPAN_MARGIN, n), if last < 0.0 { 0 } else { (floor_in(last, n) + 1).min(n as u32) })
-        };
-        let ((x0, x1), (y0, y1)) = (span(lo(0), hi(0), ext[0], ext[1], width), span(lo(1), hi(1), ext[2], ext[3], height));
-        if x0 >= x1 || y0 >= y1 {
-            return None;
-        }
         // The barycentrics are set up about the first pixel of the triangle's bounding box.
         let origin = [floor_in(lo(0), width), floor_in(lo(1), height)];
         let (fx0, fy0) = (origin[0] as f64, origin[1] as f64);
@@ -339,8 +455,13 @@ impl Rasterizer {
             (a[k], b[k], cc[k]) = (ak as f32, bk as f32, (ak * (fx0 - xy[i][0]) + bk * (fy0 - xy[i][1])) as f32);
         }
         let attr = attr.map(|at| [at[0] as f32, at[1] as f32]);
-        let [x0, x1, y0, y1] = [x0, x1, y0, y1].map(|v| v as u16);
+        let [x0, x1, y0, y1] = box_.map(|v| v as u16);
         Some(ScreenTri { tri, a, b, c: cc, inv_z: z.map(|z| 1.0 / z), attr, origin: origin.map(|o| o as u16), x0, x1, y0, y1 })
+    }
+
+    /// The image's width in pixels.
+    pub fn width(&self) -> usize {
+        self.width
     }
 
     /// Bands of `BAND_ROWS` rows in the image.
@@ -355,7 +476,7 @@ impl Rasterizer {
 
     /// The sample positions inside a pixel.
     pub fn pattern(&self) -> &[(f32, f32)] {
-        &self.pattern
+        &self.pattern.points
     }
 
     /// Triangles (after clipping) that reach the image.
@@ -368,7 +489,7 @@ impl Rasterizer {
         let mut buf = BandHits::default();
         self.band_into(i, &mut buf);
         let pixels = self.band_rows(i).len() * self.width;
-        (0..pixels).flat_map(|p| (0..self.pattern.len()).map(move |s| (p, s))).map(|(p, s)| buf.hit(p, s)).collect()
+        (0..pixels).flat_map(|p| (0..self.pattern.points.len()).map(move |s| (p, s))).map(|(p, s)| buf.hit(p, s)).collect()
     }
 
     /// As `band`, into `buf` (overwritten, its arrays reused from band to band). The
@@ -376,38 +497,51 @@ impl Rasterizer {
     /// that they vectorise; on a processor with AVX2 the same code runs compiled for it
     /// (eight lanes wide instead of four; no fused multiply-adds, so the bytes are the same).
     pub fn band_into(&self, i: usize, buf: &mut BandHits) {
-        match lanes_for(self.pattern.len()) {
-            1 => self.band_lanes::<1>(i, buf),
-            2 => self.band_lanes::<2>(i, buf),
-            4 => self.band_lanes::<4>(i, buf),
-            8 => self.band_lanes::<8>(i, buf),
-            _ => self.band_lanes::<LANES>(i, buf),
+        self.draw(i, buf, &self.pattern, None)
+    }
+
+    /// As `band_into` for some of the band's pixels: `place[p]` is pixel p's place in `buf`
+    /// (pixels row-major from the band's first row; `SKIP` draws nothing there), the places
+    /// 0..`count`.
+    pub fn band_pixels_into(&self, i: usize, place: &[u32], count: usize, buf: &mut BandHits) {
+        assert_eq!(place.len(), self.band_rows(i).len() * self.width, "one place per pixel of the band");
+        self.draw(i, buf, &self.pattern, Some((place, count)))
+    }
+
+    fn draw(&self, i: usize, buf: &mut BandHits, pattern: &Pattern, place: Option<(&[u32], usize)>) {
+        match lanes_for(pattern.points.len()) {
+            1 => self.band_lanes::<1>(i, buf, pattern, place),
+            2 => self.band_lanes::<2>(i, buf, pattern, place),
+            4 => self.band_lanes::<4>(i, buf, pattern, place),
+            8 => self.band_lanes::<8>(i, buf, pattern, place),
+            _ => self.band_lanes::<LANES>(i, buf, pattern, place),
         }
     }
 
-    fn band_lanes<const L: usize>(&self, i: usize, buf: &mut BandHits) {
+    fn band_lanes<const L: usize>(&self, i: usize, buf: &mut BandHits, pattern: &Pattern, place: Option<(&[u32], usize)>) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the processor has just been found to have AVX2.
-            return unsafe { self.band_avx2::<L>(i, buf) };
+            return unsafe { self.band_avx2::<L>(i, buf, pattern, place) };
         }
-        self.band_any::<L>(i, buf)
+        self.band_any::<L>(i, buf, pattern, place)
     }
 
     /// `band_any` compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn band_avx2<const L: usize>(&self, i: usize, buf: &mut BandHits) {
-        self.band_any::<L>(i, buf)
+    unsafe fn band_avx2<const L: usize>(&self, i: usize, buf: &mut BandHits, pattern: &Pattern, place: Option<(&[u32], usize)>) {
+        self.band_any::<L>(i, buf, pattern, place)
     }
 
-    /// `band_into` with blocks of `L` samples, for any processor.
+    /// `draw` with blocks of `L` samples, for any processor.
     #[inline(always)]
-    fn band_any<const L: usize>(&self, i: usize, buf: &mut BandHits) {
+    fn band_any<const L: usize>(&self, i: usize, buf: &mut BandHits, pattern: &Pattern, place: Option<(&[u32], usize)>) {
         let rows = self.band_rows(i);
-        let stride = self.slot_x.len();
+        let stride = pattern.slot_x.len();
+        let Pattern { points, extent, slot_x, slot_y } = pattern;
         // Inverse depths: the nearest sample has the largest; 0 is nothing yet.
-        buf.reset(rows.len() * self.width, self.pattern.len(), stride);
+        buf.reset(place.map_or(rows.len() * self.width, |p| p.1), points.len(), stride);
         let BandHits { inv_depth, tri: hit_tri, b1: hit_b1, b2: hit_b2, .. } = buf;
         let bin = &self.bin_tris[self.bin_start[i] as usize..self.bin_start[i + 1] as usize];
         let screen_tri = |t: u32| &self.chunks[t as usize >> CHUNK_BITS][t as usize & ((1 << CHUNK_BITS) - 1)];
@@ -423,15 +557,22 @@ impl Rasterizer {
             for py in (t.y0 as usize).max(rows.start)..(t.y1 as usize).min(rows.end) {
                 let fy = (py as i32 - t.origin[1] as i32) as f32;
                 for px in t.x0 as usize..t.x1 as usize {
+                    let mut at_pixel = (py - rows.start) * self.width + px;
+                    if let Some((place, _)) = place {
+                        match place[at_pixel] {
+                            SKIP => continue,
+                            k => at_pixel = k as usize,
+                        }
+                    }
                     let corner = t.beta((px as i32 - t.origin[0] as i32) as f32, fy);
-                    if t.misses_pixel(&corner, &self.extent) {
+                    if t.misses_pixel(&corner, extent) {
                         continue;
                     }
-                    let base = ((py - rows.start) * self.width + px) * stride;
+                    let base = at_pixel * stride;
                     for block in (0..stride).step_by(L) {
                         let at = base + block;
-                        let ox: &[f32; L] = self.slot_x[block..block + L].try_into().unwrap();
-                        let oy: &[f32; L] = self.slot_y[block..block + L].try_into().unwrap();
+                        let ox: &[f32; L] = slot_x[block..block + L].try_into().unwrap();
+                        let oy: &[f32; L] = slot_y[block..block + L].try_into().unwrap();
                         let depth: &mut [f32; L] = (&mut inv_depth[at..at + L]).try_into().unwrap();
                         let tri: &mut [u32; L] = (&mut hit_tri[at..at + L]).try_into().unwrap();
                         let b1: &mut [f32; L] = (&mut hit_b1[at..at + L]).try_into().unwrap();
@@ -556,9 +697,9 @@ mod tests {
                 let (mut plain, mut dispatched) = (BandHits::default(), BandHits::default());
                 r.band_into(b, &mut dispatched);
                 match lanes_for(spp as usize) {
-                    1 => r.band_any::<1>(b, &mut plain),
-                    4 => r.band_any::<4>(b, &mut plain),
-                    _ => r.band_any::<LANES>(b, &mut plain),
+                    1 => r.band_any::<1>(b, &mut plain, &r.pattern, None),
+                    4 => r.band_any::<4>(b, &mut plain, &r.pattern, None),
+                    _ => r.band_any::<LANES>(b, &mut plain, &r.pattern, None),
                 }
                 let bits =
                     |h: &BandHits| (h.tri.clone(), [&h.inv_depth, &h.b1, &h.b2].map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>()));
