@@ -316,6 +316,67 @@ impl Projection {
     }
 }
 
+impl Projection {
+    /// Scene triangle `t` set up for samples in the box `ext` (`spans` its vertices'
+    /// `vertex_spans` for it), clipped to the near plane (none, one or two screen
+    /// triangles), each handed to `out` when its pixel box is not empty and `keep` takes it.
+    fn screen_tris(
+        &self,
+        scene: &Scene,
+        t: usize,
+        ext: [f64; 4],
+        spans: &[[u32; 4]],
+        keep: &impl Fn([u32; 4]) -> bool,
+        mut out: impl FnMut(ScreenTri),
+    ) {
+        let (width, height, verts) = (self.width, self.height, &self.verts);
+        let ids = scene.triangles[t];
+        let s = ids.map(|i| spans[i as usize]);
+        if (s[0][0] | s[1][0] | s[2][0]) & BEHIND == 0 {
+            // The span from the corners' (most triangles reach no pixel of a sparse
+            // pattern, and stop here).
+            let box_ = [
+                s[0][0].min(s[1][0]).min(s[2][0]),
+                s[0][1].max(s[1][1]).max(s[2][1]),
+                s[0][2].min(s[1][2]).min(s[2][2]),
+                s[0][3].max(s[1][3]).max(s[2][3]),
+            ];
+            if box_[0] >= box_[1] || box_[2] >= box_[3] || !keep(box_) {
+                return;
+            }
+            let corners = ids.map(|i| verts[i as usize]);
+            if let Some(st) = Rasterizer::setup(t as u32, corners.map(|c| c.1), corners.map(|c| c.0.z), CORNER_ATTR, box_, width, height) {
+                out(st);
+            }
+            return;
+        }
+        let poly = [0, 1, 2].map(|k| (verts[ids[k] as usize].0, CORNER_ATTR[k]));
+        let (clipped, n) = clip_near(&poly, self.near);
+        // A fan over the clipped polygon: none, one or two triangles.
+        for k in 1..n.max(2) - 1 {
+            let c = [clipped[0], clipped[k], clipped[k + 1]];
+            let xy = c.map(|(p, _)| {
+                let (x, y) = self.rays.to_pixel(p);
+                [x, y]
+            });
+            let lo = |d: usize| xy[0][d].min(xy[1][d]).min(xy[2][d]);
+            let hi = |d: usize| xy[0][d].max(xy[1][d]).max(xy[2][d]);
+            let box_ = [
+                span_first(lo(0), ext[1], width),
+                span_end(hi(0), ext[0], width),
+                span_first(lo(1), ext[3], height),
+                span_end(hi(1), ext[2], height),
+            ];
+            if box_[0] >= box_[1] || box_[2] >= box_[3] || !keep(box_) {
+                continue;
+            }
+            if let Some(st) = Rasterizer::setup(t as u32, xy, c.map(|(p, _)| p.z), c.map(|(_, at)| at), box_, width, height) {
+                out(st);
+            }
+        }
+    }
+}
+
 /// Marks a vertex behind the near plane in `vertex_spans`.
 const BEHIND: u32 = 1 << 31;
 
@@ -345,52 +406,10 @@ impl Rasterizer {
     }
 
     fn build(scene: &Scene, proj: &Projection, pattern: Pattern, keep: impl Fn([u32; 4]) -> bool + Sync) -> Rasterizer {
-        let (width, height, near) = (proj.width, proj.height, proj.near);
+        let (width, height) = (proj.width, proj.height);
         let ext = pattern.extent.map(f64::from);
         let spans = proj.vertex_spans(ext);
-        let verts = &proj.verts;
-        let setup_one = |t: usize, out: &mut Vec<ScreenTri>| {
-            let ids = scene.triangles[t];
-            let s = ids.map(|i| spans[i as usize]);
-            if (s[0][0] | s[1][0] | s[2][0]) & BEHIND == 0 {
-                // The span from the corners' (most triangles reach no pixel of a sparse
-                // pattern, and stop here).
-                let box_ = [
-                    s[0][0].min(s[1][0]).min(s[2][0]),
-                    s[0][1].max(s[1][1]).max(s[2][1]),
-                    s[0][2].min(s[1][2]).min(s[2][2]),
-                    s[0][3].max(s[1][3]).max(s[2][3]),
-                ];
-                if box_[0] >= box_[1] || box_[2] >= box_[3] || !keep(box_) {
-                    return;
-                }
-                let corners = ids.map(|i| verts[i as usize]);
-                out.extend(Self::setup(t as u32, corners.map(|c| c.1), corners.map(|c| c.0.z), CORNER_ATTR, box_, width, height));
-                return;
-            }
-            let poly = [0, 1, 2].map(|k| (verts[ids[k] as usize].0, CORNER_ATTR[k]));
-            let (clipped, n) = clip_near(&poly, near);
-            // A fan over the clipped polygon: none, one or two triangles.
-            for k in 1..n.max(2) - 1 {
-                let c = [clipped[0], clipped[k], clipped[k + 1]];
-                let xy = c.map(|(p, _)| {
-                    let (x, y) = proj.rays.to_pixel(p);
-                    [x, y]
-                });
-                let lo = |d: usize| xy[0][d].min(xy[1][d]).min(xy[2][d]);
-                let hi = |d: usize| xy[0][d].max(xy[1][d]).max(xy[2][d]);
-                let box_ = [
-                    span_first(lo(0), ext[1], width),
-                    span_end(hi(0), ext[0], width),
-                    span_first(lo(1), ext[3], height),
-                    span_end(hi(1), ext[2], height),
-                ];
-                if box_[0] >= box_[1] || box_[2] >= box_[3] || !keep(box_) {
-                    continue;
-                }
-                out.extend(Self::setup(t as u32, xy, c.map(|(p, _)| p.z), c.map(|(_, at)| at), box_, width, height));
-            }
-        };
+        let setup_one = |t: usize, out: &mut Vec<ScreenTri>| proj.screen_tris(scene, t, ext, &spans, &keep, |st| out.push(st));
         // In chunks of triangles on rayon's threads, concatenated in triangle order.
         let chunks: Vec<Vec<ScreenTri>> = (0..scene.triangles.len().div_ceil(SETUP_CHUNK))
             .into_par_iter()
