@@ -106,16 +106,22 @@ fn edit(bencher: divan::Bencher, kind: &str) {
 /// mode), by samples per pixel: what an orbit costs before the shading.
 #[divan::bench(args = [1, 4, 16], sample_count = 10, sample_size = 1)]
 fn camera_hits(bencher: divan::Bencher, spp: i64) {
-    time_camera_hits(bencher, spp, false);
+    time_camera_hits(bencher, spp, false, false);
 }
 
 /// As `camera_hits`, adaptive (the graph's): one sample at each pixel's centre, `spp` at edges.
 #[divan::bench(args = [4, 16], sample_count = 10, sample_size = 1)]
 fn camera_hits_adaptive(bencher: divan::Bencher, spp: i64) {
-    time_camera_hits(bencher, spp, true);
+    time_camera_hits(bencher, spp, true, false);
 }
 
-fn time_camera_hits(bencher: divan::Bencher, spp: i64, adaptive: bool) {
+/// As `camera_hits_adaptive`, leaving out the back faces (the graph's).
+#[divan::bench(args = [16], sample_count = 10, sample_size = 1)]
+fn camera_hits_adaptive_culled(bencher: divan::Bencher, spp: i64) {
+    time_camera_hits(bencher, spp, true, true);
+}
+
+fn time_camera_hits(bencher: divan::Bencher, spp: i64, adaptive: bool, cull: bool) {
     use relume_core::{run_standalone, ParamValue, Value};
     use relume_nodes::ptt::camera_hits::CameraHits;
     let loaded = relume_nodes::scene::format::load_scene_file(&graphs_dir().join("scenes/envlit.ron")).expect("envlit loads");
@@ -125,6 +131,6 @@ fn time_camera_hits(bencher: divan::Bencher, spp: i64, adaptive: bool) {
     }
     let camera = scene.camera.clone();
     let inputs = [Value::new(scene), Value::new(camera)];
-    let params = [("spp", ParamValue::Int(spp)), ("adaptive", ParamValue::Bool(adaptive))];
+    let params = [("spp", ParamValue::Int(spp)), ("adaptive", ParamValue::Bool(adaptive)), ("cull_back_faces", ParamValue::Bool(cull))];
     bencher.bench_local(|| run_standalone::<CameraHits>(&params, std::path::Path::new("."), &inputs).expect("runs"));
 }

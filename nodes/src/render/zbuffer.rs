@@ -279,6 +279,8 @@ pub struct Projection {
     /// Nearer than this, geometry is cut.
     near: f32,
     verts: Vec<(Vec3, [f64; 2])>,
+    /// Leave out the triangles that face away from the camera.
+    cull: bool,
 }
 
 impl Projection {
@@ -298,7 +300,15 @@ impl Projection {
                 (c, [x, y])
             })
             .collect();
-        Projection { width, height, rays, near, verts }
+        Projection { width, height, rays, near, verts, cull: false }
+    }
+
+    /// The same projection, leaving out (`on`) the triangles whose corners turn clockwise
+    /// as the camera sees them: the back faces of meshes wound counter-clockwise seen from
+    /// outside, which a closed mesh always hides behind its front.
+    pub fn cull_back_faces(mut self, on: bool) -> Projection {
+        self.cull = on;
+        self
     }
 
     /// Per vertex, the ends of the spans its position gives for samples in the box `ext`
@@ -345,7 +355,9 @@ impl Projection {
                 return;
             }
             let corners = ids.map(|i| verts[i as usize]);
-            if let Some(st) = Rasterizer::setup(t as u32, corners.map(|c| c.1), corners.map(|c| c.0.z), CORNER_ATTR, box_, width, height) {
+            if let Some(st) =
+                Rasterizer::setup(t as u32, corners.map(|c| c.1), corners.map(|c| c.0.z), CORNER_ATTR, box_, (width, height), self.cull)
+            {
                 out(st);
             }
             return;
@@ -370,7 +382,7 @@ impl Projection {
             if box_[0] >= box_[1] || box_[2] >= box_[3] || !keep(box_) {
                 continue;
             }
-            if let Some(st) = Rasterizer::setup(t as u32, xy, c.map(|(p, _)| p.z), c.map(|(_, at)| at), box_, width, height) {
+            if let Some(st) = Rasterizer::setup(t as u32, xy, c.map(|(p, _)| p.z), c.map(|(_, at)| at), box_, (width, height), self.cull) {
                 out(st);
             }
         }
@@ -446,7 +458,7 @@ impl Rasterizer {
     /// A projected triangle with corners at pixel positions `xy`, camera depths `z` and
     /// scene-triangle barycentrics `attr`, drawn in the pixels of `box_` (columns x0..x1,
     /// rows y0..y1: those whose samples can reach its bounds, non-empty); none when
-    /// degenerate. With one sample a pixel, a triangle smaller than a pixel usually has
+    /// degenerate, or facing away from the camera when `cull`. With one sample a pixel, a triangle smaller than a pixel usually has
     /// no such pixel and is not set up at all.
     fn setup(
         tri: u32,
@@ -454,11 +466,12 @@ impl Rasterizer {
         z: [f32; 3],
         attr: [[f64; 2]; 3],
         box_: [u32; 4],
-        width: usize,
-        height: usize,
+        (width, height): (usize, usize),
+        cull: bool,
     ) -> Option<ScreenTri> {
         let area = (xy[1][0] - xy[0][0]) * (xy[2][1] - xy[0][1]) - (xy[1][1] - xy[0][1]) * (xy[2][0] - xy[0][0]);
-        if !area.is_finite() || area.abs() < 1e-12 {
+        // Pixel rows grow downwards: a counter-clockwise triangle has a negative area.
+        if !area.is_finite() || area.abs() < 1e-12 || (cull && area > 0.0) {
             return None;
         }
         let lo = |d: usize| xy[0][d].min(xy[1][d]).min(xy[2][d]);
