@@ -26,7 +26,10 @@ fn test_mode() -> bool {
 fn graph_and_engine() -> (Graph, Engine) {
     let reg = relume_nodes::registry();
     let mut g = Graph::load(&graphs_dir().join("ptt_envlit.ron"), &reg).expect("graph loads");
-    let e = Engine::new(relume_nodes::registry());
+    let mut e = Engine::new(relume_nodes::registry());
+    if let Some(mb) = std::env::var("PTT_BENCH_CACHE_MB").ok().and_then(|v| v.parse::<usize>().ok()) {
+        e = e.with_memory_budget(mb << 20);
+    }
     if test_mode() {
         g.set_param_text(&reg, "scene.width", "24").unwrap();
         g.set_param_text(&reg, "scene.height", "24").unwrap();

@@ -204,11 +204,11 @@ impl Engine {
     }
 
     /// Looks a key up in memory, then on disk.
-    pub(crate) fn lookup(&self, kind: &dyn DynNode, key: &Hash) -> Option<(Arc<CacheEntry>, NodeStatus)> {
+    pub(crate) fn lookup(&self, kind: &dyn DynNode, node: &str, key: &Hash) -> Option<(Arc<CacheEntry>, NodeStatus)> {
         if kind.caching() == Caching::Never {
             return None;
         }
-        let in_memory = self.memory.lock().unwrap().get(key);
+        let in_memory = self.memory.lock().unwrap().get_for(node, key);
         if let Some(e) = in_memory {
             if e.deps_unchanged() {
                 return Some((e, NodeStatus::CachedMemory));
@@ -220,7 +220,7 @@ impl Engine {
                 self.disk.as_ref().and_then(|d| d.get(key, &kind.ports().outputs, &self.registry)).filter(CacheEntry::deps_unchanged);
             if let Some(e) = found {
                 let e = Arc::new(e);
-                self.memory.lock().unwrap().put(*key, e.clone());
+                self.memory.lock().unwrap().put_for(node, *key, e.clone());
                 return Some((e, NodeStatus::CachedDisk));
             }
         }
@@ -229,7 +229,7 @@ impl Engine {
 
     /// Keeps a result in memory, and on disk when it cost more to compute than loading it
     /// would (`cache::worth_storing`): the one rule for every `Caching::Auto` node.
-    fn store(&self, kind: &dyn DynNode, key: Hash, entry: Arc<CacheEntry>) {
+    fn store(&self, kind: &dyn DynNode, node: &str, key: Hash, entry: Arc<CacheEntry>) {
         if kind.caching() == Caching::Never {
             return;
         }
@@ -239,7 +239,7 @@ impl Engine {
                 let _ = d.put(&key, &entry, &kind.ports().outputs);
             }
         }
-        self.memory.lock().unwrap().put(key, entry);
+        self.memory.lock().unwrap().put_for(node, key, entry);
     }
 
     /// Validates, plans and runs the graph.
@@ -281,7 +281,7 @@ impl Engine {
                     // chunks come from the disk cache when they are there): a process that
                     // found the whole result would leave its peers waiting for its chunks.
                     let take_part = matches!(opts.shards, ShardMode::Peers(_)) && kind.sharded().is_some();
-                    let found = if take_part { None } else { self.lookup(kind.as_ref(), &prepared.key) };
+                    let found = if take_part { None } else { self.lookup(kind.as_ref(), &graph.nodes[i].id, &prepared.key) };
                     match found {
                         Some((entry, status)) => {
                             let ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -352,7 +352,7 @@ impl Engine {
                         // One shard of a node is not the node's result: nothing to keep.
                         let whole = entry.outputs.len() == kind.ports().outputs.len();
                         if whole {
-                            self.store(kind.as_ref(), state.keys[i], entry.clone());
+                            self.store(kind.as_ref(), id, state.keys[i], entry.clone());
                         }
                         if let Some(o) = opts.observer {
                             o.event(&Event::Finished { id, kind: kind.kind(), status: NodeStatus::Ran, wall_ms: ms });

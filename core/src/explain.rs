@@ -51,7 +51,7 @@ impl Engine {
                 lines.push(line(PlanAction::Run, "has a side effect (writes a file): always runs".into()));
                 continue;
             }
-            match self.lookup(kind.as_ref(), &prepared.key) {
+            match self.lookup(kind.as_ref(), &graph.nodes[i].id, &prepared.key) {
                 Some((entry, status)) => {
                     fps[i] = Some(entry.outputs.iter().map(|v| v.fingerprint()).collect());
                     let place = if status == crate::ctx::NodeStatus::CachedDisk { "disk" } else { "memory" };

@@ -1,9 +1,16 @@
-//! In-memory LRU cache with a byte budget.
+//! In-memory LRU cache with a byte budget, and a bound on the results kept per node.
 
 use super::CacheEntry;
 use crate::hash::Hash;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::sync::Arc;
+
+/// Results of one graph node kept at most (`put_for`): an edit makes a new result of every
+/// node it reaches, and an orbit or a slider dragged through many values would otherwise
+/// fill the budget with results no one asks for again. Freed as they go, their memory is
+/// reused by the next edit's results instead of the kernel handing out (and zeroing) fresh
+/// pages for every one until the budget is full.
+pub const RESULTS_PER_NODE: usize = 8;
 
 pub struct MemoryCache {
     budget: usize,
@@ -11,11 +18,44 @@ pub struct MemoryCache {
     tick: u64,
     map: HashMap<Hash, (Arc<CacheEntry>, u64)>,
     lru: BTreeMap<u64, Hash>,
+    /// Per node, the keys of its results, oldest first.
+    per_node: HashMap<String, VecDeque<Hash>>,
 }
 
 impl MemoryCache {
     pub fn new(budget_bytes: usize) -> Self {
-        MemoryCache { budget: budget_bytes, used: 0, tick: 0, map: HashMap::new(), lru: BTreeMap::new() }
+        MemoryCache { budget: budget_bytes, used: 0, tick: 0, map: HashMap::new(), lru: BTreeMap::new(), per_node: HashMap::new() }
+    }
+
+    /// As `get`, for a result of graph node `node`: found, it counts as the node's newest.
+    pub fn get_for(&mut self, node: &str, key: &Hash) -> Option<Arc<CacheEntry>> {
+        let found = self.get(key)?;
+        if let Some(keys) = self.per_node.get_mut(node) {
+            if let Some(at) = keys.iter().position(|k| k == key) {
+                keys.remove(at);
+                keys.push_back(*key);
+            }
+        }
+        Some(found)
+    }
+
+    /// As `put`, for a result of graph node `node`: its oldest result goes when it has more
+    /// than `RESULTS_PER_NODE` (the same result twice counts once, as the newest).
+    pub fn put_for(&mut self, node: &str, key: Hash, entry: Arc<CacheEntry>) {
+        self.put(key, entry);
+        let keys = self.per_node.entry(node.to_string()).or_default();
+        keys.retain(|k| *k != key);
+        keys.push_back(key);
+        // Keys the budget evicted meanwhile are dropped here too.
+        let map = &self.map;
+        keys.retain(|k| map.contains_key(k));
+        while keys.len() > RESULTS_PER_NODE {
+            let old = keys.pop_front().expect("more than the bound");
+            if let Some((e, t)) = self.map.remove(&old) {
+                self.used -= e.bytes();
+                self.lru.remove(&t);
+            }
+        }
     }
 
     pub fn get(&mut self, key: &Hash) -> Option<Arc<CacheEntry>> {
@@ -63,6 +103,7 @@ impl MemoryCache {
     pub fn clear(&mut self) {
         self.map.clear();
         self.lru.clear();
+        self.per_node.clear();
         self.used = 0;
     }
 
@@ -116,5 +157,27 @@ mod tests {
         assert_eq!(c.used_bytes(), 80);
         c.put(k(4), entry(500));
         assert!(c.contains(&k(4)).is_none(), "larger than the budget: not kept");
+    }
+
+    #[test]
+    fn a_node_keeps_its_latest_results_and_leaves_the_others_alone() {
+        let mut c = MemoryCache::new(1 << 20);
+        let k = |i: u8| Hash([i; 32]);
+        c.put_for("other", k(200), entry(10));
+        for i in 0..20 {
+            c.put_for("camera", k(i), entry(10));
+            // Asked for again, an early result counts as new.
+            if i == 10 {
+                c.put_for("camera", k(3), entry(10));
+            }
+        }
+        let kept: Vec<u8> = (0..20).filter(|&i| c.contains(&k(i)).is_some()).collect();
+        assert_eq!(kept, (12..20).collect::<Vec<u8>>());
+        assert!(c.contains(&k(200)).is_some(), "another node's result stays");
+        assert_eq!(c.used_bytes(), 10 * (RESULTS_PER_NODE + 1));
+        assert_eq!(c.len(), RESULTS_PER_NODE + 1);
+        c.put_for("tiny", k(201), entry(10));
+        c.put_for("tiny", k(201), entry(10));
+        assert_eq!(c.len(), RESULTS_PER_NODE + 2, "the same result twice is one");
     }
 }
