@@ -91,6 +91,7 @@ const CENTRE_BYTES: u64 = 16;
 
 impl Band {
     /// Adds `wt` to vertex `v`'s weight in the pixel whose entries start at `start`.
+    #[inline]
     fn add_weight(&mut self, start: usize, v: u32, wt: f32) {
         match self.vertex[start..].iter().position(|&e| e == v) {
             Some(e) => self.weight[start + e] += wt,
@@ -110,8 +111,16 @@ impl Band {
             self.miss_dir.push(rays.ray(x as f32 + 0.5, y as f32 + 0.5).1);
         } else {
             self.covered += 1.0;
-            for (v, wt) in scene.triangles[tri as usize].into_iter().zip([1.0 - b1 - b2, b1, b2]) {
-                self.add_weight(start, v, wt);
+            let corners = scene.triangles[tri as usize];
+            let weights = [1.0 - b1 - b2, b1, b2];
+            if corners[0] != corners[1] && corners[1] != corners[2] && corners[0] != corners[2] {
+                // The common triangle: three vertices, each once.
+                self.vertex.extend_from_slice(&corners);
+                self.weight.extend_from_slice(&weights);
+            } else {
+                for (v, wt) in corners.into_iter().zip(weights) {
+                    self.add_weight(start, v, wt);
+                }
             }
             self.miss.push(0.0);
             self.miss_dir.push(Vec3::ZERO);
@@ -193,38 +202,24 @@ impl CameraHits {
 
     /// The pixels at an edge, row-major: those whose centre, or a neighbour's, sees another
     /// object, nothing where the other sees something, or a depth `depth_step` away.
-    fn edges(&self, c: &Centres, object: &[u32], (w, h): (usize, usize)) -> Vec<bool> {
+    fn edges(&self, c: &Centres, object: &[u32], (w, h): (usize, usize), cx: &RunCtx) -> Result<Vec<bool>, NodeError> {
         let step = self.depth_step as f32;
         let key: Vec<u32> = c.tri.iter().map(|&t| if t == MISS { u32::MAX } else { object[t as usize] }).collect();
         let differ = |p: usize, q: usize| {
             let (zp, zq) = (c.inv_depth[p], c.inv_depth[q]);
             key[p] != key[q] || (key[p] != u32::MAX && (zp - zq).abs() > step * zp.max(zq))
         };
-        // Each pair of neighbours once: right, down, and the two diagonals down.
+        // Row by row in parallel, each pixel against its eight neighbours.
         let mut edge = vec![false; w * h];
-        for y in 0..h {
-            for x in 0..w {
+        cx.par_chunks_mut(&mut edge, w, |y, row| {
+            let ys = y.saturating_sub(1)..(y + 2).min(h);
+            for (x, e) in row.iter_mut().enumerate() {
                 let p = y * w + x;
-                let mut mark = |q: usize| {
-                    if differ(p, q) {
-                        (edge[p], edge[q]) = (true, true);
-                    }
-                };
-                if x + 1 < w {
-                    mark(p + 1);
-                }
-                if y + 1 < h {
-                    mark(p + w);
-                    if x > 0 {
-                        mark(p + w - 1);
-                    }
-                    if x + 1 < w {
-                        mark(p + w + 1);
-                    }
-                }
+                let xs = x.saturating_sub(1)..(x + 2).min(w);
+                *e = ys.clone().any(|qy| xs.clone().any(|qx| differ(p, qy * w + qx)));
             }
-        }
-        edge
+        })?;
+        Ok(edge)
     }
 }
 
@@ -267,7 +262,7 @@ impl CameraHits {
             let cr = Rasterizer::centres(scene, &projection);
             centre_triangles = cr.triangles();
             let centres = self.centres(&cr, cx)?;
-            let edge = self.edges(&centres, &scene.tri_object, (w, h));
+            let edge = self.edges(&centres, &scene.tri_object, (w, h), cx)?;
             let reaches = |[x0, x1, y0, y1]: [u32; 4]| {
                 (y0..y1).any(|y| edge[y as usize * w + x0 as usize..y as usize * w + x1 as usize].contains(&true))
             };
