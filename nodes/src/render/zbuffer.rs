@@ -134,12 +134,6 @@ impl BandHits {
         (&self.tri, &self.b1, &self.b2, &self.inv_depth)
     }
 
-    /// The inverse camera depths of pixel `p`'s samples (0 where nothing was hit).
-    #[inline]
-    pub fn inv_depths(&self, p: usize) -> &[f32] {
-        &self.inv_depth[p * self.stride..p * self.stride + self.spp]
-    }
-
     /// Cleared for `pixels` pixels of `stride` slots: nothing hit, nothing near.
     fn reset(&mut self, pixels: usize, spp: usize, stride: usize) {
         let n = pixels * stride;
