@@ -10,6 +10,7 @@
 //! Mitsuba's hierarchical warp ([`Bilinear2D`]); `pdf` is that density, so evaluation,
 //! sampling and MIS agree with each other and with Mitsuba.
 
+use crate::math::floor_f32;
 use crate::math::sampling::Bilinear2D;
 use crate::types::EnvMap;
 use glam::{Vec2, Vec3};
@@ -94,12 +95,14 @@ impl EnvMap {
             return Vec3::ZERO;
         }
         let (w, h) = self.grid();
-        let u = uv.x - uv.x.floor();
+        let u = uv.x - floor_f32(uv.x);
         let xf = u * w as f32 - 0.5;
-        let x0f = xf.floor();
+        let x0f = floor_f32(xf);
         let tx = (xf - x0f).clamp(0.0, 1.0);
-        let x0 = (x0f as i64).rem_euclid(w as i64) as usize;
-        let x1 = (x0 + 1) % w;
+        // u lies in [0, 1], so x0f in −1 ..= w − 1: the column before the first wraps to the
+        // last (no integer division on this hot path).
+        let x0 = if x0f < 0.0 { w - 1 } else { (x0f as usize).min(w - 1) };
+        let x1 = if x0 + 1 == w { 0 } else { x0 + 1 };
         let yf = uv.y.clamp(0.0, 1.0) * (h - 1) as f32;
         let y0 = (yf as usize).min(h - 2);
         let ty = (yf - y0 as f32).clamp(0.0, 1.0);

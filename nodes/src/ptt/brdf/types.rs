@@ -222,7 +222,8 @@ impl DiskGrid {
         let p = Self::project(w)?;
         let axis = |v: f64| {
             let u = ((v + 1.0) * 0.5 * self.n as f64 - 0.5).clamp(0.0, (self.n - 1) as f64);
-            let i0 = (u.floor() as u32).min(self.n - 1);
+            // u ≥ 0: the conversion is its floor.
+            let i0 = (u as u32).min(self.n - 1);
             (i0, (i0 + 1).min(self.n - 1), u - i0 as f64)
         };
         let ((x0, x1, tx), (y0, y1, ty)) = (axis(p[0]), axis(p[1]));
