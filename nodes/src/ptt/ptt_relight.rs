@@ -61,8 +61,20 @@ const BANDS: usize = 4;
 const _: () = assert!(SH == BANDS * BANDS);
 const BAND_OF: [usize; SH] = [0, 1, 1, 1, 2, 2, 2, 2, 2, 3, 3, 3, 3, 3, 3, 3];
 
-/// How many seen vertices ahead the visibility reads are fetched.
-const PREFETCH_AHEAD: usize = 8;
+/// Seen vertices per block: their views are found (and their visibility reads fetched)
+/// before any of them is shaded.
+const BLOCK: usize = 32;
+
+/// What the view makes of a seen vertex: nothing (no object shades it), a fixed object's
+/// (Lambertian), a dynamic object's diffuse term alone (no specular part toward the eye),
+/// or its glossy shading with slot `t`, ωo in the vertex frame (`local`), the mirror
+/// direction `m` and where it lies on the cube.
+enum Seen {
+    Dark,
+    Fixed(u32),
+    Diffuse(u32),
+    Glossy { o: u32, t: u32, local: Vec3, m: Vec3, at: CubeAt },
+}
 
 /// Where lobe k's light comes from: the map itself with the visibility bits (0°), or a
 /// prefiltered map with a visible-fraction map.
@@ -107,6 +119,12 @@ fn lum(v: Vec3) -> f64 {
 
 impl PttRelight {
     fn sources<'a>(&self, i: &PttRelightIn<'a>) -> Result<Vec<LobeSource<'a>>, NodeError> {
+        if i.lobe_visibility.sigmas.len() > MAX_LOBES {
+            return Err(NodeError::input(
+                "lobe_visibility",
+                format!("{} lobe maps: at most {MAX_LOBES} lobes are separated", i.lobe_visibility.sigmas.len()),
+            ));
+        }
         i.lobes
             .sigmas
             .iter()
@@ -213,101 +231,107 @@ impl PttRelight {
         let env = CubeView { n: i.env.n as usize, texels: &i.env.map };
         let bits_side = i.visibility.n as usize;
         let (eye, cols) = (i.camera.origin, p.columns as usize);
+        // A dynamic object's diffuse term at vertex v, shaded outside the tensor.
+        let diffuse_of = |o: u32, v: usize| shadings[o as usize].as_ref().map_or(Vec3::ZERO, |sh| sh.kd / PI * inc.irradiance[v]);
         cx.check()?;
         let seen = &i.hits.seen;
-        // The mirror direction of the view about a tensor-shaded vertex's normal, where its
-        // lobes read the visibility (none when it has no specular part toward the eye).
-        let mirror = |v: usize| -> Option<Vec3> {
-            let sh = shadings[owner(v)? as usize].as_ref()?;
-            let (nv, wo) = (p.normals[v], (eye - scene.positions[v]).normalize_or_zero());
-            (p.slot[v] != NO_SLOT && sh.ks != Vec3::ZERO && nv.dot(wo) > 0.0).then(|| (2.0 * nv.dot(wo) * nv - wo).normalize_or_zero())
-        };
         let (lobe_count, same_disk) = (i.lobes.lobes(), i.lobes.disk == i.brdf.disk);
-        // Per thread: the row U^ωo · M at a vertex's ωo.
-        let scratch = || vec![0.0f32; cols];
-        let per = cx.par_map_init(seen.len(), scratch, |w, k| {
-            // The visibility a few vertices ahead is far apart in memory: fetch it early.
-            if let Some(&ahead) = seen.get(k + PREFETCH_AHEAD) {
-                if let Some(m) = mirror(ahead as usize) {
-                    let at = CubeAt::of(m);
-                    crate::math::prefetch(&i.visibility.of(ahead as usize)[at.texel(bits_side) / 32]);
-                    for src in &sources {
-                        if let LobeSource::Wide { vis, .. } = src {
-                            i.lobe_visibility.prefetch(ahead as usize, *vis, &at);
-                        }
-                    }
-                }
-            }
-            let v = seen[k] as usize;
-            let Some(o) = owner(v) else { return (Vec3::ZERO, Vec3::ZERO) };
-            let e = inc.irradiance[v];
-            let Some(sh) = &shadings[o as usize] else {
-                let albedo = match scene.objects[o as usize].material {
-                    Material::Lambert { albedo } => albedo,
-                    _ => Vec3::ZERO,
-                };
-                return (albedo / PI * e, Vec3::ZERO);
-            };
-            let diffuse = sh.kd / PI * e;
-            let t = p.slot[v];
-            let nv = p.normals[v];
+        let wide = sources.iter().any(|s| matches!(s, LobeSource::Wide { .. }));
+        // What a seen vertex needs of the view, found for a block of vertices before any is
+        // shaded, so that the block's visibility reads (far apart in memory) are fetched
+        // while the others are found and shaded.
+        let view_of = |v: usize| -> Seen {
+            let Some(o) = owner(v) else { return Seen::Dark };
+            let Some(sh) = &shadings[o as usize] else { return Seen::Fixed(o) };
+            let (t, nv) = (p.slot[v], p.normals[v]);
             let wo = (eye - scene.positions[v]).normalize_or_zero();
             if t == NO_SLOT || sh.ks == Vec3::ZERO || nv.dot(wo) <= 0.0 {
-                return (diffuse, Vec3::ZERO);
-            }
-            let t = t as usize;
-            let local = vertex_frame(nv).to_local(wo);
-            // ωo's place on the disks (below the horizon or not finite: no specular part).
-            let Some(bo) = i.brdf.disk.bilinear(local) else { return (diffuse, Vec3::ZERO) };
-            let bl = if same_disk { Some(bo) } else { i.lobes.disk.bilinear(local) };
-            // The tensor term u_o · M · U^I, as (U^ωo · M blended at ωo) · U^I.
-            w.fill(0.0);
-            for (&o, &bw) in bo.idx.iter().zip(&bo.w) {
-                if bw != 0.0 {
-                    let bw = bw as f32;
-                    w.iter_mut().zip(&sh.view[o as usize * cols..][..cols]).for_each(|(x, g)| *x += bw * g);
-                }
-            }
-            let u = &inc.tensor[t * cols..(t + 1) * cols];
-            let mut spec: Vec3 = u.iter().zip(w.iter()).map(|(u, w)| *u * *w).sum();
-            // The lobes' amplitudes at ωo, and the light around the mirror direction.
-            let mut a = [0.0f32; MAX_LOBES];
-            for (&o, &bw) in bl.iter().flat_map(|b| b.idx.iter().zip(&b.w)) {
-                if bw != 0.0 {
-                    let bw = bw as f32;
-                    a.iter_mut().zip(&sh.amps[o as usize * lobe_count..][..lobe_count]).for_each(|(x, g)| *x += bw * g);
-                }
+                return Seen::Diffuse(o);
             }
             let m = (2.0 * nv.dot(wo) * nv - wo).normalize_or_zero();
-            // The mirror direction's place on the cube, for every map the lobes read.
             let at = CubeAt::of(m);
-            let mut y = [0.0f32; SH];
-            sh_basis_into(m, &mut y);
-            let c1 = &inc.bounce[t * SH..(t + 1) * SH];
-            // The one-bounce light at m, band by band: a lobe weighs each band by its zonal
-            // factor.
-            let mut band = [Vec3::ZERO; BANDS];
-            for (q, (c, y)) in c1.iter().zip(&y).enumerate() {
-                band[BAND_OF[q]] += *c * *y;
+            crate::math::prefetch(&i.visibility.of(v)[at.texel(bits_side) / 32]);
+            if wide {
+                i.lobe_visibility.prefetch(v, &at);
             }
-            for (k, src) in sources.iter().enumerate() {
-                if a[k] == 0.0 {
-                    continue;
-                }
-                let light = match src {
-                    LobeSource::Sharp => {
-                        let seen = if i.visibility.visible(v, at.texel(bits_side)) { 1.0 } else { 0.0 };
-                        env.lookup_at(&at) * seen + band.iter().sum::<Vec3>()
+            Seen::Glossy { o, t, local: vertex_frame(nv).to_local(wo), m, at }
+        };
+        // Per thread: the block's views, and the row U^ωo · M at a vertex's ωo.
+        let scratch = || (Vec::with_capacity(BLOCK), vec![0.0f32; cols]);
+        let blocks = cx.par_map_init(seen.len().div_ceil(BLOCK), scratch, |(views, w), b| {
+            let block = &seen[b * BLOCK..((b + 1) * BLOCK).min(seen.len())];
+            views.clear();
+            views.extend(block.iter().map(|&v| view_of(v as usize)));
+            let shade = |v: usize, view: &Seen, w: &mut [f32]| -> (Vec3, Vec3) {
+                let (o, t, local, m, at) = match *view {
+                    Seen::Dark => return (Vec3::ZERO, Vec3::ZERO),
+                    Seen::Fixed(o) => {
+                        let albedo = match scene.objects[o as usize].material {
+                            Material::Lambert { albedo } => albedo,
+                            _ => Vec3::ZERO,
+                        };
+                        return (albedo / PI * inc.irradiance[v], Vec3::ZERO);
                     }
-                    LobeSource::Wide { env, vis, zonal } => {
-                        env.lookup_at(&at) * i.lobe_visibility.lobe_visibility_at(v, *vis, &at)
-                            + band.iter().zip(zonal).map(|(b, z)| *b * *z).sum::<Vec3>()
-                    }
+                    Seen::Diffuse(o) => return (diffuse_of(o, v), Vec3::ZERO),
+                    Seen::Glossy { o, t, local, m, at } => (o, t as usize, local, m, at),
                 };
-                spec += light * a[k];
-            }
-            (diffuse, sh.ks * spec.max(Vec3::ZERO))
+                let sh = shadings[o as usize].as_ref().expect("a glossy vertex's object is dynamic");
+                let diffuse = diffuse_of(o, v);
+                // ωo's place on the disks (below the horizon or not finite: no specular part).
+                let Some(bo) = i.brdf.disk.bilinear(local) else { return (diffuse, Vec3::ZERO) };
+                let bl = if same_disk { Some(bo) } else { i.lobes.disk.bilinear(local) };
+                // The tensor term u_o · M · U^I, as (U^ωo · M blended at ωo) · U^I.
+                w.fill(0.0);
+                for (&o, &bw) in bo.idx.iter().zip(&bo.w) {
+                    if bw != 0.0 {
+                        let bw = bw as f32;
+                        w.iter_mut().zip(&sh.view[o as usize * cols..][..cols]).for_each(|(x, g)| *x += bw * g);
+                    }
+                }
+                let u = &inc.tensor[t * cols..(t + 1) * cols];
+                let mut spec: Vec3 = u.iter().zip(w.iter()).map(|(u, w)| *u * *w).sum();
+                // The lobes' amplitudes at ωo, and the light around the mirror direction.
+                let mut a = [0.0f32; MAX_LOBES];
+                for (&o, &bw) in bl.iter().flat_map(|b| b.idx.iter().zip(&b.w)) {
+                    if bw != 0.0 {
+                        let bw = bw as f32;
+                        a.iter_mut().zip(&sh.amps[o as usize * lobe_count..][..lobe_count]).for_each(|(x, g)| *x += bw * g);
+                    }
+                }
+                let mut y = [0.0f32; SH];
+                sh_basis_into(m, &mut y);
+                let c1 = &inc.bounce[t * SH..(t + 1) * SH];
+                // The one-bounce light at m, band by band: a lobe weighs each band by its
+                // zonal factor.
+                let mut band = [Vec3::ZERO; BANDS];
+                for (q, (c, y)) in c1.iter().zip(&y).enumerate() {
+                    band[BAND_OF[q]] += *c * *y;
+                }
+                // The visible fractions of the wide lobes at m, all from the same texels.
+                let mut fraction = [0.0f32; MAX_LOBES];
+                if wide {
+                    i.lobe_visibility.lobe_visibilities_at(v, &at, &mut fraction);
+                }
+                for (k, src) in sources.iter().enumerate() {
+                    if a[k] == 0.0 {
+                        continue;
+                    }
+                    let light = match src {
+                        LobeSource::Sharp => {
+                            let seen = if i.visibility.visible(v, at.texel(bits_side)) { 1.0 } else { 0.0 };
+                            env.lookup_at(&at) * seen + band.iter().sum::<Vec3>()
+                        }
+                        LobeSource::Wide { env, vis, zonal } => {
+                            env.lookup_at(&at) * fraction[*vis] + band.iter().zip(zonal).map(|(b, z)| *b * *z).sum::<Vec3>()
+                        }
+                    };
+                    spec += light * a[k];
+                }
+                (diffuse, sh.ks * spec.max(Vec3::ZERO))
+            };
+            block.iter().zip(views.iter()).map(|(&v, view)| shade(v as usize, view, w)).collect::<Vec<_>>()
         })?;
+        let per: Vec<(Vec3, Vec3)> = blocks.into_iter().flatten().collect();
         let (mut dsum, mut ssum, mut shaded) = (0.0, 0.0, 0usize);
         let mut colors = vec![Vec3::ZERO; n];
         for (&v, (d, s)) in seen.iter().zip(&per) {

@@ -122,14 +122,17 @@ impl PortValue for DirectTransfer {
 /// Per vertex, the visible fraction of each specular lobe of non-zero width ([S] 5.3.1) over
 /// mirror directions d: a cube map of side `side` per lobe of vis_σ(d) = Σ_t g_σ(∠(d, ω_t))
 /// V(t) Ω_t / Σ_t g_σ Ω_t over the whole sphere (directions below the tangent plane count as
-/// hidden, as in the BRDF lobe they stand in for), quantised to u8 (value / 255). Maps of
-/// vertex v, lobe k at `maps[(v · lobes + k) · 6 side² ..]`; `sigmas` (radians) their widths,
-/// in the order of the `SpecularLobes` input, a 0° lobe left out: it reads the visibility bit
-/// of the mirror direction's texel (`Visibility::visible`).
+/// hidden, as in the BRDF lobe they stand in for), quantised to u8 (value / 255). Vertex v's
+/// maps at `maps[v · 6 side² · lobes ..]`, texel after texel (face, row, column), each
+/// texel's values of the lobes side by side: a lookup reads every lobe from the same two
+/// rows (one or two cache lines). `sigmas` (radians) their widths, in the order of the
+/// `SpecularLobes` input, a 0° lobe left out: it reads the visibility bit of the mirror
+/// direction's texel (`Visibility::visible`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LobeVisibility {
     pub side: u32,
     pub sigmas: Vec<f64>,
+    #[serde(with = "crate::types::byte_vec")]
     pub maps: Vec<u8>,
 }
 
@@ -147,30 +150,39 @@ impl LobeVisibility {
     /// The visible fraction of lobe map `k` of vertex `v` around the world mirror direction
     /// `d` (bilinear between texel centres on its face, as `CubeMap::lookup`).
     pub fn lobe_visibility(&self, v: usize, k: usize, d: Vec3) -> f32 {
-        self.lobe_visibility_at(v, k, &CubeAt::of(d))
+        let mut all = vec![0.0; self.sigmas.len()];
+        self.lobe_visibilities_at(v, &CubeAt::of(d), &mut all);
+        all[k]
     }
 
-    /// `lobe_visibility` at a direction already located.
-    pub fn lobe_visibility_at(&self, v: usize, k: usize, at: &CubeAt) -> f32 {
-        let (map, [r0, r1], [i0, i1], fx, fy) = self.taps(v, k, at);
-        let at = |r: usize, i: usize| map[r + i] as f32 / 255.0;
-        (at(r0, i0) * (1.0 - fx) + at(r0, i1) * fx) * (1.0 - fy) + (at(r1, i0) * (1.0 - fx) + at(r1, i1) * fx) * fy
+    /// Every lobe's `lobe_visibility` of vertex `v` at a direction already located, into
+    /// `out` (one per lobe map).
+    pub fn lobe_visibilities_at(&self, v: usize, at: &CubeAt, out: &mut [f32]) {
+        let (map, [r0, r1], [i0, i1], fx, fy) = self.taps(v, at);
+        let lobes = self.sigmas.len();
+        let texel = |r: usize, i: usize| &map[(r + i) * lobes..][..lobes];
+        let (a, b, c, d) = (texel(r0, i0), texel(r0, i1), texel(r1, i0), texel(r1, i1));
+        for (k, o) in out[..lobes].iter_mut().enumerate() {
+            let at = |t: &[u8]| t[k] as f32 / 255.0;
+            *o = (at(a) * (1.0 - fx) + at(b) * fx) * (1.0 - fy) + (at(c) * (1.0 - fx) + at(d) * fx) * fy;
+        }
     }
 
-    /// Asks the processor to fetch the two texel rows `lobe_visibility_at(v, k, at)` reads
+    /// Asks the processor to fetch the two texel rows `lobe_visibilities_at(v, at, …)` reads
     /// (the maps are read one vertex after another, far apart in memory: the fetch of the
     /// next vertices' rows overlaps the shading of this one's).
-    pub fn prefetch(&self, v: usize, k: usize, at: &CubeAt) {
-        let (map, [r0, r1], [i0, _], _, _) = self.taps(v, k, at);
-        crate::math::prefetch(&map[r0 + i0]);
-        crate::math::prefetch(&map[r1 + i0]);
+    pub fn prefetch(&self, v: usize, at: &CubeAt) {
+        let (map, [r0, r1], [i0, _], _, _) = self.taps(v, at);
+        let lobes = self.sigmas.len();
+        crate::math::prefetch(&map[(r0 + i0) * lobes]);
+        crate::math::prefetch(&map[(r1 + i0) * lobes]);
     }
 
-    /// Map `k` of vertex `v` and where the bilinear lookup at `at` reads it: the two rows'
-    /// starts, the two columns, the weights toward the second of each.
-    fn taps(&self, v: usize, k: usize, at: &CubeAt) -> (&[u8], [usize; 2], [usize; 2], f32, f32) {
-        let t = self.texels();
-        let map = &self.maps[(v * self.sigmas.len() + k) * t..][..t];
+    /// Vertex `v`'s maps and where the bilinear lookup at `at` reads them: the two rows'
+    /// starts, the two columns (in texels), the weights toward the second of each.
+    fn taps(&self, v: usize, at: &CubeAt) -> (&[u8], [usize; 2], [usize; 2], f32, f32) {
+        let per = self.texels() * self.sigmas.len();
+        let map = &self.maps[v * per..][..per];
         let (rows, cols, fx, fy) = at.taps(self.side as usize);
         (map, rows, cols, fx, fy)
     }
@@ -421,10 +433,14 @@ impl<'a> DirectSetup<'a> {
                 f
             })
             .collect();
+        let mut planar = vec![];
         for l in &self.lobes {
             let i = self.fractions.iter().position(|f| f.0 == l.from).expect("a fraction map per lobe side");
-            l.apply(&fractions[i], &mut out.maps);
+            l.apply(&fractions[i], &mut planar);
         }
+        // Texel by texel, the lobes' values side by side (`LobeVisibility`'s layout).
+        let texels = planar.len() / self.lobes.len().max(1);
+        out.maps = (0..texels).flat_map(|t| planar[t..].iter().step_by(texels).copied()).collect();
         out
     }
 }
@@ -568,7 +584,7 @@ pub fn chunk_of(setup: &DirectSetup, range: Range<usize>, cx: &RunCtx) -> Result
     Ok(c)
 }
 
-#[node(category = "ptt", sharded)]
+#[node(category = "ptt", version = 2, sharded)]
 impl TransferT0 {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         // The vertices and columns are known only from the inputs: the node checks itself.
@@ -974,6 +990,27 @@ mod tests {
         // Fewer terms per column where fewer coefficients are non-zero: a roof's vertex facing
         // down sees the few texels below the small floor.
         assert!((0..9).all(|k| one.0.column(0, k).0.len() <= 96));
+    }
+
+    /// The lobes' values of a texel lie side by side: a lookup at a texel's centre reads
+    /// each lobe's own byte there; the maps travel as one byte string and a cut one is refused.
+    #[test]
+    fn lobe_maps_interleave_their_lobes_texel_by_texel_and_survive_the_codec() {
+        let (side, lobes, vertices) = (2usize, 2usize, 2usize);
+        let per = 6 * side * side * lobes;
+        let maps: Vec<u8> = (0..vertices * per).map(|b| (b * 7 % 251) as u8).collect();
+        let lv = LobeVisibility { side: side as u32, sigmas: vec![0.1, 0.2], maps };
+        // The centre of face 0's first texel (+x face: u = −z/x, v = −y/x, both −½).
+        let d = Vec3::new(1.0, 0.5, 0.5);
+        for v in 0..vertices {
+            for k in 0..lobes {
+                let want = lv.maps[v * per + k] as f32 / 255.0;
+                assert!((lv.lobe_visibility(v, k, d) - want).abs() < 1e-6, "vertex {v}, lobe {k}");
+            }
+        }
+        let bytes = lv.encode();
+        assert_eq!(LobeVisibility::decode(&bytes).as_ref(), Some(&lv));
+        assert!(LobeVisibility::decode(&bytes[..bytes.len() - 5]).is_none());
     }
 
     #[test]

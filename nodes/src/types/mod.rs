@@ -38,6 +38,36 @@ pub use view_paths::ViewPaths;
 pub use volume::{Sampler, Volume, MAX_VOLUME_BYTES};
 pub use wavelets::{CodedWavelets, PointWavelets, MAX_WAVELET_SIDE};
 
+/// Serde of a `Vec<u8>` as one byte string (`#[serde(with = "crate::types::byte_vec")]`):
+/// through postcard the length and a copy, instead of one serde call per byte; a large
+/// array lands on large pages (`math::huge_pages`).
+pub(crate) mod byte_vec {
+    use serde::{de, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &[u8], s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_bytes(v)
+    }
+
+    struct V;
+
+    impl de::Visitor<'_> for V {
+        type Value = Vec<u8>;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            write!(f, "bytes")
+        }
+        fn visit_bytes<E: de::Error>(self, b: &[u8]) -> Result<Vec<u8>, E> {
+            let mut v = Vec::with_capacity(b.len());
+            crate::math::huge_pages(&v);
+            v.extend_from_slice(b);
+            Ok(v)
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<u8>, D::Error> {
+        d.deserialize_bytes(V)
+    }
+}
+
 /// Serde of a `Vec` of plain 4-byte words (`f32`, `u32`, `Vec3`, `[u32; 3]`, …) as one byte
 /// string, little-endian: `#[serde(with = "super::pod_vec")]`. Through postcard that is the
 /// length and a copy of the array, instead of one serde call per number.
@@ -79,6 +109,8 @@ pub(crate) mod pod_vec {
         }
         // Copied byte-wise: `b` need not be aligned for T.
         let mut v = vec![T::zeroed(); b.len() / size];
+        // A large array is read where its pages are not yet touched: back them with large pages.
+        crate::math::huge_pages(&v);
         bytemuck::cast_slice_mut::<T, u8>(&mut v).copy_from_slice(b);
         if cfg!(target_endian = "big") {
             bytemuck::cast_slice_mut::<T, u8>(&mut v).chunks_exact_mut(4).for_each(<[u8]>::reverse);
