@@ -119,6 +119,12 @@ fn lum(v: Vec3) -> f64 {
 
 impl PttRelight {
     fn sources<'a>(&self, i: &PttRelightIn<'a>) -> Result<Vec<LobeSource<'a>>, NodeError> {
+        if !i.lobe_visibility.covers(i.scene.positions.len()) {
+            return Err(NodeError::input(
+                "lobe_visibility",
+                format!("lacks maps for the scene's {} vertices: it must come from the same scene", i.scene.positions.len()),
+            ));
+        }
         if i.lobe_visibility.sigmas.len() > MAX_LOBES {
             return Err(NodeError::input(
                 "lobe_visibility",
@@ -489,6 +495,13 @@ mod tests {
         fewer.objects.clear();
         let e = run_on::<PttRelight>(&[], c.relight_inputs(&fewer, &inc, &c.env, &m)).expect_err("objects the scene lacks");
         assert!(e.to_string().contains("do not hold"), "{e}");
+        // Lobe maps of a scene with fewer vertices (the input after the lobes).
+        let mut inputs = c.relight_inputs(&s, &inc, &c.env, &m);
+        let mut lv = inputs[8].get::<LobeVisibility>().expect("the lobe maps").clone();
+        lv.maps.truncate(lv.maps.len() / 2);
+        inputs[8] = Value::new(lv);
+        let e = run_on::<PttRelight>(&[], inputs).expect_err("lobe maps of another scene");
+        assert!(e.to_string().contains("lacks maps"), "{e}");
     }
 
     /// The glossy plane under the blob sky, its material edited to Cook-Torrance (m, F0) on

@@ -178,6 +178,11 @@ impl LobeVisibility {
         crate::math::prefetch(&map[(r1 + i0) * lobes]);
     }
 
+    /// Whether it holds every lobe's map for `vertices` vertices.
+    pub fn covers(&self, vertices: usize) -> bool {
+        self.maps.len() == vertices * self.texels() * self.sigmas.len()
+    }
+
     /// Vertex `v`'s maps and where the bilinear lookup at `at` reads them: the two rows'
     /// starts, the two columns (in texels), the weights toward the second of each.
     fn taps(&self, v: usize, at: &CubeAt) -> (&[u8], [usize; 2], [usize; 2], f32, f32) {
