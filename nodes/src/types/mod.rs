@@ -109,7 +109,7 @@ pub(crate) mod pod_vec {
         }
         // Copied byte-wise: `b` need not be aligned for T.
         let mut v = vec![T::zeroed(); b.len() / size];
-        // A large array is read where its pages are not yet touched: back them with large pages.
+        // The new array's pages are not touched yet: a large one can still land on large pages.
         crate::math::huge_pages(&v);
         bytemuck::cast_slice_mut::<T, u8>(&mut v).copy_from_slice(b);
         if cfg!(target_endian = "big") {
