@@ -124,7 +124,8 @@ impl CubeAt {
 
     /// The bilinear taps between texel centres on a map of side `n`: the texel indices of
     /// the two rows' starts, the two columns, and the weights toward the second of each.
-    pub fn taps(&self, n: usize) -> ([usize; 2], [usize; 2], f32, f32) {
+    #[inline]
+    pub fn taps(&self, n: usize) -> Taps {
         let g = |x: f32| ((x + 1.0) * 0.5 * n as f32 - 0.5).clamp(0.0, (n - 1) as f32);
         let (x, y) = (g(self.u), g(self.v));
         let (i0, j0) = (x as usize, y as usize);
@@ -132,6 +133,10 @@ impl CubeAt {
         ([(self.face * n + j0) * n, (self.face * n + j1) * n], [i0, i1], x - i0 as f32, y - j0 as f32)
     }
 }
+
+/// Where a bilinear lookup reads a map of one side (`CubeAt::taps`): the texel indices of
+/// the two rows' starts, the two columns, and the weights toward the second of each.
+pub type Taps = ([usize; 2], [usize; 2], f32, f32);
 
 /// A cube map's texels borrowed from wherever they are held (a port value's own array),
 /// read as `CubeMap` reads its own.
@@ -170,8 +175,15 @@ impl CubeView<'_> {
     }
 
     /// `lookup` at a place already located.
+    #[inline]
     pub fn lookup_at(&self, at: &CubeAt) -> Vec3 {
-        let ([r0, r1], [i0, i1], fx, fy) = at.taps(self.n);
+        self.lookup_taps(at.taps(self.n))
+    }
+
+    /// `lookup_at` where the place's taps on a map of this side are known (several maps of
+    /// one side read at one place locate it once).
+    #[inline]
+    pub fn lookup_taps(&self, ([r0, r1], [i0, i1], fx, fy): Taps) -> Vec3 {
         let t = &self.texels;
         (t[r0 + i0] * (1.0 - fx) + t[r0 + i1] * fx) * (1.0 - fy) + (t[r1 + i0] * (1.0 - fx) + t[r1 + i1] * fx) * fy
     }

@@ -8,7 +8,7 @@ use super::screen_hits::ScreenHits;
 use super::transfer_t0::LobeVisibility;
 use super::types::{EnvLight, VertexColors, Visibility};
 use super::vertices::vertex_frame;
-use crate::math::cubemap::{CubeAt, CubeView};
+use crate::math::cubemap::{CubeAt, CubeView, Taps};
 use crate::math::sh::sh_basis_into;
 use crate::types::{Camera, Material, ObjectMaterial, ObjectMaterials, Scene};
 use glam::Vec3;
@@ -318,6 +318,15 @@ impl PttRelight {
                 if wide {
                     i.lobe_visibility.lobe_visibilities_at(v, &at, &mut fraction);
                 }
+                // The taps at m on the last side read (the wide lobes' maps share sides).
+                let mut taps: Option<(usize, Taps)> = None;
+                let mut lookup = |map: &CubeView| -> Vec3 {
+                    let t = match taps {
+                        Some((n, t)) if n == map.n => t,
+                        _ => taps.insert((map.n, at.taps(map.n))).1,
+                    };
+                    map.lookup_taps(t)
+                };
                 for (k, src) in sources.iter().enumerate() {
                     if a[k] == 0.0 {
                         continue;
@@ -325,28 +334,39 @@ impl PttRelight {
                     let light = match src {
                         LobeSource::Sharp => {
                             let seen = if i.visibility.visible(v, at.texel(bits_side)) { 1.0 } else { 0.0 };
-                            env.lookup_at(&at) * seen + band.iter().sum::<Vec3>()
+                            lookup(&env) * seen + band.iter().sum::<Vec3>()
                         }
                         LobeSource::Wide { env, vis, zonal } => {
-                            env.lookup_at(&at) * fraction[*vis] + band.iter().zip(zonal).map(|(b, z)| *b * *z).sum::<Vec3>()
+                            lookup(env) * fraction[*vis] + band.iter().zip(zonal).map(|(b, z)| *b * *z).sum::<Vec3>()
                         }
                     };
                     spec += light * a[k];
                 }
                 (diffuse, sh.ks * spec.max(Vec3::ZERO))
             };
-            block.iter().zip(views.iter()).map(|(&v, view)| shade(v as usize, view, w)).collect::<Vec<_>>()
+            // The block's colours, and its shaded vertices' count and luminance sums (summed
+            // over the blocks in order: the same on any thread count).
+            let mut sums = (0usize, 0.0, 0.0);
+            let colors: Vec<Vec3> = block
+                .iter()
+                .zip(views.iter())
+                .map(|(&v, view)| {
+                    let (d, s) = shade(v as usize, view, w);
+                    if p.slot[v as usize] != NO_SLOT {
+                        sums = (sums.0 + 1, sums.1 + lum(d), sums.2 + lum(s));
+                    }
+                    d + s
+                })
+                .collect();
+            (colors, sums)
         })?;
-        let per: Vec<(Vec3, Vec3)> = blocks.into_iter().flatten().collect();
         let (mut dsum, mut ssum, mut shaded) = (0.0, 0.0, 0usize);
         let mut colors = vec![Vec3::ZERO; n];
-        for (&v, (d, s)) in seen.iter().zip(&per) {
-            if p.slot[v as usize] != NO_SLOT {
-                shaded += 1;
-                dsum += lum(*d);
-                ssum += lum(*s);
+        for (b, (block, sums)) in blocks.iter().enumerate() {
+            for (&v, c) in seen[b * BLOCK..].iter().zip(block) {
+                colors[v as usize] = *c;
             }
-            colors[v as usize] = *d + *s;
+            (shaded, dsum, ssum) = (shaded + sums.0, dsum + sums.1, ssum + sums.2);
         }
         cx.metric("vertices", n as f64);
         cx.metric("seen", seen.len() as f64);
