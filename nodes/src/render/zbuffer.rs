@@ -306,15 +306,17 @@ impl Projection {
     }
 
     /// Per vertex, the ends of the spans its position gives for samples in the box `ext`
-    /// (`span_first` and `span_end` along x, then y); `BEHIND` set in the first when the
-    /// vertex lies nearer than the near plane (it has no position).
-    fn vertex_spans(&self, ext: [f64; 4]) -> Vec<[u32; 4]> {
+    /// (`span_first` and `span_end` along x, then y; at most `MAX_SIDE`, so 16 bits each:
+    /// half the bytes the triangles gather them from), or `BEHIND` when the vertex lies
+    /// nearer than the near plane (it has no position).
+    fn vertex_spans(&self, ext: [f64; 4]) -> Vec<[u16; 4]> {
         let (w, h, near) = (self.width, self.height, self.near);
         let at = |(c, xy): &(Vec3, [f64; 2])| {
             if c.z < near {
-                return [BEHIND, 0, 0, 0];
+                return BEHIND;
             }
             [span_first(xy[0], ext[1], w), span_end(xy[0], ext[0], w), span_first(xy[1], ext[3], h), span_end(xy[1], ext[2], h)]
+                .map(|v| v as u16)
         };
         self.verts.par_iter().map(at).collect()
     }
@@ -329,14 +331,14 @@ impl Projection {
         scene: &Scene,
         t: usize,
         ext: [f64; 4],
-        spans: &[[u32; 4]],
+        spans: &[[u16; 4]],
         keep: &impl Fn([u32; 4]) -> bool,
         mut out: impl FnMut(ScreenTri),
     ) {
         let (width, height, verts) = (self.width, self.height, &self.verts);
         let ids = scene.triangles[t];
         let s = ids.map(|i| spans[i as usize]);
-        if (s[0][0] | s[1][0] | s[2][0]) & BEHIND == 0 {
+        if (s[0][0] <= s[0][1]) & (s[1][0] <= s[1][1]) & (s[2][0] <= s[2][1]) {
             // The span from the corners' (most triangles reach no pixel of a sparse
             // pattern, and stop here).
             let box_ = [
@@ -344,7 +346,8 @@ impl Projection {
                 s[0][1].max(s[1][1]).max(s[2][1]),
                 s[0][2].min(s[1][2]).min(s[2][2]),
                 s[0][3].max(s[1][3]).max(s[2][3]),
-            ];
+            ]
+            .map(u32::from);
             if box_[0] >= box_[1] || box_[2] >= box_[3] || !keep(box_) {
                 return;
             }
@@ -383,8 +386,9 @@ impl Projection {
     }
 }
 
-/// Marks a vertex behind the near plane in `vertex_spans`.
-const BEHIND: u32 = 1 << 31;
+/// A vertex behind the near plane in `vertex_spans`: its x span's first past its end, which
+/// no position gives (`span_first` ≤ `span_end` for one coordinate, clamped or not).
+const BEHIND: [u16; 4] = [1, 0, 0, 0];
 
 impl Rasterizer {
     /// Projects and bins `scene`'s triangles for `camera` with `spp` samples per pixel; the
@@ -795,5 +799,27 @@ mod tests {
         };
         assert_eq!(centre(&near_first), "near");
         assert_eq!(centre(&far_first), "near");
+    }
+
+    #[test]
+    fn a_coordinates_span_never_starts_past_its_end_so_behind_marks_no_real_vertex() {
+        // `BEHIND` is a span whose first lies past its end: `span_first` ≤ `span_end` for any
+        // coordinate (inside, outside, not finite), pattern extent and side, both within the
+        // 16 bits `vertex_spans` keeps.
+        let u = |k: usize, dim: u32| crate::math::rng::uniform(11, k as u64, dim) as f64;
+        let specials = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, -0.0, 0.0, 1e300, -1e300];
+        for k in 0..200_000 {
+            let n = [1, 2, 3, 255, 256, MAX_SIDE][k % 6];
+            let x = match k % 10 {
+                0 => specials[k / 10 % specials.len()],
+                1 => (u(k, 0) * 3.0 - 1.0) * n as f64 * 10.0,
+                _ => u(k, 0) * (n as f64 + 2.0) - 1.0,
+            };
+            let (a, b) = (u(k, 1), u(k, 2));
+            let (from, to) = (a.min(b), a.max(b));
+            let (first, end) = (span_first(x, to, n), span_end(x, from, n));
+            assert!(first <= end && end as usize <= n && n <= u16::MAX as usize, "x {x} from {from} to {to} n {n}: {first}..{end}");
+        }
+        assert!(BEHIND[0] > BEHIND[1]);
     }
 }
