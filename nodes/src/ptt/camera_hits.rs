@@ -194,11 +194,12 @@ impl CameraHits {
             let (t, u, v, z) = hits.single();
             (t.to_vec(), u.to_vec(), v.to_vec(), z.to_vec())
         })?;
+        // Joined a band's slice at a time (one copy each, not an element at a time).
         Ok(Centres {
-            tri: bands.iter().flat_map(|b| b.0.iter().copied()).collect(),
-            b1: bands.iter().flat_map(|b| b.1.iter().copied()).collect(),
-            b2: bands.iter().flat_map(|b| b.2.iter().copied()).collect(),
-            inv_depth: bands.iter().flat_map(|b| b.3.iter().copied()).collect(),
+            tri: bands.iter().map(|b| &b.0[..]).collect::<Vec<_>>().concat(),
+            b1: bands.iter().map(|b| &b.1[..]).collect::<Vec<_>>().concat(),
+            b2: bands.iter().map(|b| &b.2[..]).collect::<Vec<_>>().concat(),
+            inv_depth: bands.iter().map(|b| &b.3[..]).collect::<Vec<_>>().concat(),
         })
     }
 
