@@ -114,7 +114,7 @@ fn edit(bencher: divan::Bencher, kind: &str) {
         let report = e.run(g, &opts).unwrap().report;
         if std::env::var_os("PTT_BENCH_NODES").is_some() {
             let ran: Vec<String> =
-                report.nodes.iter().filter(|n| n.status == "ran").map(|n| format!("{} {:.1}", n.id, n.wall_ms)).collect();
+                report.nodes.iter().filter(|n| n.status == "ran").map(|n| format!("{} {:.2}", n.id, n.wall_ms)).collect();
             eprintln!("{kind}: {}", ran.join(", "));
         }
         report.ran

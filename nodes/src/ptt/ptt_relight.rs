@@ -244,8 +244,8 @@ impl PttRelight {
         let (lobe_count, same_disk) = (i.lobes.lobes(), i.lobes.disk == i.brdf.disk);
         let wide = sources.iter().any(|s| matches!(s, LobeSource::Wide { .. }));
         // What a seen vertex needs of the view, found for a block of vertices before any is
-        // shaded, so that the block's visibility reads (far apart in memory) are fetched
-        // while the others are found and shaded.
+        // shaded, so that the block's visibility and incident-light reads (far apart in
+        // memory) are fetched while the others are found and shaded.
         let view_of = |v: usize| -> Seen {
             let Some(o) = owner(v) else { return Seen::Dark };
             let Some(sh) = &shadings[o as usize] else { return Seen::Fixed(o) };
@@ -259,6 +259,12 @@ impl PttRelight {
             crate::math::prefetch(&i.visibility.of(v)[at.texel(bits_side) / 32]);
             if wide {
                 i.lobe_visibility.prefetch(v, &at);
+            }
+            // And the slot's rows of the incident light: one-bounce SH (192 bytes) and the
+            // tensor's columns, read far apart once the seen vertices are sparse.
+            // (every fourth colour, 48 bytes apart, touches each cache line they span).
+            for row in [&inc.bounce[t as usize * SH..][..SH], &inc.tensor[t as usize * cols..][..cols]] {
+                row.iter().step_by(4).chain(row.last()).for_each(crate::math::prefetch);
             }
             Seen::Glossy { o, t, local: vertex_frame(nv).to_local(wo), m, at }
         };
