@@ -260,9 +260,9 @@ impl PttRelight {
             if wide {
                 i.lobe_visibility.prefetch(v, &at);
             }
-            // And the slot's rows of the incident light: one-bounce SH (192 bytes) and the
-            // tensor's columns, read far apart once the seen vertices are sparse.
-            // (every fourth colour, 48 bytes apart, touches each cache line they span).
+            // And the slot's rows of the incident light, far apart too once the seen vertices
+            // are sparse: its one-bounce SH (192 bytes) and the tensor's columns, every
+            // fourth colour (48 bytes apart, so each cache line the rows span is fetched).
             for row in [&inc.bounce[t as usize * SH..][..SH], &inc.tensor[t as usize * cols..][..cols]] {
                 row.iter().step_by(4).chain(row.last()).for_each(crate::math::prefetch);
             }
