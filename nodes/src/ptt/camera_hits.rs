@@ -66,17 +66,21 @@ inputs!(pub CameraHitsIn { scene: Scene, camera: Camera });
 outputs!(pub CameraHitsOut { hits: ScreenHits });
 
 /// One band's pixels, laid out as `ScreenHits`' arrays are (so that joining the bands
-/// copies slices): entries per pixel, their vertices and weights, the missed fraction and
-/// direction, the summed fraction of each pixel that hit, and the pixels supersampled.
+/// copies slices): where each pixel's entries end, their vertices and weights, the missed
+/// fraction and direction, the summed fraction of each pixel that hit, the pixels
+/// supersampled, and the vertices seen.
 #[derive(Default)]
 struct Band {
-    counts: Vec<u32>,
+    /// Per pixel, the end of its entries among the band's.
+    ends: Vec<u32>,
     vertex: Vec<u32>,
     weight: Vec<f32>,
     miss: Vec<f32>,
     miss_dir: Vec<Vec3>,
     covered: f64,
     supersampled: usize,
+    /// The vertices with a weight, as bits (64 a word).
+    seen: Vec<u64>,
 }
 
 /// What each pixel's centre sample sees, over the whole image (adaptive sampling): its
@@ -127,7 +131,7 @@ impl Band {
             self.miss.push(0.0);
             self.miss_dir.push(Vec3::ZERO);
         }
-        self.counts.push((self.vertex.len() - start) as u32);
+        self.ends.push(self.vertex.len() as u32);
     }
 
     /// Adds pixel (x, y) from its samples' triangles and barycentrics (b1, b2) at `pattern`'s
@@ -173,7 +177,7 @@ impl Band {
                 self.add_weight(start, v, wt * inv);
             }
         }
-        self.counts.push((self.vertex.len() - start) as u32);
+        self.ends.push(self.vertex.len() as u32);
         let (m, d) = if missed > 0 {
             // The ray through the missed samples' mean position.
             let m = missed as f32;
@@ -194,12 +198,12 @@ impl CameraHits {
             let (t, u, v, z) = hits.single();
             (t.to_vec(), u.to_vec(), v.to_vec(), z.to_vec())
         })?;
-        // Joined a band's slice at a time (one copy each, not an element at a time).
+        // Joined on both threads, a band's slice at a time.
         Ok(Centres {
-            tri: bands.iter().map(|b| &b.0[..]).collect::<Vec<_>>().concat(),
-            b1: bands.iter().map(|b| &b.1[..]).collect::<Vec<_>>().concat(),
-            b2: bands.iter().map(|b| &b.2[..]).collect::<Vec<_>>().concat(),
-            inv_depth: bands.iter().map(|b| &b.3[..]).collect::<Vec<_>>().concat(),
+            tri: joined(bands.iter().map(|b| &b.0[..])),
+            b1: joined(bands.iter().map(|b| &b.1[..])),
+            b2: joined(bands.iter().map(|b| &b.2[..])),
+            inv_depth: joined(bands.iter().map(|b| &b.3[..])),
         })
     }
 
@@ -290,6 +294,47 @@ impl EdgePixels {
     }
 }
 
+/// `parts` joined end to end, each element mapped by `f` (with its part's index) on
+/// rayon's threads, a part per task: the same bytes as a sequential join.
+fn concat_par<T: Copy + Sync, U: Send>(parts: &[&[T]], f: impl Fn(usize, T) -> U + Sync) -> Vec<U> {
+    let total = parts.iter().map(|p| p.len()).sum();
+    let mut out: Vec<U> = Vec::with_capacity(total);
+    let mut places = Vec::with_capacity(parts.len());
+    let mut rest = &mut out.spare_capacity_mut()[..total];
+    for p in parts {
+        let (place, tail) = rest.split_at_mut(p.len());
+        places.push(place);
+        rest = tail;
+    }
+    places.into_par_iter().zip(parts).enumerate().for_each(|(k, (place, part))| {
+        place.iter_mut().zip(part.iter()).for_each(|(o, x)| {
+            o.write(f(k, *x));
+        });
+    });
+    // SAFETY: the places split the first `total` of the spare capacity without gaps, one
+    // per part of the same length, and every one of them was written above.
+    unsafe { out.set_len(total) };
+    out
+}
+
+/// `concat_par` of the parts as they are.
+fn joined<'a, T: Copy + Send + Sync + 'a>(parts: impl Iterator<Item = &'a [T]>) -> Vec<T> {
+    concat_par(&parts.collect::<Vec<_>>(), |_, x| x)
+}
+
+/// The vertices whose bit is set in `bits` (64 a word), ascending.
+fn seen_list(bits: &[u64]) -> Vec<u32> {
+    let mut out = Vec::with_capacity(bits.iter().map(|w| w.count_ones() as usize).sum());
+    for (k, &w) in bits.iter().enumerate() {
+        let mut w = w;
+        while w != 0 {
+            out.push(k as u32 * 64 + w.trailing_zeros());
+            w &= w - 1;
+        }
+    }
+    out
+}
+
 /// Per place, 1 where the centres `a` and `b` (objects, inverse depths) differ: another
 /// object, nothing where the other sees something, or depths more than `step` apart
 /// (relative to the nearer); 0 elsewhere. Symmetric in `a` and `b`; without branches, so
@@ -364,7 +409,7 @@ impl CameraHits {
                 }
             };
             let mut out = Band {
-                counts: Vec::with_capacity(pixels),
+                ends: Vec::with_capacity(pixels),
                 miss: Vec::with_capacity(pixels),
                 miss_dir: Vec::with_capacity(pixels),
                 ..Band::default()
@@ -386,38 +431,33 @@ impl CameraHits {
                     }
                 }
             }
+            out.seen = vec![0u64; scene.positions.len().div_ceil(64)];
+            out.vertex.iter().for_each(|&v| out.seen[v as usize / 64] |= 1 << (v % 64));
             out
         })?;
+        // The bands joined on both threads (each band's slices copied into their place), and
+        // the vertices seen by any band.
         let total: usize = bands.iter().map(|b| b.vertex.len()).sum();
-        let mut out = ScreenHits {
+        let first: Vec<u32> = bands.iter().scan(0, |at, b| Some(std::mem::replace(at, *at + b.vertex.len() as u32))).collect();
+        let mut offsets = vec![0];
+        offsets.extend(concat_par(&bands.iter().map(|b| &b.ends[..]).collect::<Vec<_>>(), |k, end| first[k] + end));
+        let mut seen = vec![0u64; scene.positions.len().div_ceil(64)];
+        for band in &bands {
+            seen.iter_mut().zip(&band.seen).for_each(|(s, b)| *s |= b);
+        }
+        let out = ScreenHits {
             width: w as u32,
             height: h as u32,
             vertices: scene.positions.len() as u32,
-            offsets: Vec::with_capacity(w * h + 1),
-            vertex: Vec::with_capacity(total),
-            weight: Vec::with_capacity(total),
-            miss: Vec::with_capacity(w * h),
-            miss_dir: Vec::with_capacity(w * h),
-            seen: vec![],
+            offsets,
+            vertex: joined(bands.iter().map(|b| &b.vertex[..])),
+            weight: joined(bands.iter().map(|b| &b.weight[..])),
+            miss: joined(bands.iter().map(|b| &b.miss[..])),
+            miss_dir: joined(bands.iter().map(|b| &b.miss_dir[..])),
+            seen: seen_list(&seen),
         };
-        out.offsets.push(0);
-        let (mut covered, mut supersampled) = (0.0, 0);
-        let mut seen = vec![false; scene.positions.len()];
-        for band in bands {
-            let mut at = *out.offsets.last().unwrap();
-            out.offsets.extend(band.counts.iter().map(|&n| {
-                at += n;
-                at
-            }));
-            band.vertex.iter().for_each(|&v| seen[v as usize] = true);
-            out.vertex.extend_from_slice(&band.vertex);
-            out.weight.extend_from_slice(&band.weight);
-            out.miss.extend_from_slice(&band.miss);
-            out.miss_dir.extend_from_slice(&band.miss_dir);
-            covered += band.covered;
-            supersampled += band.supersampled;
-        }
-        out.seen = (0..seen.len() as u32).filter(|&v| seen[v as usize]).collect();
+        let covered = bands.iter().fold(0.0, |sum, b| sum + b.covered);
+        let supersampled: usize = bands.iter().map(|b| b.supersampled).sum();
         cx.metric("spp", spp as f64);
         cx.metric("triangles", raster.triangles() as f64);
         if self.adaptive {
