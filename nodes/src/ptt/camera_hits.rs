@@ -408,8 +408,12 @@ impl CameraHits {
                     None
                 }
             };
+            // Room for three corners a pixel (a centre sample on a triangle; edge pixels,
+            // a few in a band, may grow it).
             let mut out = Band {
                 ends: Vec::with_capacity(pixels),
+                vertex: Vec::with_capacity(3 * pixels),
+                weight: Vec::with_capacity(3 * pixels),
                 miss: Vec::with_capacity(pixels),
                 miss_dir: Vec::with_capacity(pixels),
                 ..Band::default()
