@@ -88,10 +88,45 @@ impl RunReport {
     }
 }
 
-/// Peak resident set size from /proc (None where unavailable).
+/// Peak resident set size (None where unavailable), from `getrusage`: one system call,
+/// where reading /proc/self/status (the same figure, VmHWM) took 72 µs of a 7 ms
+/// interactive edit.
+#[cfg(unix)]
 pub fn peak_rss_bytes() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
+    let mut usage = std::mem::MaybeUninit::<libc::rusage>::zeroed();
+    // SAFETY: getrusage writes a `rusage` into the pointer it is given, which points to
+    // one; it reads nothing from it.
+    let usage = unsafe {
+        if libc::getrusage(libc::RUSAGE_SELF, usage.as_mut_ptr()) != 0 {
+            return None;
+        }
+        usage.assume_init()
+    };
+    // Kilobytes on Linux, bytes on macOS.
+    let unit = if cfg!(target_os = "macos") { 1 } else { 1024 };
+    u64::try_from(usage.ru_maxrss).ok().map(|v| v * unit)
+}
+
+#[cfg(not(unix))]
+pub fn peak_rss_bytes() -> Option<u64> {
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn the_peak_resident_size_is_the_kernels_high_water_mark() {
+        // 64 MiB touched: the peak holds it.
+        let big = vec![1u8; 64 << 20];
+        assert_eq!(big.iter().step_by(4096).map(|&b| b as usize).sum::<usize>(), (64 << 20) / 4096);
+        let peak = peak_rss_bytes().expect("getrusage answers on Linux");
+        assert!(peak >= 64 << 20, "{peak}");
+        // The same figure /proc gives (VmHWM), up to what this thread does in between.
+        let status = std::fs::read_to_string("/proc/self/status").unwrap();
+        let kb: u64 = status.lines().find(|l| l.starts_with("VmHWM:")).unwrap().split_whitespace().nth(1).unwrap().parse().unwrap();
+        assert!((kb * 1024).abs_diff(peak) < 8 << 20, "{peak} against VmHWM {kb} kB");
+    }
 }
