@@ -272,7 +272,11 @@ pub struct Projection {
     rays: CameraRays,
     /// Nearer than this, geometry is cut.
     near: f32,
-    verts: Vec<(Vec3, [f64; 2])>,
+    /// Per vertex, camera coordinates and (in front of the near plane) pixel position, apart:
+    /// the triangles' set-up gathers the positions of all it looks at and the depths of only
+    /// those it keeps, and the positions alone stay in the second-level cache.
+    cam: Vec<Vec3>,
+    xy: Vec<[f64; 2]>,
     /// Leave out the triangles that face away from the camera.
     cull: bool,
 }
@@ -285,7 +289,7 @@ impl Projection {
         let rays = CameraRays::new(camera);
         // A hundred-thousandth of the distance to the target.
         let near = (camera.target - camera.origin).length() * 1e-5;
-        let verts = scene
+        let (cam, xy) = scene
             .positions
             .par_iter()
             .map(|&p| {
@@ -293,8 +297,8 @@ impl Projection {
                 let (x, y) = if c.z >= near { rays.to_pixel(c) } else { (0.0, 0.0) };
                 (c, [x, y])
             })
-            .collect();
-        Projection { width, height, rays, near, verts, cull: false }
+            .unzip();
+        Projection { width, height, rays, near, cam, xy, cull: false }
     }
 
     /// The same projection, leaving out (`on`) the triangles whose corners turn clockwise
@@ -311,14 +315,14 @@ impl Projection {
     /// nearer than the near plane (it has no position).
     fn vertex_spans(&self, ext: [f64; 4]) -> Vec<[u16; 4]> {
         let (w, h, near) = (self.width, self.height, self.near);
-        let at = |(c, xy): &(Vec3, [f64; 2])| {
+        let at = |(c, xy): (&Vec3, &[f64; 2])| {
             if c.z < near {
                 return BEHIND;
             }
             [span_first(xy[0], ext[1], w), span_end(xy[0], ext[0], w), span_first(xy[1], ext[3], h), span_end(xy[1], ext[2], h)]
                 .map(|v| v as u16)
         };
-        self.verts.par_iter().map(at).collect()
+        self.cam.par_iter().zip(&self.xy).map(at).collect()
     }
 }
 
@@ -335,7 +339,7 @@ impl Projection {
         keep: &impl Fn([u32; 4]) -> bool,
         mut out: impl FnMut(ScreenTri),
     ) {
-        let (width, height, verts) = (self.width, self.height, &self.verts);
+        let (width, height) = (self.width, self.height);
         let ids = scene.triangles[t];
         let s = ids.map(|i| spans[i as usize]);
         if (s[0][0] <= s[0][1]) & (s[1][0] <= s[1][1]) & (s[2][0] <= s[2][1]) {
@@ -351,15 +355,14 @@ impl Projection {
             if box_[0] >= box_[1] || box_[2] >= box_[3] || !keep(box_) {
                 return;
             }
-            let corners = ids.map(|i| verts[i as usize]);
-            if let Some(st) =
-                Rasterizer::setup(t as u32, corners.map(|c| c.1), corners.map(|c| c.0.z), CORNER_ATTR, box_, (width, height), self.cull)
-            {
+            let xy = ids.map(|i| self.xy[i as usize]);
+            let z = || ids.map(|i| self.cam[i as usize].z);
+            if let Some(st) = Rasterizer::setup(t as u32, xy, z, CORNER_ATTR, box_, (width, height), self.cull) {
                 out(st);
             }
             return;
         }
-        let poly = [0, 1, 2].map(|k| (verts[ids[k] as usize].0, CORNER_ATTR[k]));
+        let poly = [0, 1, 2].map(|k| (self.cam[ids[k] as usize], CORNER_ATTR[k]));
         let (clipped, n) = clip_near(&poly, self.near);
         // A fan over the clipped polygon: none, one or two triangles.
         for k in 1..n.max(2) - 1 {
@@ -379,7 +382,8 @@ impl Projection {
             if box_[0] >= box_[1] || box_[2] >= box_[3] || !keep(box_) {
                 continue;
             }
-            if let Some(st) = Rasterizer::setup(t as u32, xy, c.map(|(p, _)| p.z), c.map(|(_, at)| at), box_, (width, height), self.cull) {
+            if let Some(st) = Rasterizer::setup(t as u32, xy, || c.map(|(p, _)| p.z), c.map(|(_, at)| at), box_, (width, height), self.cull)
+            {
                 out(st);
             }
         }
@@ -453,7 +457,7 @@ impl Rasterizer {
         Rasterizer { width, height, pattern, chunks, bin_start, bin_tris }
     }
 
-    /// A projected triangle with corners at pixel positions `xy`, camera depths `z` and
+    /// A projected triangle with corners at pixel positions `xy`, camera depths `z()` and
     /// scene-triangle barycentrics `attr`, drawn in the pixels of `box_` (columns x0..x1,
     /// rows y0..y1: those whose samples can reach its bounds, non-empty); none when
     /// degenerate, or facing away from the camera when `cull`. With one sample a pixel, a triangle smaller than a pixel usually has
@@ -461,7 +465,7 @@ impl Rasterizer {
     fn setup(
         tri: u32,
         xy: [[f64; 2]; 3],
-        z: [f32; 3],
+        z: impl FnOnce() -> [f32; 3],
         attr: [[f64; 2]; 3],
         box_: [u32; 4],
         (width, height): (usize, usize),
@@ -486,7 +490,7 @@ impl Rasterizer {
         }
         let attr = attr.map(|at| [at[0] as f32, at[1] as f32]);
         let [x0, x1, y0, y1] = box_.map(|v| v as u16);
-        Some(ScreenTri { tri, a, b, c: cc, inv_z: z.map(|z| 1.0 / z), attr, origin: origin.map(|o| o as u16), x0, x1, y0, y1 })
+        Some(ScreenTri { tri, a, b, c: cc, inv_z: z().map(|z| 1.0 / z), attr, origin: origin.map(|o| o as u16), x0, x1, y0, y1 })
     }
 
     /// The image's width in pixels.
