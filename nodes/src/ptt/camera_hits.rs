@@ -539,6 +539,20 @@ mod tests {
     }
 
     #[test]
+    fn the_parallel_join_is_the_sequential_one_and_the_seen_bits_list_ascending() {
+        let parts: [&[u32]; 4] = [&[1, 2, 3], &[], &[4], &[5, 6]];
+        assert_eq!(joined(parts.iter().copied()), parts.concat());
+        assert_eq!(concat_par(&parts, |k, x| (k, x)), vec![(0, 1), (0, 2), (0, 3), (2, 4), (3, 5), (3, 6)]);
+        assert!(joined::<u32>(std::iter::empty()).is_empty());
+        let mut bits = vec![0u64; 3];
+        for v in [0u32, 63, 64, 130, 5] {
+            bits[v as usize / 64] |= 1 << (v % 64);
+        }
+        assert_eq!(seen_list(&bits), vec![0, 5, 63, 64, 130]);
+        assert!(seen_list(&[0, 0]).is_empty());
+    }
+
+    #[test]
     fn bytes_do_not_depend_on_threads_and_the_seed_moves_the_samples() {
         let s = ball();
         let a = hits(&s, &[("spp", i(4)), ("seed", i(3))]);
