@@ -1,5 +1,6 @@
 //! Shared math used by several nodes (one place for each piece).
 
+pub mod atan;
 pub mod cpca;
 pub mod cta;
 pub mod cube_haar;

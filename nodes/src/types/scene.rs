@@ -156,6 +156,23 @@ impl Scene {
         }
     }
 
+    /// `environment_radiance` of each of `dirs`, into `out` (cleared first), a map's
+    /// through `EnvMap::eval_many_fast` (a polynomial atan2; the path tracer keeps the
+    /// library's).
+    pub fn environment_radiance_many_fast(&self, dirs: &[Vec3], out: &mut Vec<Vec3>) {
+        match &self.environment {
+            Some(Environment::Map(m)) => m.eval_many_fast(dirs, out),
+            other => {
+                let c = match other {
+                    Some(Environment::Constant(c)) => *c,
+                    _ => Vec3::ZERO,
+                };
+                out.clear();
+                out.resize(dirs.len(), c);
+            }
+        }
+    }
+
     /// Corner positions of triangle `t`.
     pub fn corners(&self, t: usize) -> [Vec3; 3] {
         self.triangles[t].map(|i| self.positions[i as usize])
