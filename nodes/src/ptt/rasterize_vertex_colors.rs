@@ -10,8 +10,9 @@ use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, Port
 /// Renders per-vertex radiance to an image ([S] chapter 5: the transfer tensors relight the
 /// vertices, and each pixel interpolates them): each pixel is the environment of `scene`
 /// seen where its missing samples look, times their fraction (black with `background`
-/// off; the sky's lat-long coordinates through a polynomial atan2 within 3.2e-7 rad of the
-/// library's, which halved this node's time on envlit), plus the vertices' colours weighted as `CameraHits` found them (the samples'
+/// off; a band's sky directions are turned into lat-long coordinates together, through a
+/// polynomial atan2 within 3.2e-7 rad of the library's, which halved this node's time on
+/// envlit), plus the vertices' colours weighted as `CameraHits` found them (the samples'
 /// barycentrics over the samples per pixel, antialiased with its box filter), summed in the
 /// hits' order: the same bytes on any thread count. The camera and the samples live in
 /// `hits`, so a colour or sky edit re-runs only this weighted sum (wire the turned sky's
