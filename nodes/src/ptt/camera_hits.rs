@@ -3,7 +3,7 @@
 use super::screen_hits::ScreenHits;
 use crate::render::camera::CameraRays;
 use crate::render::zbuffer::{slots_per_pixel, BandHits, Projection, Rasterizer, BAND_ROWS, MAX_SIDE, MISS, SKIP, SLOT_BYTES};
-use crate::types::{Camera, Scene};
+use crate::types::{Camera, Scene, TrianglePlanes};
 use glam::Vec3;
 use rayon::prelude::*;
 use relume_core::memory::fmt_bytes;
@@ -31,7 +31,9 @@ use std::ops::Range;
 /// With `cull_back_faces` on, triangles whose corners turn clockwise on screen (the back
 /// faces of counter-clockwise meshes) are left out before they are set up: exact where every
 /// mesh is closed, or open only where the camera cannot look in (on envlit, 25,402 triangles
-/// drawn at the centres instead of 44,467).
+/// drawn at the centres instead of 44,467). Those whose plane passes clearly behind the eye
+/// are turned away by the scene's triangle planes (found on the first run, kept with the
+/// scene) before their corners are read.
 ///
 /// Only the geometry and the camera reach it: wire the scene as loaded, not the turned
 /// sky, and a sky edit leaves it alone. Runs when the camera or the geometry changes, not
@@ -365,7 +367,10 @@ impl CameraHits {
         if w > MAX_SIDE || h > MAX_SIDE {
             return Err(NodeError::input("camera", format!("{w} × {h} pixels: the z-buffer draws at most {MAX_SIDE} pixels a side")));
         }
+        // (Culling, the scene's triangle planes are kept with it once found.)
+        let planes = if self.cull_back_faces { TrianglePlanes::bytes_for(scene.triangles.len()) as u64 } else { 0 };
         let need = scene.triangles.len() as u64 * 2 * 200
+            + planes
             + pixels * (slots_per_pixel(spp) * SLOT_BYTES) as u64
             + if self.adaptive { pixels * CENTRE_BYTES } else { 0 }
             + ScreenHits::bytes(pixels, pixels * 3, 0);

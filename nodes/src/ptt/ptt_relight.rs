@@ -248,6 +248,9 @@ impl PttRelight {
         // memory) are fetched while the others are found and shaded.
         let view_of = |v: usize| -> Seen {
             let Some(o) = owner(v) else { return Seen::Dark };
+            // Every shaded vertex reads its irradiance, 12 bytes of an array the seen vertices
+            // are sparse in.
+            crate::math::prefetch(&inc.irradiance[v]);
             let Some(sh) = &shadings[o as usize] else { return Seen::Fixed(o) };
             let (t, nv) = (p.slot[v], p.normals[v]);
             let wo = (eye - scene.positions[v]).normalize_or_zero();

@@ -23,6 +23,7 @@ impl SceneBuilder {
                 lights: vec![],
                 environment: None,
                 camera,
+                derived: Default::default(),
             },
         }
     }

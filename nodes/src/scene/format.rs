@@ -410,6 +410,7 @@ impl Builder {
             lights: self.lights,
             environment: self.environment,
             camera: self.camera.expect("camera is required"),
+            derived: Default::default(),
         };
         if !scene.has_lights() {
             notes.push("the scene has no light: every image of it is black".into());

@@ -3,6 +3,7 @@
 
 use super::material::Material;
 use super::pod_vec;
+use super::triangle_planes::{SceneDerived, TrianglePlanes};
 use crate::math::sampling::Bilinear2D;
 use glam::{Vec2, Vec3};
 use relume_core::{codec, PortValue};
@@ -128,9 +129,18 @@ pub struct Scene {
     pub lights: Vec<Light>,
     pub environment: Option<Environment>,
     pub camera: Camera,
+    /// What is derived from the geometry on first use (`triangle_planes`); not serialised.
+    #[serde(skip)]
+    pub derived: SceneDerived,
 }
 
 impl Scene {
+    /// Every triangle's plane, found on the first call and kept with the scene (16 bytes a
+    /// triangle; a clone finds its own).
+    pub fn triangle_planes(&self) -> &TrianglePlanes {
+        self.derived.planes(self)
+    }
+
     /// The dynamic objects as the relighting pipelines edit them: (name, scene object indices),
     /// in order of first appearance. Dynamic objects with the same named material form one
     /// group named after the material; others are a group of their own, named after the object.
