@@ -110,30 +110,42 @@ impl Band {
         }
     }
 
-    /// Adds pixel (x, y) from its one sample at the centre, on triangle `tri` (or `MISS`) at
-    /// barycentrics (b1, b2): as `add_pixel` with that sample alone.
-    fn add_centre(&mut self, (tri, b1, b2): (u32, f32, f32), (x, y): (usize, usize), scene: &Scene, rays: &CameraRays) {
-        let start = self.vertex.len();
-        if tri == MISS {
-            self.miss.push(1.0);
-            self.miss_dir.push(rays.ray(x as f32 + 0.5, y as f32 + 0.5).1);
-        } else {
-            self.covered += 1.0;
-            let corners = scene.triangles[tri as usize];
-            let weights = [1.0 - b1 - b2, b1, b2];
-            if corners[0] != corners[1] && corners[1] != corners[2] && corners[0] != corners[2] {
-                // The common triangle: three vertices, each once.
-                self.vertex.extend_from_slice(&corners);
-                self.weight.extend_from_slice(&weights);
+    /// Adds the pixels `at` (row-major indices into the image, `w` wide, the first at
+    /// (x, y)), each from its one sample at the centre (`c`): a triangle's three corners
+    /// weighted by its barycentrics, or, where the sample hit nothing, the whole pixel
+    /// missed along the ray through its centre. Written in place, the band's arrays grown
+    /// once for the run.
+    fn add_centres(&mut self, c: &Centres, at: Range<usize>, (mut x, mut y): (usize, usize), w: usize, scene: &Scene, rays: &CameraRays) {
+        let (v0, e0, n) = (self.vertex.len(), self.ends.len(), at.len());
+        self.vertex.resize(v0 + 3 * n, 0);
+        self.weight.resize(v0 + 3 * n, 0.0);
+        self.ends.resize(e0 + n, 0);
+        self.miss.resize(e0 + n, 0.0);
+        self.miss_dir.resize(e0 + n, Vec3::ZERO);
+        let (mut cursor, mut covered) = (v0, self.covered);
+        for (k, a) in at.enumerate() {
+            let tri = c.tri[a];
+            if tri == MISS {
+                self.miss[e0 + k] = 1.0;
+                self.miss_dir[e0 + k] = rays.ray(x as f32 + 0.5, y as f32 + 0.5).1;
             } else {
-                for (v, wt) in corners.into_iter().zip(weights) {
-                    self.add_weight(start, v, wt);
-                }
+                covered += 1.0;
+                // Three vertices, each once: a triangle with a corner repeated has no area,
+                // and the z-buffer never keeps it.
+                let corners = scene.triangles[tri as usize];
+                self.vertex[cursor..cursor + 3].copy_from_slice(&corners);
+                self.weight[cursor..cursor + 3].copy_from_slice(&[1.0 - c.b1[a] - c.b2[a], c.b1[a], c.b2[a]]);
+                cursor += 3;
             }
-            self.miss.push(0.0);
-            self.miss_dir.push(Vec3::ZERO);
+            self.ends[e0 + k] = cursor as u32;
+            x += 1;
+            if x == w {
+                (x, y) = (0, y + 1);
+            }
         }
-        self.ends.push(self.vertex.len() as u32);
+        self.vertex.truncate(cursor);
+        self.weight.truncate(cursor);
+        self.covered = covered;
     }
 
     /// Adds pixel (x, y) from its samples' triangles and barycentrics (b1, b2) at `pattern`'s
@@ -423,20 +435,28 @@ impl CameraHits {
                 miss_dir: Vec::with_capacity(pixels),
                 ..Band::default()
             };
-            for p in 0..pixels {
-                let xy = (p % w, rows.start + p / w);
-                match (&places, &centres) {
-                    (Some(places), Some((c, _))) if places[p] == SKIP => {
-                        let at = rows.start * w + p;
-                        out.add_centre((c.tri[at], c.b1[at], c.b2[at]), xy, scene, &rays);
+            let xy = |p: usize| (p % w, rows.start + p / w);
+            match (&places, &centres) {
+                (Some(places), Some((c, _))) => {
+                    // Runs of pixels drawn from their centres, each up to an edge pixel.
+                    let mut p = 0;
+                    while p < pixels {
+                        let edge = places[p..].iter().position(|&k| k != SKIP).map_or(pixels, |e| p + e);
+                        if edge > p {
+                            let first = rows.start * w;
+                            out.add_centres(c, first + p..first + edge, xy(p), w, scene, &rays);
+                        }
+                        if edge < pixels {
+                            out.supersampled += 1;
+                            out.add_pixel(hits.pixel(places[edge] as usize), raster.pattern(), xy(edge), scene, &rays, tris);
+                        }
+                        p = edge + 1;
                     }
-                    (Some(places), _) => {
+                }
+                _ => {
+                    for p in 0..pixels {
                         out.supersampled += 1;
-                        out.add_pixel(hits.pixel(places[p] as usize), raster.pattern(), xy, scene, &rays, tris);
-                    }
-                    _ => {
-                        out.supersampled += 1;
-                        out.add_pixel(hits.pixel(p), raster.pattern(), xy, scene, &rays, tris);
+                        out.add_pixel(hits.pixel(p), raster.pattern(), xy(p), scene, &rays, tris);
                     }
                 }
             }
@@ -541,6 +561,28 @@ mod tests {
         want.dedup();
         assert_eq!(h.seen, want);
         assert!(h.seen.len() < s.positions.len(), "the ball's back is not seen");
+    }
+
+    #[test]
+    fn a_run_of_centre_pixels_wraps_its_rows_and_gives_each_its_corners_or_its_ray() {
+        let s = ball();
+        let rays = CameraRays::new(&s.camera);
+        // Pixels 1..6 of an image 3 wide: (1, 0), (2, 0), (0, 1), (1, 1), (2, 1).
+        let c = Centres {
+            tri: vec![0, 4, MISS, 7, MISS, 4],
+            b1: vec![0.0, 0.25, 0.0, 0.5, 0.0, 0.125],
+            b2: vec![0.0, 0.5, 0.0, 0.25, 0.0, 0.375],
+            inv_depth: vec![0.0; 6],
+        };
+        let mut band = Band { covered: 2.0, ..Band::default() };
+        band.add_centres(&c, 1..6, (1, 0), 3, &s, &rays);
+        assert_eq!(band.ends, [3, 3, 6, 6, 9]);
+        let corners: Vec<u32> = [4, 7, 4].iter().flat_map(|&t| s.triangles[t]).collect();
+        assert_eq!(band.vertex, corners);
+        assert_eq!(band.weight, [0.25, 0.25, 0.5, 0.25, 0.5, 0.25, 0.5, 0.125, 0.375]);
+        assert_eq!(band.miss, [0.0, 1.0, 0.0, 1.0, 0.0]);
+        assert_eq!(band.miss_dir, [Vec3::ZERO, rays.ray(2.5, 0.5).1, Vec3::ZERO, rays.ray(1.5, 1.5).1, Vec3::ZERO]);
+        assert_eq!(band.covered, 5.0);
     }
 
     #[test]
