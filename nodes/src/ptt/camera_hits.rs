@@ -8,6 +8,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use std::mem::MaybeUninit;
 use std::ops::Range;
 
 /// What the camera sees of the scene's mesh, as weights on its vertices ([S] chapter 5
@@ -207,18 +208,34 @@ impl Band {
 impl CameraHits {
     /// Every pixel's centre sample, band by band.
     fn centres(&self, raster: &Rasterizer, cx: &RunCtx) -> Result<Centres, NodeError> {
-        let bands = cx.par_map_init(raster.bands(), BandHits::default, |hits, b| {
-            raster.band_into(b, hits);
-            let (t, u, v, z) = hits.single();
-            (t.to_vec(), u.to_vec(), v.to_vec(), z.to_vec())
-        })?;
-        // Joined on both threads, a band's slice at a time.
-        Ok(Centres {
-            tri: joined(bands.iter().map(|b| &b.0[..])),
-            b1: joined(bands.iter().map(|b| &b.1[..])),
-            b2: joined(bands.iter().map(|b| &b.2[..])),
-            inv_depth: joined(bands.iter().map(|b| &b.3[..])),
-        })
+        // Each band drawn and copied into its place in the image's arrays by one task.
+        let lens: Vec<usize> = (0..raster.bands()).map(|b| raster.band_rows(b).len() * raster.width()).collect();
+        let (mut tri, mut b1, mut b2, mut inv_depth) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        places(&mut tri, &lens)
+            .into_par_iter()
+            .zip(places(&mut b1, &lens))
+            .zip(places(&mut b2, &lens))
+            .zip(places(&mut inv_depth, &lens))
+            .enumerate()
+            .for_each_init(BandHits::default, |hits, (b, (((t, u), v), z))| {
+                raster.band_into(b, hits);
+                let (ht, hu, hv, hz) = hits.single();
+                fill(t, ht, |x| x);
+                fill(u, hu, |x| x);
+                fill(v, hv, |x| x);
+                fill(z, hz, |x| x);
+            });
+        let n = lens.iter().sum();
+        // SAFETY: each array's places split the first `n` of its spare capacity without gaps,
+        // one per band of that band's pixels, and `fill` wrote them all.
+        unsafe {
+            tri.set_len(n);
+            b1.set_len(n);
+            b2.set_len(n);
+            inv_depth.set_len(n);
+        }
+        cx.check()?;
+        Ok(Centres { tri, b1, b2, inv_depth })
     }
 
     /// The pixels at an edge: those whose centre, or a neighbour's, sees another object,
@@ -308,32 +325,64 @@ impl EdgePixels {
     }
 }
 
-/// `parts` joined end to end, each element mapped by `f` (with its part's index) on
-/// rayon's threads, a part per task: the same bytes as a sequential join.
-fn concat_par<T: Copy + Sync, U: Send>(parts: &[&[T]], f: impl Fn(usize, T) -> U + Sync) -> Vec<U> {
-    let total = parts.iter().map(|p| p.len()).sum();
-    let mut out: Vec<U> = Vec::with_capacity(total);
-    let mut places = Vec::with_capacity(parts.len());
+/// The first `lens.iter().sum()` places of `out`'s spare capacity, split one after another
+/// into parts of `lens`: where parallel tasks write parts of one array (`fill`; the caller
+/// sets the length once all are written).
+fn places<'a, U>(out: &'a mut Vec<U>, lens: &[usize]) -> Vec<&'a mut [MaybeUninit<U>]> {
+    let total = lens.iter().sum();
+    out.reserve(total);
     let mut rest = &mut out.spare_capacity_mut()[..total];
-    for p in parts {
-        let (place, tail) = rest.split_at_mut(p.len());
-        places.push(place);
+    let mut parts = Vec::with_capacity(lens.len());
+    for &len in lens {
+        let (place, tail) = rest.split_at_mut(len);
+        parts.push(place);
         rest = tail;
     }
-    places.into_par_iter().zip(parts).enumerate().for_each(|(k, (place, part))| {
-        place.iter_mut().zip(part.iter()).for_each(|(o, x)| {
-            o.write(f(k, *x));
-        });
-    });
-    // SAFETY: the places split the first `total` of the spare capacity without gaps, one
-    // per part of the same length, and every one of them was written above.
-    unsafe { out.set_len(total) };
-    out
+    parts
 }
 
-/// `concat_par` of the parts as they are.
-fn joined<'a, T: Copy + Send + Sync + 'a>(parts: impl Iterator<Item = &'a [T]>) -> Vec<T> {
-    concat_par(&parts.collect::<Vec<_>>(), |_, x| x)
+/// Writes `part`, each element mapped by `f`, into `place` (of the same length).
+fn fill<T: Copy, U>(place: &mut [MaybeUninit<U>], part: &[T], f: impl Fn(T) -> U) {
+    assert_eq!(place.len(), part.len(), "a place per element");
+    place.iter_mut().zip(part).for_each(|(o, &x)| {
+        o.write(f(x));
+    });
+}
+
+/// The bands' arrays joined end to end, all of a band's by one task: the pixels' ends (from
+/// 0, after the bands before), vertices, weights, missed fractions and directions.
+#[allow(clippy::type_complexity)]
+fn join_bands(bands: &[Band]) -> (Vec<u32>, Vec<u32>, Vec<f32>, Vec<f32>, Vec<Vec3>) {
+    let entries: Vec<usize> = bands.iter().map(|b| b.vertex.len()).collect();
+    let pixels: Vec<usize> = bands.iter().map(|b| b.ends.len()).collect();
+    let first: Vec<u32> = entries.iter().scan(0, |at, &n| Some(std::mem::replace(at, *at + n as u32))).collect();
+    let (mut ends, mut vertex, mut weight, mut miss, mut miss_dir) = (vec![0u32], Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    places(&mut ends, &pixels)
+        .into_par_iter()
+        .zip(places(&mut vertex, &entries))
+        .zip(places(&mut weight, &entries))
+        .zip(places(&mut miss, &pixels))
+        .zip(places(&mut miss_dir, &pixels))
+        .zip(bands)
+        .zip(first)
+        .for_each(|((((((e, v), w), m), d), band), first)| {
+            fill(e, &band.ends, |end| first + end);
+            fill(v, &band.vertex, |x| x);
+            fill(w, &band.weight, |x| x);
+            fill(m, &band.miss, |x| x);
+            fill(d, &band.miss_dir, |x| x);
+        });
+    let (p, n) = (pixels.iter().sum::<usize>(), entries.iter().sum::<usize>());
+    // SAFETY: each array's places split the first `p` (pixels) or `n` (entries) of its spare
+    // capacity without gaps, one per band of that band's length, and `fill` wrote them all.
+    unsafe {
+        ends.set_len(1 + p);
+        vertex.set_len(n);
+        weight.set_len(n);
+        miss.set_len(p);
+        miss_dir.set_len(p);
+    }
+    (ends, vertex, weight, miss, miss_dir)
 }
 
 /// The vertices whose bit is set in `bits` (64 a word), ascending.
@@ -466,10 +515,7 @@ impl CameraHits {
         })?;
         // The bands joined on both threads (each band's slices copied into their place), and
         // the vertices seen by any band.
-        let total: usize = bands.iter().map(|b| b.vertex.len()).sum();
-        let first: Vec<u32> = bands.iter().scan(0, |at, b| Some(std::mem::replace(at, *at + b.vertex.len() as u32))).collect();
-        let mut offsets = vec![0];
-        offsets.extend(concat_par(&bands.iter().map(|b| &b.ends[..]).collect::<Vec<_>>(), |k, end| first[k] + end));
+        let (offsets, vertex, weight, miss, miss_dir) = join_bands(&bands);
         let mut seen = vec![0u64; scene.positions.len().div_ceil(64)];
         for band in &bands {
             seen.iter_mut().zip(&band.seen).for_each(|(s, b)| *s |= b);
@@ -479,10 +525,10 @@ impl CameraHits {
             height: h as u32,
             vertices: scene.positions.len() as u32,
             offsets,
-            vertex: joined(bands.iter().map(|b| &b.vertex[..])),
-            weight: joined(bands.iter().map(|b| &b.weight[..])),
-            miss: joined(bands.iter().map(|b| &b.miss[..])),
-            miss_dir: joined(bands.iter().map(|b| &b.miss_dir[..])),
+            vertex,
+            weight,
+            miss,
+            miss_dir,
             seen: seen_list(&seen),
         };
         let covered = bands.iter().fold(0.0, |sum, b| sum + b.covered);
@@ -495,7 +541,7 @@ impl CameraHits {
         cx.metric("covered_fraction", covered / pixels as f64);
         cx.metric("supersampled_fraction", supersampled as f64 / pixels as f64);
         cx.metric("seen", out.seen.len() as f64);
-        cx.metric("weights_per_pixel", total as f64 / pixels as f64);
+        cx.metric("weights_per_pixel", out.vertex.len() as f64 / pixels as f64);
         Ok(CameraHitsOut { hits: out })
     }
 }
@@ -586,11 +632,29 @@ mod tests {
     }
 
     #[test]
-    fn the_parallel_join_is_the_sequential_one_and_the_seen_bits_list_ascending() {
-        let parts: [&[u32]; 4] = [&[1, 2, 3], &[], &[4], &[5, 6]];
-        assert_eq!(joined(parts.iter().copied()), parts.concat());
-        assert_eq!(concat_par(&parts, |k, x| (k, x)), vec![(0, 1), (0, 2), (0, 3), (2, 4), (3, 5), (3, 6)]);
-        assert!(joined::<u32>(std::iter::empty()).is_empty());
+    fn the_bands_join_end_to_end_and_the_seen_bits_list_ascending() {
+        // Bands of 2, 0, 1 and 2 pixels with 3, 0, 0 and 4 entries.
+        let band = |ends: &[u32], vertex: &[u32], miss: &[f32]| Band {
+            ends: ends.to_vec(),
+            vertex: vertex.to_vec(),
+            weight: vertex.iter().map(|&v| v as f32 / 8.0).collect(),
+            miss: miss.to_vec(),
+            miss_dir: miss.iter().map(|&m| Vec3::splat(m)).collect(),
+            ..Band::default()
+        };
+        let bands = [
+            band(&[3, 3], &[1, 2, 3], &[0.0, 1.0]),
+            band(&[], &[], &[]),
+            band(&[0], &[], &[1.0]),
+            band(&[1, 4], &[4, 5, 6, 7], &[0.5, 0.0]),
+        ];
+        let (ends, vertex, weight, miss, miss_dir) = join_bands(&bands);
+        assert_eq!(ends, [0, 3, 3, 3, 4, 7]);
+        assert_eq!(vertex, [1, 2, 3, 4, 5, 6, 7]);
+        assert_eq!(weight, vertex.iter().map(|&v| v as f32 / 8.0).collect::<Vec<_>>());
+        assert_eq!(miss, [0.0, 1.0, 1.0, 0.5, 0.0]);
+        assert_eq!(miss_dir, miss.iter().map(|&m| Vec3::splat(m)).collect::<Vec<_>>());
+        assert_eq!(join_bands(&[]), (vec![0], vec![], vec![], vec![], vec![]));
         let mut bits = vec![0u64; 3];
         for v in [0u32, 63, 64, 130, 5] {
             bits[v as usize / 64] |= 1 << (v % 64);

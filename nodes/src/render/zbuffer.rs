@@ -245,7 +245,7 @@ const CORNER_ATTR: [[f64; 2]; 3] = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
 /// triangle's plane must pass for `build` to cull it by its plane alone.
 const FACING_MARGIN: f32 = 1e-3;
 
-/// Triangles set up per parallel task.
+/// Triangles set up per parallel task (a multiple of 64).
 const SETUP_CHUNK: usize = 4096;
 /// Bits of a place in a chunk (clipping makes at most two triangles of one).
 const CHUNK_BITS: usize = 13;
@@ -441,20 +441,32 @@ impl Rasterizer {
             let planes = scene.triangle_planes();
             (planes, FACING_MARGIN * (proj.eye.length() + planes.radius))
         });
-        let setup_one = |t: usize, out: &mut Vec<ScreenTri>| {
-            if let Some((planes, margin)) = away {
-                if planes.faces_away(t, proj.eye, margin) {
-                    return;
-                }
-            }
-            proj.screen_tris(scene, t, ext, &spans, &keep, |st| out.push(st))
-        };
+        let setup_one = |t: usize, out: &mut Vec<ScreenTri>| proj.screen_tris(scene, t, ext, &spans, &keep, |st| out.push(st));
         // In chunks of triangles on rayon's threads, concatenated in triangle order.
         let chunks: Vec<Vec<ScreenTri>> = (0..scene.triangles.len().div_ceil(SETUP_CHUNK))
             .into_par_iter()
             .map(|c| {
                 let mut out = Vec::new();
-                (c * SETUP_CHUNK..((c + 1) * SETUP_CHUNK).min(scene.triangles.len())).for_each(|t| setup_one(t, &mut out));
+                let tris = c * SETUP_CHUNK..((c + 1) * SETUP_CHUNK).min(scene.triangles.len());
+                match away {
+                    Some((planes, margin)) => {
+                        // The chunk's triangles not turned away, as bits found without a
+                        // branch a triangle (which way one faces follows no order a branch
+                        // predictor learns), then those of the set bits in order.
+                        let mut set = [0u64; SETUP_CHUNK / 64];
+                        for (k, t) in tris.clone().enumerate() {
+                            set[k / 64] |= (!planes.faces_away(t, proj.eye, margin) as u64) << (k % 64);
+                        }
+                        for (i, &word) in set.iter().enumerate() {
+                            let mut word = word;
+                            while word != 0 {
+                                setup_one(tris.start + i * 64 + word.trailing_zeros() as usize, &mut out);
+                                word &= word - 1;
+                            }
+                        }
+                    }
+                    None => tris.for_each(|t| setup_one(t, &mut out)),
+                }
                 out
             })
             .collect();
