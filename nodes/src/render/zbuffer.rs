@@ -470,27 +470,43 @@ impl Rasterizer {
                 out
             })
             .collect();
-        // Bins as one array: counted, then filled in triangle order (chunk, then place in
-        // it: `id` packs both; the chunks are never copied into one).
+        // Bins as one array, in triangle order (chunk, then place in it: `id` packs both; the
+        // chunks are never copied into one): each chunk's triangles counted per band and
+        // filled into their runs of the bands' bins on rayon's threads, a chunk per task.
         let bands = height.div_ceil(BAND_ROWS);
         let span = |t: &ScreenTri| t.y0 as usize / BAND_ROWS..(t.y1 as usize).div_ceil(BAND_ROWS);
+        let counts: Vec<Vec<u32>> = chunks
+            .par_iter()
+            .map(|chunk| {
+                let mut n = vec![0u32; bands];
+                chunk.iter().for_each(|t| span(t).for_each(|b| n[b] += 1));
+                n
+            })
+            .collect();
         let mut bin_start = vec![0u32; bands + 1];
-        for t in chunks.iter().flatten() {
-            span(t).for_each(|b| bin_start[b + 1] += 1);
-        }
         for b in 0..bands {
-            bin_start[b + 1] += bin_start[b];
+            bin_start[b + 1] = bin_start[b] + counts.iter().map(|n| n[b]).sum::<u32>();
         }
-        let mut fill: Vec<u32> = bin_start[..bands].to_vec();
         let mut bin_tris = vec![0u32; bin_start[bands] as usize];
-        for (c, chunk) in chunks.iter().enumerate() {
-            for (k, t) in chunk.iter().enumerate() {
-                for b in span(t) {
-                    bin_tris[fill[b] as usize] = ((c << CHUNK_BITS) | k) as u32;
-                    fill[b] += 1;
-                }
+        // Each chunk's run in each band's bin: the bins split band by band, chunk by chunk.
+        let mut runs: Vec<Vec<&mut [u32]>> = chunks.iter().map(|_| Vec::with_capacity(bands)).collect();
+        let mut rest = &mut bin_tris[..];
+        for b in 0..bands {
+            for (c, n) in counts.iter().enumerate() {
+                let (run, tail) = rest.split_at_mut(n[b] as usize);
+                runs[c].push(run);
+                rest = tail;
             }
         }
+        runs.into_par_iter().zip(&chunks).enumerate().for_each(|(c, (mut runs, chunk))| {
+            let mut at = vec![0usize; bands];
+            for (k, t) in chunk.iter().enumerate() {
+                for b in span(t) {
+                    runs[b][at[b]] = ((c << CHUNK_BITS) | k) as u32;
+                    at[b] += 1;
+                }
+            }
+        });
         Rasterizer { width, height, pattern, chunks, bin_start, bin_tris }
     }
 
