@@ -70,3 +70,21 @@ fn view_material_and_sky_edits_rerun_only_what_they_reach_never_the_transfer() {
 fn the_cook_torrance_variant_reruns_the_same_nodes_for_a_roughness_edit() {
     edits_rerun_only_what_they_reach("ptt_envlit_ct.ron", ("project.m", "0.4"));
 }
+
+#[test]
+fn the_bounce_graph_holds_the_cook_torrance_lobe_on_its_own_space_and_isolates_the_bounces() {
+    let e = Engine::new(relume_nodes::registry());
+    let r = e.run(&small_ptt("ptt_envlit_ct_bounce.ron"), &RunOptions::default()).unwrap();
+    // The material fitted on the Cook-Torrance space's basis and on the Blinn-Phong one's: the
+    // first holds the microfacet lobe, the second cannot (its growth toward grazing).
+    let fit = |id: &str| r.report.node(id).unwrap().metrics["fit_error_max_pct"];
+    assert!(fit("project") < 0.5 * fit("project_bp"), "{} % against {} %", fit("project"), fit("project_bp"));
+    // The bounce images: the light of the bounces alone, finite, not all black.
+    for name in ["b_ct", "b_bp", "b_ref"] {
+        let img = r.output(name).unwrap().get::<Image>().unwrap();
+        assert_eq!(img.nonfinite_pixels(), 0, "{name}");
+        assert!(img.pixels.iter().any(|p| p[0] > 0.0), "{name} holds some bounced light");
+    }
+    let m = |id: &str, k: &str| r.report.node(id).unwrap().metrics[k];
+    assert!(m("bounce_error_ct", "l2_percent").is_finite() && m("bounce_error_bp", "l2_percent").is_finite());
+}

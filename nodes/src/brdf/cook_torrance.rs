@@ -24,7 +24,7 @@
 //! to ≥ 10⁻⁴ and values saturate at f32::MAX instead of overflowing.
 
 use super::fresnel::schlick;
-use super::{diffuse_probability, half_vector, sample_mixture, spherical, to_f32_finite, BsdfSample};
+use super::{diffuse_probability, half_vector, sample_mixture, spherical, to_f32_finite, BsdfSample, Half};
 use crate::types::Material;
 use glam::{Vec2, Vec3};
 use std::f64::consts::PI;
@@ -55,18 +55,28 @@ pub fn beckmann_d(m: f32, tan2_h: f64) -> f64 {
     }
 }
 
+/// The specular factor D F G / (4 cos θi cos θo), without ks, in f64 (0 below the horizon;
+/// finite: see the module comment).
+pub fn specular(m: f32, f0: f32, wo: Vec3, wi: Vec3) -> f64 {
+    half_vector(wo, wi).map_or(0.0, |h| specular_at(&h, m, f0, wo.z as f64, wi.z as f64))
+}
+
+/// [`specular`] for the half vector `h` of directions at cos θo = `co`, cos θi = `ci`.
+fn specular_at(h: &Half, m: f32, f0: f32, co: f64, ci: f64) -> f64 {
+    let d = beckmann_d(m, h.tan2_h);
+    if d > 0.0 && h.wo_h > 0.0 {
+        let f = schlick((f0 as f64).clamp(0.0, 1.0), h.wo_h);
+        let g = (2.0 * h.cos_h * co / h.wo_h).min(2.0 * h.cos_h * ci / h.wo_h).min(1.0);
+        (d * f * g / (4.0 * ci * co)).min(f64::MAX)
+    } else {
+        0.0
+    }
+}
+
 /// f = kd/π + ks D F G / (4 cos θi cos θo) for cos θo, cos θi > 0, else 0.
 pub fn eval(kd: Vec3, ks: Vec3, m: f32, f0: f32, wo: Vec3, wi: Vec3) -> Vec3 {
     let Some(h) = half_vector(wo, wi) else { return Vec3::ZERO };
-    let (co, ci) = (wo.z as f64, wi.z as f64);
-    let d = beckmann_d(m, h.tan2_h);
-    let spec = if d > 0.0 && h.wo_h > 0.0 {
-        let f = schlick((f0 as f64).clamp(0.0, 1.0), h.wo_h);
-        let g = (2.0 * h.cos_h * co / h.wo_h).min(2.0 * h.cos_h * ci / h.wo_h).min(1.0);
-        d * f * g / (4.0 * ci * co)
-    } else {
-        0.0
-    };
+    let spec = specular_at(&h, m, f0, wo.z as f64, wi.z as f64);
     let (kd, ks) = (kd.max(Vec3::ZERO).as_dvec3(), ks.max(Vec3::ZERO).as_dvec3());
     let f = kd / PI + ks * spec;
     Vec3::new(to_f32_finite(f.x), to_f32_finite(f.y), to_f32_finite(f.z))

@@ -496,7 +496,7 @@ fn reported_metrics(kind: &str) -> &'static [&'static str] {
         "EnvLighting" => &["radiance_max", "luminance_integral", "haar_nonzero", "energy_share_top96", "bytes"],
         "VertexVisibility" => &["vertices", "visible_fraction", "bytes"],
         "PttDirect" => &["vertices", "slots", "e0_mean", "bytes"],
-        "MaterialProject" => &["ct_fit_error_max_pct"],
+        "MaterialProject" => &["fit_error_max_pct"],
         "CameraHits" => &["spp", "triangles", "centre_triangles", "covered_fraction", "supersampled_fraction", "seen", "weights_per_pixel"],
         "RasterizeVertexColors" => &["weights"],
         "TransferT0" => &["vertices", "columns", "terms_mean", "energy_kept", "lobe_maps", "bytes"],

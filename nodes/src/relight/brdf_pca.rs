@@ -1,7 +1,7 @@
 //! BrdfPca node.
 
 use crate::math::pca::uncentred_pca_with;
-use crate::types::{BrdfBasis, BrdfSpace, Metrics};
+use crate::types::{BasisFamily, BrdfBasis, BrdfSample, BrdfSpace, Metrics};
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, ParamEnum, Params, PortSize, RunCtx};
 
 /// N_b basis BRDFs from a BRDF space ([S] 4-19 … 4-22). Basis 1 is the diffuse sample itself
@@ -10,7 +10,9 @@ use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, ParamEnum, P
 /// 4-20) of the specular samples, each divided by its ks (`math/pca.rs`: Gram route in f64,
 /// decreasing eigenvalue, largest entry positive, so re-runs give identical bytes). The
 /// specular samples get no diffuse coefficient ([S] 4-21); their coefficients on bases 2 …
-/// form the table c(s) that `MaterialProject` interpolates linearly in s ([S] 4-22). A
+/// form the table c(s) that `MaterialProject` interpolates linearly in s ([S] 4-22). From a
+/// Cook-Torrance space (`BrdfSpaceSample`'s `model`) the basis keeps no table but the range of
+/// roughness and F0 it was sampled over: `MaterialProject` fits each material on it. A
 /// rank-deficient sample set (all exponents equal, duplicated samples) gives fewer bases,
 /// with a note.
 ///
@@ -80,30 +82,40 @@ fn mean_max(v: &[f64]) -> (f64, f64) {
     (v.iter().sum::<f64>() / v.len().max(1) as f64, v.iter().fold(0.0, |a, &b| a.max(b)))
 }
 
-/// The checks on the input `BrdfPca` relies on.
-fn check_space(space: &BrdfSpace) -> Result<(), NodeError> {
+/// The checks on the input `BrdfPca` relies on, and the specular samples' family.
+fn check_space(space: &BrdfSpace) -> Result<BasisFamily, NodeError> {
     let bad = |msg: String| Err(NodeError::input("space", msg));
     let Some(d) = space.samples.first() else { return bad("holds no samples".into()) };
-    if !d.is_diffuse() {
+    if !d.is_diffuse() || d.is_cook_torrance() {
         return bad(format!(
-            "sample 1 must be the diffuse sample (kd > 0, ks = 0), as BrdfSpaceSample makes it; it is (kd {}, ks {}, s {})",
-            d.kd, d.ks, d.s
+            "sample 1 must be the diffuse sample (kd > 0, ks = 0), as BrdfSpaceSample makes it; it is (kd {}, ks {}, s {}, m {})",
+            d.kd, d.ks, d.s, d.m
         ));
     }
     if space.samples.len() < 2 {
         return bad("holds no specular sample; give BrdfSpaceSample samples ≥ 2".into());
     }
+    let ct = space.samples[1].is_cook_torrance();
     for (j, p) in space.samples.iter().enumerate().skip(1) {
-        if !(p.kd == 0.0 && p.ks > 0.0 && p.ks.is_finite() && p.s.is_finite()) {
+        let finite = p.s.is_finite() && p.m.is_finite() && p.f0.is_finite();
+        if !(p.kd == 0.0 && p.ks > 0.0 && p.ks.is_finite() && finite) {
             return bad(format!(
-                "sample {} must be specular (kd = 0, ks > 0, finite s); it is (kd {}, ks {}, s {})",
+                "sample {} must be specular (kd = 0, ks > 0, finite parameters); it is (kd {}, ks {}, s {}, m {}, F0 {})",
                 j + 1,
                 p.kd,
                 p.ks,
-                p.s
+                p.s,
+                p.m,
+                p.f0
             ));
         }
-        if j > 1 && p.s < space.samples[j - 1].s {
+        if p.is_cook_torrance() != ct {
+            return bad(format!(
+                "sample {} is not of sample 2's model: the specular samples must be all Blinn-Phong or all Cook-Torrance",
+                j + 1
+            ));
+        }
+        if !ct && j > 1 && p.s < space.samples[j - 1].s {
             return bad(format!(
                 "the specular samples must come in non-decreasing s; sample {} has s {} after {}",
                 j + 1,
@@ -115,10 +127,17 @@ fn check_space(space: &BrdfSpace) -> Result<(), NodeError> {
     if let Some(k) = space.values.iter().position(|v| !v.is_finite()) {
         return bad(format!("value {k} of the table is not finite"));
     }
-    Ok(())
+    if !ct {
+        return Ok(BasisFamily::BlinnPhong);
+    }
+    let range = |f: fn(&BrdfSample) -> f32| {
+        let v = space.samples[1..].iter().map(|p| f(p) as f64);
+        [v.clone().fold(f64::INFINITY, f64::min), v.fold(f64::NEG_INFINITY, f64::max)]
+    };
+    Ok(BasisFamily::CookTorrance { m: range(|p| p.m), f0: range(|p| p.f0) })
 }
 
-#[node(category = "relight")]
+#[node(category = "relight", version = 2)]
 impl BrdfPca {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         // The basis holds at most as many tables as the space has samples (its rank bounds
@@ -131,7 +150,7 @@ impl BrdfPca {
 
     fn run(&self, i: BrdfPcaIn, cx: &RunCtx) -> Result<BrdfPcaOut, NodeError> {
         let space = i.space;
-        check_space(space)?;
+        let family = check_space(space)?;
         let (grid, cells) = (space.grid, space.grid.cells());
         let spec = &space.samples[1..];
         let solid = grid.weights();
@@ -173,18 +192,21 @@ impl BrdfPca {
                 pca.coefficients_of(j).iter().map(move |c| c * scale)
             })
             .collect();
+        // A Blinn-Phong basis keeps c(s_j) as its table; a Cook-Torrance one keeps no table.
+        let bp = family == BasisFamily::BlinnPhong;
         let basis = BrdfBasis {
             grid,
+            family,
             tables,
-            s_values: spec.iter().map(|p| p.s as f64).collect(),
-            coefficients,
+            s_values: if bp { spec.iter().map(|p| p.s as f64).collect() } else { vec![] },
+            coefficients: if bp { coefficients.clone() } else { vec![] },
             eigenvalues: pca.eigenvalues.clone(),
         };
 
         // Reconstruction errors from the tables as output, each sum in cell order.
         cx.phase(0.85, 1.0);
         let errors = cx.par_map(spec.len(), |j| {
-            let c = &basis.coefficients[j * k..(j + 1) * k];
+            let c = &coefficients[j * k..(j + 1) * k];
             let ks = spec[j].ks as f64;
             let f = space.sample(j + 1);
             let mut e = SampleError::default();
@@ -245,9 +267,9 @@ mod tests {
     use crate::brdf::blinn_phong;
     use crate::math::rng::uniform;
     use crate::relight::brdf_space_sample::BrdfSpaceSample;
-    use crate::relight::test_support::{basis, space, space_of};
+    use crate::relight::test_support::{basis, ct_space, space, space_of};
     use crate::testing::{cancels_midway, first, i, id, run_full, run_on};
-    use crate::types::{BrdfGrid, BrdfSample};
+    use crate::types::BrdfGrid;
     use glam::Vec3;
     use relume_core::{ParamValue, PortValue, Value};
     use std::f64::consts::PI;
@@ -412,12 +434,38 @@ mod tests {
         let e = run_full::<BrdfPca>(&[], Path::new("."), vec![Value::new(sp)]).unwrap_err();
         assert!(e.to_string().contains("sample 1 must be the diffuse sample"), "{e}");
         let mut sp = space(4, 4, 4, 3, 1.0, 2.0);
-        sp.samples[2] = BrdfSample { kd: 0.0, ks: 1.0, s: 0.5 };
+        sp.samples[2] = BrdfSample::blinn_phong(0.0, 1.0, 0.5);
         let e = run_full::<BrdfPca>(&[], Path::new("."), vec![Value::new(sp)]).unwrap_err();
         assert!(e.to_string().contains("non-decreasing s"), "{e}");
         let mut sp = space(4, 4, 4, 3, 1.0, 2.0);
         sp.values[40] = f32::NAN;
         assert!(run_full::<BrdfPca>(&[], Path::new("."), vec![Value::new(sp)]).unwrap_err().to_string().contains("not finite"));
+    }
+
+    #[test]
+    fn a_cook_torrance_space_gives_a_basis_with_its_ranges_and_no_table() {
+        let sp = ct_space(8, 21, 2, 0.1, 0.6);
+        let (b, m) = basis(&sp, 8);
+        assert_eq!(b.family, BasisFamily::CookTorrance { m: [0.1f32 as f64, 0.6f32 as f64], f0: [0.02f32 as f64, 1.0] });
+        assert!(b.s_values.is_empty() && b.coefficients.is_empty(), "no c(s) table");
+        assert_eq!((b.bases(), b.eigenvalues.len()), (8, 7));
+        assert!(b.specular_coefficients(20.0).unwrap_err().contains("Cook-Torrance"));
+        // The reported errors are those of the samples rebuilt from the tables: a sample's
+        // least-squares fit under the solid angle is its PCA projection, as good or better.
+        let (mean, max) = (m.get("l2_error_mean_pct").unwrap(), m.get("l2_error_max_pct").unwrap());
+        assert!(mean > 0.0 && mean <= max && max < 30.0, "mean {mean} max {max}");
+        let (_, err) = b.fit_specular(|a| sp.samples[7].eval(a));
+        assert!(err.is_finite() && err < 0.3, "{err}");
+        // A decoded basis keeps its family.
+        assert_eq!(BrdfBasis::decode(&b.encode()).unwrap(), b);
+    }
+
+    #[test]
+    fn a_space_mixing_blinn_phong_and_cook_torrance_samples_is_refused() {
+        let mut sp = ct_space(4, 5, 2, 0.1, 0.6);
+        sp.samples[3] = BrdfSample::blinn_phong(0.0, 1.0, 10.0);
+        let e = run_full::<BrdfPca>(&[], Path::new("."), vec![Value::new(sp)]).unwrap_err();
+        assert!(e.to_string().contains("all Blinn-Phong or all Cook-Torrance"), "{e}");
     }
 
     #[test]

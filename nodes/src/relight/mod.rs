@@ -49,6 +49,22 @@ pub(crate) mod test_support {
     use crate::types::{BrdfBasis, BrdfGrid, BrdfSample, BrdfSpace, Metrics};
     use relume_core::Value;
 
+    /// A Cook-Torrance `BrdfSpaceSample` on an n × n × 2n grid: `samples` − 1 specular samples,
+    /// roughnesses over [m_min, m_max] × `f0_count` F0 values over [0.02, 1].
+    pub fn ct_space(n: i64, samples: i64, f0_count: i64, m_min: f64, m_max: f64) -> BrdfSpace {
+        let p = [
+            ("n_theta_i", i(n)),
+            ("n_theta_o", i(n)),
+            ("n_phi", i(2 * n)),
+            ("samples", i(samples)),
+            ("model", crate::testing::id("CookTorrance")),
+            ("m_min", f(m_min)),
+            ("m_max", f(m_max)),
+            ("f0_count", i(f0_count)),
+        ];
+        first(&run_on::<super::brdf_space_sample::BrdfSpaceSample>(&p, vec![]).unwrap())
+    }
+
     /// `BrdfSpaceSample` with the given grid, sample count and exponent range.
     pub fn space(n_theta_i: i64, n_theta_o: i64, n_phi: i64, samples: i64, s_min: f32, s_max: f32) -> BrdfSpace {
         let p = [
@@ -67,7 +83,7 @@ pub(crate) mod test_support {
     pub fn space_of(n_theta_i: u32, n_theta_o: u32, n_phi: u32, s: &[f32]) -> BrdfSpace {
         let grid = BrdfGrid { n_theta_i, n_theta_o, n_phi };
         let samples: Vec<BrdfSample> =
-            std::iter::once(BrdfSample { kd: 1.0, ks: 0.0, s: 0.0 }).chain(s.iter().map(|&s| BrdfSample { kd: 0.0, ks: 1.0, s })).collect();
+            std::iter::once(BrdfSample::diffuse(1.0)).chain(s.iter().map(|&s| BrdfSample::blinn_phong(0.0, 1.0, s))).collect();
         let values = samples.iter().flat_map(|p| (0..grid.cells()).map(move |c| p.eval(grid.centre(c)) as f32)).collect();
         BrdfSpace { grid, samples, values }
     }

@@ -3,7 +3,7 @@
 use super::sv_shade::cell_rect;
 use crate::math::haar;
 use crate::render::film::with_ctx;
-use crate::types::{BrdfBasis, Image, Material, ObjectMaterial, ObjectMaterials, SvTransfer};
+use crate::types::{BasisFamily, BrdfBasis, Image, Material, ObjectMaterial, ObjectMaterials, SvTransfer};
 use glam::{Vec2, Vec3};
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -66,6 +66,12 @@ pub fn sv_relight(t: &SvTransfer, basis: &BrdfBasis, m: &ObjectMaterials, cx: Op
         return Err(NodeError::input(
             "materials",
             format!("the materials are for the objects [{}], the transfer for [{}]", names.join(", "), t.groups.join(", ")),
+        ));
+    }
+    if basis.family != BasisFamily::BlinnPhong {
+        return Err(NodeError::input(
+            "basis",
+            "the basis was made from Cook-Torrance samples; SvRelight projects Blinn-Phong texels through a Blinn-Phong basis' table c(s)",
         ));
     }
     if basis.bases() != t.direct_bases as usize {
@@ -283,6 +289,10 @@ mod tests {
         let (b4, _) = basis(&space(4, 4, 8, 6, 1.0, 100.0), 4);
         let e = sv_relight(&t, &b4, &diffuse(&scene, &b), None).unwrap_err().to_string();
         assert!(e.contains("4 BRDFs") && e.contains("computed on 3"), "{e}");
+        // A Cook-Torrance space's basis has no c(s) table for the texels' exponents.
+        let (ct, _) = basis(&crate::relight::test_support::ct_space(4, 5, 2, 0.1, 0.6), 3);
+        let e = sv_relight(&t, &ct, &diffuse(&scene, &b), None).unwrap_err().to_string();
+        assert!(e.contains("Cook-Torrance"), "{e}");
     }
 
     #[test]

@@ -1,7 +1,8 @@
-//! The BRDF space of pipeline 1 ([S] 4.1.2): `BrdfSpace` (Blinn-Phong samples tabulated on a
-//! (θi, θo, φ) grid), `BrdfBasis` (basis BRDF tables on the same grid with the coefficient
-//! table c(s) and a signed trilinear lookup) and `BasisCoefficients` (one material projected
-//! on a basis).
+//! The BRDF space of pipeline 1 ([S] 4.1.2), which pipeline 2's bounce channels take too:
+//! `BrdfSpace` (Blinn-Phong or Cook-Torrance samples tabulated on a (θi, θo, φ) grid) and
+//! `BrdfBasis` (basis BRDF tables on the same grid, with the coefficient table c(s) of a
+//! Blinn-Phong space or the sampled ranges of a Cook-Torrance one, and a signed trilinear
+//! lookup).
 //!
 //! **The grid** ([`BrdfGrid`]): θi, θo ∈ [0, π/2] and φ ∈ [0, π], φ the relative azimuth of ωi
 //! and ωo folded into [0, π] (an isotropic BRDF is symmetric in φ ↔ 2π − φ, [S] 4-17), so the
@@ -32,7 +33,7 @@
 //! coefficient table c(s) (a few thousand numbers) is kept in f64.
 
 use super::pod_vec;
-use crate::brdf::blinn_phong;
+use crate::brdf::{blinn_phong, cook_torrance};
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Vec3};
 use relume_core::{codec, PortValue};
@@ -185,7 +186,9 @@ impl BrdfGrid {
     }
 }
 
-/// One Blinn-Phong material of the space: f = kd/π + ks (s+2)/(8π) cos^s δ (`brdf::blinn_phong`).
+/// One material of the space: f = kd/π + ks · lobe, the lobe Blinn-Phong (s+2)/(8π) cos^s δ
+/// (`brdf::blinn_phong`) when m = 0, or Cook-Torrance D F G / (4 cos θi cos θo) of Beckmann
+/// roughness m > 0 and Schlick F0 `f0` (`brdf::cook_torrance`), s unused.
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable, Serialize, Deserialize)]
 #[repr(C)]
 pub struct BrdfSample {
@@ -193,15 +196,44 @@ pub struct BrdfSample {
     pub ks: f32,
     /// Blinn-Phong exponent s.
     pub s: f32,
+    /// Cook-Torrance roughness m (0 for a Blinn-Phong lobe).
+    pub m: f32,
+    /// Cook-Torrance Schlick F0.
+    pub f0: f32,
 }
 
 impl BrdfSample {
-    /// f at angles (θi, θo, φ), in f64, with the project's normalised Blinn-Phong.
-    pub fn eval(&self, [ti, to, phi]: [f64; 3]) -> f64 {
-        self.eval_cos_h(cos_half(ti, to, phi))
+    /// The diffuse sample kd/π (ks = 0).
+    pub fn diffuse(kd: f32) -> Self {
+        Self::blinn_phong(kd, 0.0, 0.0)
     }
 
-    /// f for a half vector at cos δ = `cos_h` from the normal.
+    /// A Blinn-Phong material (kd, ks, s).
+    pub fn blinn_phong(kd: f32, ks: f32, s: f32) -> Self {
+        BrdfSample { kd, ks, s, m: 0.0, f0: 0.0 }
+    }
+
+    /// A Cook-Torrance lobe ks D F G / (4 cos θi cos θo) of roughness m > 0 and F0 `f0` (kd = 0).
+    pub fn cook_torrance(ks: f32, m: f32, f0: f32) -> Self {
+        BrdfSample { kd: 0.0, ks, s: 0.0, m, f0 }
+    }
+
+    /// True for a Cook-Torrance lobe (m > 0).
+    pub fn is_cook_torrance(&self) -> bool {
+        self.m > 0.0
+    }
+
+    /// f at angles (θi, θo, φ), in f64, with the library's BRDFs.
+    pub fn eval(&self, angles: [f64; 3]) -> f64 {
+        if self.is_cook_torrance() {
+            let (wi, wo) = BrdfGrid::directions(angles[0], angles[1], angles[2]);
+            self.kd as f64 * FRAC_1_PI + self.ks as f64 * cook_torrance::specular(self.m, self.f0, wo.as_vec3(), wi.as_vec3())
+        } else {
+            self.eval_cos_h(cos_half(angles[0], angles[1], angles[2]))
+        }
+    }
+
+    /// f of a Blinn-Phong sample for a half vector at cos δ = `cos_h` from the normal.
     pub fn eval_cos_h(&self, cos_h: f64) -> f64 {
         self.kd as f64 * FRAC_1_PI + self.ks as f64 * blinn_phong::specular(self.s, cos_h)
     }
@@ -219,7 +251,10 @@ pub fn cos_half(theta_i: f64, theta_o: f64, phi: f64) -> f64 {
     h.z / h.length()
 }
 
-/// Blinn-Phong samples tabulated on a grid ([S] 4-18): sample i's values are
+/// Bytes of one [`BrdfSample`].
+const SAMPLE_BYTES: u64 = std::mem::size_of::<BrdfSample>() as u64;
+
+/// BRDF samples tabulated on a grid ([S] 4-18): sample i's values are
 /// `values[i * cells..(i + 1) * cells]`, in table order.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BrdfSpace {
@@ -235,7 +270,7 @@ impl BrdfSpace {
     /// Bytes a space of `samples` samples on `grid` holds (table and sample list), for
     /// refusing requests before allocating.
     pub fn bytes_for(grid: &BrdfGrid, samples: u64) -> u64 {
-        grid.cells_u64().saturating_mul(samples).saturating_mul(4).saturating_add(samples.saturating_mul(12) + 32)
+        grid.cells_u64().saturating_mul(samples).saturating_mul(4).saturating_add(samples.saturating_mul(SAMPLE_BYTES) + 32)
     }
 
     /// The table of sample `i`.
@@ -251,9 +286,9 @@ impl BrdfSpace {
 impl PortValue for BrdfSpace {
     const NAME: &'static str = "BrdfSpace";
     const COLOR: [u8; 3] = [200, 140, 240];
-    const DOC: &'static str = "Blinn-Phong samples (kd, ks, s) tabulated on a (θi, θo, φ) grid";
+    const DOC: &'static str = "BRDF samples (Blinn-Phong kd, ks, s or Cook-Torrance m, F0) tabulated on a (θi, θo, φ) grid";
     fn byte_size(&self) -> usize {
-        self.values.len() * 4 + self.samples.len() * 12 + 32
+        self.values.len() * 4 + self.samples.len() * SAMPLE_BYTES as usize + 32
     }
     fn encode(&self) -> Vec<u8> {
         codec::to_bytes(self)
@@ -270,10 +305,13 @@ impl PortValue for BrdfSpace {
 /// each W-orthonormal (W the cell weights). The coefficient table c(s) ([S] 4-20, 4-22) holds,
 /// for each sampled exponent s_j (non-decreasing), the coefficients of the material
 /// (kd = 0, ks = 1, s_j) on the specular bases; the diffuse coefficient is kd itself and the
-/// specular samples have none on basis 0 ([S] 4-21).
+/// specular samples have none on basis 0 ([S] 4-21). A basis made from Cook-Torrance samples
+/// has no table (`family` says so): its materials are fitted ([`BrdfBasis::fit_specular`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BrdfBasis {
     pub grid: BrdfGrid,
+    /// The specular samples' family, which says how a material finds its coefficients.
+    pub family: BasisFamily,
     /// `bases() × grid.cells()` f32 values, basis k at `[k * cells..]`.
     #[serde(with = "pod_vec")]
     pub tables: Vec<f32>,
@@ -283,6 +321,16 @@ pub struct BrdfBasis {
     pub coefficients: Vec<f64>,
     /// The PCA eigenvalue of each specular basis (decreasing), for reports.
     pub eigenvalues: Vec<f64>,
+}
+
+/// The family of specular samples a [`BrdfBasis`] was made from.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum BasisFamily {
+    /// Blinn-Phong samples: the coefficient table c(s) over `s_values`.
+    BlinnPhong,
+    /// Cook-Torrance samples over roughness m ∈ [m[0], m[1]] and Schlick F0 ∈ [f0[0], f0[1]]:
+    /// no table (`s_values` and `coefficients` are empty); a material is fitted.
+    CookTorrance { m: [f64; 2], f0: [f64; 2] },
 }
 
 impl BrdfBasis {
@@ -319,6 +367,9 @@ impl BrdfBasis {
     /// ([S] 4-22); an error message naming the range for s outside it.
     pub fn specular_coefficients(&self, s: f64) -> Result<Vec<f64>, String> {
         let k = self.bases() - 1;
+        if let BasisFamily::CookTorrance { .. } = self.family {
+            return Err("the basis was made from Cook-Torrance samples and has no table c(s) for a Blinn-Phong exponent".into());
+        }
         let Some((lo, hi)) = self.s_range() else {
             return Err("the basis has no specular samples".into());
         };
@@ -414,7 +465,7 @@ mod tests {
 
     fn space() -> BrdfSpace {
         let g = grid();
-        let samples = vec![BrdfSample { kd: 1.0, ks: 0.0, s: 0.0 }, BrdfSample { kd: 0.0, ks: 1.0, s: 3.0 }];
+        let samples = vec![BrdfSample::diffuse(1.0), BrdfSample::blinn_phong(0.0, 1.0, 3.0)];
         let values = samples.iter().flat_map(|smp| (0..g.cells()).map(move |c| smp.eval(g.centre(c)) as f32)).collect();
         BrdfSpace { grid: g, samples, values }
     }
@@ -425,6 +476,7 @@ mod tests {
         let tables = (0..3 * n).map(|i| (i as f32 * 0.37).sin() - 0.2).collect();
         BrdfBasis {
             grid: g,
+            family: BasisFamily::BlinnPhong,
             tables,
             s_values: vec![1.0, 2.0, 4.0],
             coefficients: vec![1.0, 0.0, 3.0, -1.0, 5.0, -3.0],
@@ -530,7 +582,7 @@ mod tests {
     fn encodings_round_trip_and_refuse_inconsistent_payloads() {
         let s = space();
         assert_eq!(BrdfSpace::decode(&s.encode()).unwrap(), s);
-        assert_eq!(s.byte_size(), 2 * 60 * 4 + 2 * 12 + 32);
+        assert_eq!(s.byte_size(), 2 * 60 * 4 + 2 * 20 + 32);
         let b = basis();
         assert_eq!(BrdfBasis::decode(&b.encode()).unwrap(), b);
         for bytes in [s.encode(), b.encode()] {

@@ -22,7 +22,7 @@ mod wavelets;
 
 pub use self::image::{Image, MAX_IMAGE_BYTES};
 pub use accel::Accel;
-pub use brdf_space::{cos_half, BrdfBasis, BrdfGrid, BrdfSample, BrdfSpace, Trilinear, MAX_BRDF_SPACE_BYTES};
+pub use brdf_space::{cos_half, BasisFamily, BrdfBasis, BrdfGrid, BrdfSample, BrdfSpace, Trilinear, MAX_BRDF_SPACE_BYTES};
 pub use clusters::{Cluster, Clusters};
 pub use image_rows::{gather_rows, row_spec, ImageRows, Layer};
 pub use material::{Material, Medium};

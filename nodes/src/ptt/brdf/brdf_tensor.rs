@@ -77,7 +77,7 @@ pub enum BrdfModel {
 outputs!(pub BrdfTensorOut { tensor: BrdfTensorTable });
 
 /// `count` values spread linearly over [lo, hi] (`lo` alone for one).
-fn spread(count: usize, lo: f32, hi: f32) -> Vec<f64> {
+pub(crate) fn spread(count: usize, lo: f32, hi: f32) -> Vec<f64> {
     let (lo, hi) = (lo as f64, hi as f64);
     (0..count).map(|j| if count > 1 { lo + (hi - lo) * j as f64 / (count - 1) as f64 } else { lo }).collect()
 }
