@@ -9,13 +9,14 @@
 
 use relume_benches::{add_output, bench_graph};
 use relume_core::{shard::run_all, CancelToken, Engine, Graph, RunCtx, RunOptions};
-use relume_nodes::types::{Accel, CausticMap, Photons, Scene, ViewPaths, Volume};
+use relume_nodes::types::{Accel, Scene};
 use relume_nodes::volume::eikonal_paths::{trace, EikonalPaths, EikonalPathsIn};
 use relume_nodes::volume::eikonal_render::{render, EikonalRender, EikonalRenderIn};
 use relume_nodes::volume::emit_photons::{emit, EmitPhotons, Proxy};
 use relume_nodes::volume::march_photons::{MarchPhotons, MarchPhotonsIn};
 use relume_nodes::volume::octree::{build, Octree};
 use relume_nodes::volume::optics::Integrator;
+use relume_nodes::volume::types::{CausticMap, Photons, ViewPaths, Volume};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;
 

@@ -9,7 +9,8 @@ use rayon::prelude::*;
 use relume_benches::{add_output, bench_graph};
 use relume_core::{Engine, RunOptions};
 use relume_nodes::relight::relight::relight;
-use relume_nodes::types::{ObjectMaterials, Transfer};
+use relume_nodes::relight::types::Transfer;
+use relume_nodes::types::ObjectMaterials;
 use std::sync::OnceLock;
 
 fn main() {

@@ -9,7 +9,8 @@
 use relume_benches::{add_output, bench_graph};
 use relume_core::{Engine, RunOptions};
 use relume_nodes::relight::sv_relight::sv_relight;
-use relume_nodes::types::{BrdfBasis, ObjectMaterials, SvTransfer};
+use relume_nodes::relight::types::SvTransfer;
+use relume_nodes::types::{BrdfBasis, ObjectMaterials};
 use std::sync::OnceLock;
 
 fn main() {

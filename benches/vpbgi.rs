@@ -11,9 +11,9 @@ use relume_core::{CancelToken, Engine, RunCtx, RunOptions, Value};
 use relume_nodes::math::frame::Frame;
 use relume_nodes::pbgi::microbuffer::Microbuffer;
 use relume_nodes::pbgi::traversal::tree_extent;
+use relume_nodes::pbgi::types::{CodedWavelets, PointTree};
 use relume_nodes::pbgi::view_walk::{ViewWalk, WalkCounts};
 use relume_nodes::pbgi::wavelet_radiance::WaveletSource;
-use relume_nodes::types::{CodedWavelets, PointTree};
 use std::sync::OnceLock;
 
 fn main() {

@@ -7,7 +7,8 @@
 
 use relume_benches::{add_output, bench_graph, run_kind};
 use relume_core::{Engine, RunOptions, Value};
-use relume_nodes::types::{CodedWavelets, Metrics, Receivers};
+use relume_nodes::pbgi::types::{CodedWavelets, Receivers};
+use relume_nodes::types::Metrics;
 use std::sync::OnceLock;
 
 fn main() {

@@ -70,7 +70,8 @@ fn stiff_pbgi_cases_stay_finite_and_bounded() {
 #[test]
 fn coincident_points_build_a_tree_and_gather_finitely() {
     use relume_core::Value;
-    use relume_nodes::types::{Material, PointRadiance, SurfacePoints};
+    use relume_nodes::pbgi::types::PointRadiance;
+    use relume_nodes::types::{Material, SurfacePoints};
     let pts = SurfacePoints {
         position: vec![Vec3::new(0.0, 1.0, 0.0); 50],
         normal: vec![-Vec3::Y; 50],

@@ -2,7 +2,8 @@
 //! and the octree; a stroke re-runs what reads the medium, never the voxelisation.
 
 use relume_core::{Engine, RunOptions};
-use relume_nodes::types::{Image, Volume};
+use relume_nodes::types::Image;
+use relume_nodes::volume::types::Volume;
 use relume_tests::load_graph;
 
 #[test]

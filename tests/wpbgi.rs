@@ -115,7 +115,8 @@ fn stiff_wavelet_pbgi_cases_stay_finite_and_bounded() {
 
 #[test]
 fn coincident_points_get_wavelets_code_and_gather_finitely() {
-    use relume_nodes::types::{Material, PointRadiance, SurfacePoints};
+    use relume_nodes::pbgi::types::PointRadiance;
+    use relume_nodes::types::{Material, SurfacePoints};
     let mut g = wpbgi_graph("two_planes.ron", 1_000, 16);
     for (o, port) in [("scene", "scene.scene"), ("accel", "bvh.accel"), ("receivers", "gbuffer.receivers")] {
         add_output(&mut g, o, port);

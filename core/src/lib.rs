@@ -7,6 +7,7 @@
 
 mod budget;
 pub mod cache;
+pub mod codec;
 mod ctx;
 mod error;
 mod exec;
@@ -37,7 +38,7 @@ pub use memory::{MemoryEstimate, PortSize};
 pub use node::{ports_of, run_typed, Caching, Documented, DynNode, Node};
 pub use params::{ParamEnum, ParamKind, ParamSpec, ParamValue, ParamValues, Params, Schema};
 pub use plan::{make_plan, Plan};
-pub use port::{codec, input_at, InputPorts, OutputPorts, PortDecl, PortTypeInfo, PortValue, Ports, Value};
+pub use port::{input_at, InputPorts, OutputPorts, PortDecl, PortTypeInfo, PortValue, Ports, Value};
 pub use relume_macros::{node, ParamEnum, Params};
 
 // Lets the derive macros name `::relume_core` inside this crate's own tests.

@@ -1,6 +1,7 @@
 //! relume-nodes: the stage nodes of relume's pipelines and the `relume` command line.
 
 pub mod brdf;
+pub mod brdf_space;
 pub mod cli;
 pub mod geometry;
 pub mod image;
@@ -22,6 +23,7 @@ use relume_core::Registry;
 pub fn register_all(reg: &mut Registry) {
     image::register(reg);
     scene::register(reg);
+    brdf_space::register(reg);
     geometry::register(reg);
     reference::register(reg);
     pbgi::register(reg);

@@ -18,8 +18,11 @@ pub mod cook_torrance;
 pub mod dielectric;
 pub mod fresnel;
 pub mod lambert;
+mod model;
 #[cfg(test)]
 mod tests;
+
+pub use model::BrdfModel;
 
 use crate::math::sampling::cosine_hemisphere;
 use crate::types::Material;

@@ -1,7 +1,7 @@
 //! ImageError node.
 
+use crate::image::ssim::ssim_with;
 use crate::math::srgb::srgb_encode;
-use crate::math::ssim::ssim_with;
 use crate::types::{Image, Metrics};
 use relume_core::{inputs, node, outputs, CancelToken, NodeError, Params, RunCtx};
 

@@ -8,6 +8,7 @@ pub mod io;
 pub mod load_image;
 pub mod median_filter;
 pub mod save_image;
+pub mod ssim;
 pub mod test_pattern;
 pub mod tonemap;
 pub mod z_test;

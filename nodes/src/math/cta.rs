@@ -44,11 +44,11 @@ pub struct ClusterTensor {
     pub columns: u32,
     pub rank_v: u32,
     pub rank_l: u32,
-    #[serde(with = "crate::types::pod_vec")]
+    #[serde(with = "relume_core::codec::pod_vec")]
     pub a: Vec<f32>,
-    #[serde(with = "crate::types::pod_vec")]
+    #[serde(with = "relume_core::codec::pod_vec")]
     pub b: Vec<f32>,
-    #[serde(with = "crate::types::pod_vec")]
+    #[serde(with = "relume_core::codec::pod_vec")]
     pub core: Vec<f32>,
     /// ‖X‖² and ‖X − X̂‖².
     pub norm2: f64,

@@ -382,7 +382,7 @@ impl CubeMap {
         for y in 0..height {
             for x in 0..width {
                 let uv = glam::Vec2::new((x as f32 + 0.5) / width as f32, (y as f32 + 0.5) / height as f32);
-                out.push(self.lookup(crate::scene::envmap::uv_to_dir(uv)));
+                out.push(self.lookup(crate::math::latlong::uv_to_dir(uv)));
             }
         }
         out
@@ -631,7 +631,7 @@ mod tests {
         assert_eq!(ll.len(), 64 * 32);
         for (p, v) in ll.iter().enumerate() {
             let uv = glam::Vec2::new(((p % 64) as f32 + 0.5) / 64.0, ((p / 64) as f32 + 0.5) / 32.0);
-            assert!((*v - f(crate::scene::envmap::uv_to_dir(uv))).abs().max_element() < 0.02);
+            assert!((*v - f(crate::math::latlong::uv_to_dir(uv))).abs().max_element() < 0.02);
         }
     }
 }

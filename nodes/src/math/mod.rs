@@ -8,6 +8,7 @@ pub mod cubemap;
 pub mod frame;
 pub mod haar;
 pub mod kmeans;
+pub mod latlong;
 pub mod morton;
 pub mod pca;
 pub mod rng;
@@ -15,10 +16,15 @@ pub mod sampling;
 pub mod sh;
 pub mod sh_rotation;
 pub mod srgb;
-pub mod ssim;
 pub mod streamed_pca;
 pub mod tree_coding;
 pub mod tucker;
+
+/// `count` values spread linearly over [lo, hi] (`lo` alone for one).
+pub fn spread(count: usize, lo: f32, hi: f32) -> Vec<f64> {
+    let (lo, hi) = (lo as f64, hi as f64);
+    (0..count).map(|j| if count > 1 { lo + (hi - lo) * j as f64 / (count - 1) as f64 } else { lo }).collect()
+}
 
 /// ⌊v⌋ without the library call that baseline x86-64 makes of `f32::floor` (it has no
 /// rounding instruction): the same value for every finite v (a zero keeps no sign).
@@ -33,29 +39,6 @@ pub fn floor_f32(v: f32) -> f32 {
         t - 1.0
     } else {
         t
-    }
-}
-
-/// Asks the kernel to back `v`'s allocation with 2 MiB pages where it can (no effect on what
-/// any code computes; nothing off Linux, or below 4 MiB): for arrays of hundreds of MiB read
-/// a few bytes at a time far apart (a vertex's visibility), where every read would
-/// otherwise miss the address-translation cache. Only pages not yet touched change, so call
-/// it before filling a new allocation.
-pub fn huge_pages<T>(v: &Vec<T>) {
-    let bytes = v.capacity() * std::mem::size_of::<T>();
-    if bytes < 4 << 20 {
-        return;
-    }
-    #[cfg(target_os = "linux")]
-    {
-        const PAGE: usize = 4096;
-        let start = (v.as_ptr() as usize).next_multiple_of(PAGE);
-        let end = (v.as_ptr() as usize + bytes) & !(PAGE - 1);
-        // SAFETY: the range lies inside `v`'s allocation and is page-aligned; the advice
-        // changes how the kernel backs the pages, never their contents (a refusal is ignored).
-        unsafe {
-            libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE);
-        }
     }
 }
 
@@ -103,17 +86,5 @@ mod tests {
             assert_eq!(floor_f32(v), v.floor(), "{v}");
         }
         assert!(floor_f32(f32::NAN).is_nan() && floor_f32(f32::INFINITY) == f32::INFINITY);
-    }
-
-    /// The advice changes how pages are backed, never what they hold: an array filled after
-    /// it (and one it reaches after filling) reads back the same.
-    #[test]
-    fn large_pages_keep_an_arrays_contents() {
-        let mut v: Vec<u32> = Vec::with_capacity(3 << 20);
-        huge_pages(&v);
-        v.extend((0..3u32 << 20).map(|k| k.wrapping_mul(2_654_435_761)));
-        huge_pages(&v);
-        assert!(v.iter().enumerate().all(|(k, &x)| x == (k as u32).wrapping_mul(2_654_435_761)));
-        huge_pages(&Vec::<u8>::new());
     }
 }

@@ -39,9 +39,9 @@ pub enum Threshold {
 /// A sparse vector: ascending indices and their values.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Sparse {
-    #[serde(with = "crate::types::pod_vec")]
+    #[serde(with = "relume_core::codec::pod_vec")]
     pub index: Vec<u32>,
-    #[serde(with = "crate::types::pod_vec")]
+    #[serde(with = "relume_core::codec::pod_vec")]
     pub value: Vec<f32>,
 }
 

@@ -368,8 +368,8 @@ impl Raster for AdaptiveMicrobuffer {
 mod tests {
     use super::*;
     use crate::math::frame::Frame;
+    use crate::pbgi::test_support::pbgi_setup;
     use crate::pbgi::traversal::{GatherCounts, Traversal};
-    use crate::testing::pbgi_setup;
 
     /// Gathers receiver `i` of the Cornell set-up into `mb` (adaptive) and returns the
     /// outgoing radiance and the counts.

@@ -2,7 +2,8 @@
 
 use crate::math::kmeans::{KMeans, Metric};
 use crate::math::rng::mix64;
-use crate::types::{Cluster, Clusters, Receivers};
+use crate::pbgi::types::Receivers;
+use crate::types::{Cluster, Clusters};
 use glam::{DVec3, Vec3};
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 

@@ -4,7 +4,8 @@ use super::microbuffer::Microbuffer;
 use super::traversal::{count_metrics, microbuffer_params, tree_extent, GatherCounts, Traversal};
 use crate::brdf;
 use crate::math::frame::Frame;
-use crate::types::{Clusters, Image, Metrics, PointTree, Receivers};
+use crate::pbgi::types::{PointTree, Receivers};
+use crate::types::{Clusters, Image, Metrics};
 use glam::Vec3;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
@@ -117,7 +118,8 @@ impl FactorizedGather {
 mod tests {
     use super::*;
     use crate::pbgi::pbgi_gather::{gather, PbgiGather};
-    use crate::testing::{cancels_midway, pbgi_setup, run_on};
+    use crate::pbgi::test_support::pbgi_setup;
+    use crate::testing::{cancels_midway, run_on};
     use relume_core::{CancelToken, Value};
 
     #[test]

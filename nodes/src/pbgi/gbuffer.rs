@@ -1,9 +1,10 @@
 //! GBuffer node.
 
+use crate::pbgi::types::Receivers;
 use crate::render::camera::CameraRays;
 use crate::render::surface::Surface;
 use crate::types::accel::Accel;
-use crate::types::{Material, Receivers, Scene};
+use crate::types::{Material, Scene};
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
 /// The camera's primary hits at pixel centres, as receivers: pixel, position, shading normal
@@ -53,7 +54,7 @@ impl GBuffer {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // At most one receiver per pixel.
         let size = inputs[0].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize {
-            bytes: (w * h * crate::types::Receivers::BYTES_PER_RECEIVER) as u64,
+            bytes: (w * h * crate::pbgi::types::Receivers::BYTES_PER_RECEIVER) as u64,
             dims: Some([w, h]),
         });
         relume_core::MemoryEstimate { outputs: vec![size], working: 0 }

@@ -13,9 +13,12 @@ pub mod preview_splat;
 pub mod shade_direct;
 pub mod spherical_microbuffer;
 pub mod surfel_wavelets;
+#[cfg(test)]
+pub(crate) mod test_support;
 pub mod texel_cache;
 pub mod traversal;
 pub mod twin_dielectrics;
+pub mod types;
 pub mod view_pairs;
 pub mod view_tree;
 pub mod view_walk;

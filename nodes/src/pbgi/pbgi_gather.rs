@@ -4,7 +4,8 @@ use super::microbuffer::Microbuffer;
 use super::traversal::{count_metrics, microbuffer_params, tree_extent, GatherBuffer, GatherCounts, NodeRadiance, Traversal};
 use crate::math::frame::Frame;
 use crate::math::morton::morton2;
-use crate::types::{Image, Metrics, PointTree, Receivers};
+use crate::pbgi::types::{PointTree, Receivers};
+use crate::types::{Image, Metrics};
 use glam::Vec3;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
@@ -106,7 +107,8 @@ impl PbgiGather {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::{cancels_midway, first, i, pbgi_setup, run_on};
+    use crate::pbgi::test_support::pbgi_setup;
+    use crate::testing::{cancels_midway, first, i, run_on};
     use relume_core::Value;
 
     #[test]

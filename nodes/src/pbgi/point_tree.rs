@@ -1,6 +1,7 @@
 //! PointTree node: builds the `PointTree` (types/point_tree.rs) over shaded surface points.
 
-use crate::types::{PointRadiance, PointTree, SurfacePoints};
+use crate::pbgi::types::{PointRadiance, PointTree};
+use crate::types::SurfacePoints;
 use glam::Vec3;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
@@ -28,7 +29,7 @@ impl BuildPointTree {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // 2N − 1 nodes and the points' radiance.
         let n = inputs[0].map(|s| s.bytes / crate::types::SurfacePoints::BYTES_PER_POINT as u64);
-        let node = std::mem::size_of::<crate::types::TreeNode>() as u64;
+        let node = std::mem::size_of::<crate::pbgi::types::TreeNode>() as u64;
         relume_core::MemoryEstimate { outputs: vec![n.map(|n| relume_core::PortSize::bytes(2 * n * node + 12 * n))], working: 0 }
     }
 

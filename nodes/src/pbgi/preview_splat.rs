@@ -2,7 +2,8 @@
 
 use super::traversal::NodeRadiance;
 use super::wavelet_radiance::WaveletSource;
-use crate::types::{CodedWavelets, Image, Metrics, PointTree, Receivers};
+use crate::pbgi::types::{CodedWavelets, PointTree, Receivers};
+use crate::types::{Image, Metrics};
 use glam::Vec3;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
@@ -125,10 +126,11 @@ mod tests {
     use super::*;
     use crate::math::cube_haar::CubeHaar;
     use crate::math::tree_coding::Threshold;
+    use crate::pbgi::test_support::wpbgi_setup::setup;
+    use crate::pbgi::types::PointWavelets;
     use crate::pbgi::wavelet_radiance::{code_tree, outgoing_intensity};
-    use crate::testing::wpbgi_setup::setup;
     use crate::testing::{cancels_midway, f, first, i, run_on};
-    use crate::types::{Material, PointWavelets, SurfacePoints};
+    use crate::types::{Material, SurfacePoints};
     use relume_core::Value;
 
     /// A 40 × 40 grid of disks on z = 0 facing up, each sending radiance `l` everywhere above

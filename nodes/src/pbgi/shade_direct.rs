@@ -2,8 +2,9 @@
 
 use super::incident::{DirectSampler, Incident};
 use crate::brdf::diffuse_albedo;
+use crate::pbgi::types::PointRadiance;
 use crate::types::accel::Accel;
-use crate::types::{PointRadiance, Scene, SurfacePoints};
+use crate::types::{Scene, SurfacePoints};
 use glam::Vec3;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 use std::f32::consts::FRAC_1_PI;

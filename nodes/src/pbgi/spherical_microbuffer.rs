@@ -22,7 +22,8 @@ use super::microbuffer::Microbuffer;
 use super::traversal::{GatherBuffer, GatherCounts, NodeRadiance, Raster, Traversal};
 use crate::brdf;
 use crate::math::frame::Frame;
-use crate::types::{faces_inside, Material};
+use crate::pbgi::types::faces_inside;
+use crate::types::Material;
 use glam::Vec3;
 
 /// A transmitting receiver skips near leaves whose centre lies within this many of their
@@ -174,7 +175,8 @@ mod tests {
     use super::*;
     use crate::math::frame::Frame;
     use crate::pbgi::traversal::{GatherCounts, Traversal};
-    use crate::types::{PointTree, SurfacePoints};
+    use crate::pbgi::types::PointTree;
+    use crate::types::SurfacePoints;
 
     /// 400 disks of radiance `l` on the plane z = `z` facing `facing` (±z), 2 × 2 wide.
     fn plane(z: f32, facing: Vec3, l: Vec3) -> (SurfacePoints, Vec<Vec3>) {

@@ -4,8 +4,9 @@ use super::incident::{DirectSampler, Incident};
 use super::wavelet_radiance::{interface_intensity, outgoing_intensity};
 use crate::brdf;
 use crate::math::cube_haar::{CubeHaar, SparseCubeHaar};
+use crate::pbgi::types::PointWavelets;
 use crate::types::accel::Accel;
-use crate::types::{Material, PointWavelets, Scene, SurfacePoints};
+use crate::types::{Material, Scene, SurfacePoints};
 use glam::Vec3;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 

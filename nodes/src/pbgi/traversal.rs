@@ -3,7 +3,8 @@
 
 use super::microbuffer::Microbuffer;
 use crate::math::frame::Frame;
-use crate::types::{Metrics, PointTree};
+use crate::pbgi::types::PointTree;
+use crate::types::Metrics;
 use glam::Vec3;
 
 /// Declares a gather node's struct with the microbuffer parameters both gathers share

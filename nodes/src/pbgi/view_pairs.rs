@@ -26,7 +26,7 @@
 //!   face away from R sends nothing and is culled instead.
 
 use super::traversal::height_above_plane;
-use crate::types::{PointTree, TreeNode};
+use crate::pbgi::types::{PointTree, TreeNode};
 use glam::Vec3;
 use std::f32::consts::PI;
 

@@ -11,7 +11,8 @@ use crate::math::cube_haar::{CubeHaar, SparseCubeHaar};
 use crate::math::cubemap::{texel_directions, CubeMap};
 use crate::math::frame::Frame;
 use crate::math::tree_coding::Threshold;
-use crate::types::{CodedWavelets, Material, Metrics, PointTree, PointWavelets, SurfacePoints};
+use crate::pbgi::types::{CodedWavelets, PointTree, PointWavelets};
+use crate::types::{Material, Metrics, SurfacePoints};
 use glam::Vec3;
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, ParamEnum, Params, PortSize, RunCtx};
@@ -312,11 +313,12 @@ impl ViewTree {
 mod tests {
     use super::*;
     use crate::pbgi::pbgi_gather::gather_with;
+    use crate::pbgi::test_support::wpbgi_setup::{setup, Setup};
     use crate::pbgi::traversal::Traversal;
+    use crate::pbgi::types::Receivers;
     use crate::pbgi::wavelet_gather::WaveletGather;
-    use crate::testing::wpbgi_setup::{setup, Setup};
     use crate::testing::{cancels_midway, first, i, id, run_on};
-    use crate::types::{Image, Receivers};
+    use crate::types::Image;
     use relume_core::{CancelToken, ParamValue, Value};
     use std::sync::OnceLock;
 

@@ -28,7 +28,7 @@ use super::microbuffer::Microbuffer;
 use super::traversal::{GatherCounts, NodeRadiance, Traversal};
 use super::view_pairs::{classify, Pair, PairTest};
 use crate::math::frame::Frame;
-use crate::types::PointTree;
+use crate::pbgi::types::PointTree;
 use glam::Vec3;
 use relume_core::{NodeError, RunCtx};
 use std::sync::atomic::{AtomicU64, Ordering};

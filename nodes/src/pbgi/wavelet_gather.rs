@@ -5,7 +5,8 @@ use super::pbgi_gather::gather_with;
 use super::spherical_microbuffer::SphericalMicrobuffer;
 use super::traversal::{count_metrics, microbuffer_params, tree_extent, Traversal};
 use super::wavelet_radiance::WaveletSource;
-use crate::types::{CodedWavelets, Image, Metrics, PointTree, Receivers};
+use crate::pbgi::types::{CodedWavelets, PointTree, Receivers};
+use crate::types::{Image, Metrics};
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
 microbuffer_params! {
@@ -83,7 +84,8 @@ impl WaveletGather {
 mod tests {
     use super::*;
     use crate::pbgi::pbgi_gather::{gather, PbgiGather};
-    use crate::testing::{cancels_midway, f, first, i, run_on, wpbgi_setup};
+    use crate::pbgi::test_support::wpbgi_setup;
+    use crate::testing::{cancels_midway, f, first, i, run_on};
     use crate::types::{Material, SurfacePoints};
     use glam::Vec3;
     use relume_core::{CancelToken, Value};

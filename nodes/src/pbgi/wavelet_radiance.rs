@@ -17,7 +17,8 @@ use crate::math::cubemap::CubeMap;
 use crate::math::cubemap::{texel_directions, texel_of_side, texel_solid_angles};
 use crate::math::frame::Frame;
 use crate::math::tree_coding::{CodedTree, Threshold, TreeShape};
-use crate::types::{CodedWavelets, Material, PointTree, PointWavelets};
+use crate::pbgi::types::{CodedWavelets, PointTree, PointWavelets};
+use crate::types::Material;
 use glam::Vec3;
 
 /// The surfel's outgoing radiance on a cube map of side `n`: texel k holds the radiance
@@ -233,7 +234,7 @@ impl super::traversal::NodeRadiance for WaveletSource<'_> {
     fn area_and_radiance(&self, i: u32, dir: Vec3) -> (f32, Vec3) {
         let a = self.tree.projected_area(i, dir);
         let node = &self.tree.nodes[i as usize];
-        if a <= crate::types::MIN_AREA_FRACTION * node.area || a <= 0.0 {
+        if a <= crate::pbgi::types::MIN_AREA_FRACTION * node.area || a <= 0.0 {
             return (0.0, Vec3::ZERO);
         }
         (a, self.intensity_per_area(i, dir) * (node.area / a))

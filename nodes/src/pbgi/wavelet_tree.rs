@@ -2,7 +2,7 @@
 
 use super::wavelet_radiance::code_tree;
 use crate::math::tree_coding::Threshold;
-use crate::types::{CodedWavelets, PointTree, PointWavelets};
+use crate::pbgi::types::{CodedWavelets, PointTree, PointWavelets};
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, ParamEnum, Params, PortSize, RunCtx};
 
 /// How small stored coefficients are dropped.

@@ -21,9 +21,9 @@ use super::channels::Channels;
 use super::types::Visibility;
 use super::vertices::{ray_offset, vertex_frame};
 use crate::brdf;
+use crate::brdf_space::basis_brdf::eval_bases;
 use crate::math::cubemap::CubeMap;
 use crate::math::sh::sh_basis_into;
-use crate::relight::basis_brdf::eval_bases;
 use crate::types::{Accel, BrdfBasis, Scene};
 use glam::Vec3;
 
@@ -186,7 +186,7 @@ mod tests {
         let s = roofed(Material::Lambert { albedo: Vec3::splat(0.8) }, false);
         let accel = Accel::build(&s, BuildQuality::Fast);
         let vis = visibility(&s, 32, 8);
-        let basis = crate::relight::test_support::basis(&crate::relight::test_support::space(6, 6, 12, 12, 1.0, 100.0), 3).0;
+        let basis = crate::brdf_space::test_support::basis(&crate::brdf_space::test_support::space(6, 6, 12, 12, 1.0, 100.0), 3).0;
         let ch = Channels::new(&s, basis.bases()).expect("layout");
         assert_eq!(ch.count(), 1, "two fixed grey objects: one channel");
         let b = Bounce::new(&s, &accel, &vis, &basis, &ch, 32);
@@ -204,7 +204,7 @@ mod tests {
         let s = roofed(Material::BlinnPhong { kd: Vec3::splat(0.8), ks: Vec3::ZERO, exponent: 10.0 }, true);
         let accel = Accel::build(&s, BuildQuality::Fast);
         let vis = visibility(&s, 32, 8);
-        let basis = crate::relight::test_support::basis(&crate::relight::test_support::space(6, 6, 12, 12, 1.0, 100.0), 3).0;
+        let basis = crate::brdf_space::test_support::basis(&crate::brdf_space::test_support::space(6, 6, 12, 12, 1.0, 100.0), 3).0;
         let ch = Channels::new(&s, basis.bases()).expect("layout");
         assert_eq!((ch.fixed, ch.count()), (1, 1 + basis.bases()));
         let b = Bounce::new(&s, &accel, &vis, &basis, &ch, 32);

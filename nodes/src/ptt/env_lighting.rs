@@ -160,7 +160,7 @@ mod tests {
         // A one-texel sun in a dark lat-long map: the cube map's integral is the map's.
         let (w, h) = (256usize, 128usize);
         let sun = Vec3::new(0.663, 0.643, 0.383).normalize();
-        let uv = crate::scene::envmap::dir_to_uv(sun);
+        let uv = crate::math::latlong::dir_to_uv(sun);
         let (sx, sy) = (((uv.x * w as f32) as usize).min(w - 1), ((uv.y * (h - 1) as f32).round() as usize).min(h - 1));
         let mut texels = vec![Vec3::splat(0.01); w * h];
         texels[sy * w + sx] = Vec3::splat(1.0e4);

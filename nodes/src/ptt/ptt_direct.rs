@@ -3,8 +3,8 @@
 use super::incident_projection::{ShColumns, NO_SLOT};
 use super::transfer_t0::DirectTransfer;
 use super::types::EnvLight;
-use crate::types::pod_vec;
 use glam::Vec3;
+use relume_core::codec::pod_vec;
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx};
 use serde::{Deserialize, Serialize};

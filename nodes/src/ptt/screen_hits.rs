@@ -1,7 +1,7 @@
 //! The `ScreenHits` port type: what a camera sees of a mesh, as weights on its vertices.
 
-use crate::types::pod_vec;
 use glam::Vec3;
+use relume_core::codec::pod_vec;
 use relume_core::PortValue;
 use serde::{Deserialize, Serialize};
 

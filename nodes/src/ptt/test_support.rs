@@ -16,9 +16,9 @@ use super::transfer_t1::TransferT1;
 use super::transfer_t2::TransferT2;
 use super::types::{EnvLight, VertexColors, Visibility};
 use super::vertex_visibility::tests::{grid, visibility};
-use crate::relight::material_project::MaterialProject;
-use crate::relight::scene_materials::SceneMaterials;
-use crate::scene::envmap::uv_to_dir;
+use crate::brdf_space::material_project::MaterialProject;
+use crate::brdf_space::scene_materials::SceneMaterials;
+use crate::math::latlong::uv_to_dir;
 use crate::testing::{first, i, run_on};
 use crate::types::accel::BuildQuality;
 use crate::types::{Accel, EnvMap, Environment, Material, ObjectMaterials, Scene};
@@ -75,7 +75,7 @@ impl Chain {
         let accel = Value::new(Accel::build(&scene, BuildQuality::Fast));
         let vis = visibility(&scene, 16, 2);
         let (brdf, lobes) = brdf.clone();
-        let basis = crate::relight::test_support::basis(&crate::relight::test_support::space(6, 6, 12, 12, 1.0, 100.0), 3).0;
+        let basis = crate::brdf_space::test_support::basis(&crate::brdf_space::test_support::space(6, 6, 12, 12, 1.0, 100.0), 3).0;
         let sv = Value::new(scene.clone());
         let plan: Value = run_on::<CtaCompress>(
             &[("clusters", i(1)), ("eigenvectors", i(200)), ("lighting", i(24))],

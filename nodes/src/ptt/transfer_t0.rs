@@ -9,8 +9,8 @@ use super::vertices::vertex_frame;
 use crate::math::cube_haar::{largest, CubeHaar};
 use crate::math::cubemap::{CubeAt, CubeMap};
 use crate::math::frame::Frame;
-use crate::types::pod_vec;
 use glam::Vec3;
+use relume_core::codec::pod_vec;
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx, ShardSpec};
 use serde::{Deserialize, Serialize};
@@ -132,7 +132,7 @@ impl PortValue for DirectTransfer {
 pub struct LobeVisibility {
     pub side: u32,
     pub sigmas: Vec<f64>,
-    #[serde(with = "crate::types::byte_vec")]
+    #[serde(with = "relume_core::codec::byte_vec")]
     pub maps: Vec<u8>,
 }
 

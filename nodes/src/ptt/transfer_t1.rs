@@ -203,7 +203,7 @@ mod tests {
         let s = floor_and_roof(0.5);
         let accel = Value::new(Accel::build(&s, BuildQuality::Fast));
         let vis = visibility(&s, 16, 2);
-        let basis = crate::relight::test_support::basis(&crate::relight::test_support::space(6, 6, 12, 12, 1.0, 100.0), 3).0;
+        let basis = crate::brdf_space::test_support::basis(&crate::brdf_space::test_support::space(6, 6, 12, 12, 1.0, 100.0), 3).0;
         let run = |eig: i64, light: i64| {
             let plan: CtaPlan = first(
                 &run_on::<CtaCompress>(

@@ -7,8 +7,9 @@ use super::types::Visibility;
 use super::vertices::ray_offset;
 use crate::math::cubemap::CubeMap;
 use crate::math::sh::{sh_basis_into, sh_clamped_cosine};
-use crate::types::{pod_vec, Accel, BrdfBasis, BrdfGrid, Material, Scene};
+use crate::types::{Accel, BrdfBasis, BrdfGrid, Material, Scene};
 use glam::Vec3;
+use relume_core::codec::pod_vec;
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx, ShardSpec};
 use serde::{Deserialize, Serialize};
@@ -297,7 +298,7 @@ mod tests {
         let s = floor_and_tiled_roof(0.5);
         let accel = Value::new(Accel::build(&s, BuildQuality::Fast));
         let vis = visibility(&s, 16, 2);
-        let basis = crate::relight::test_support::basis(&crate::relight::test_support::space(6, 6, 12, 12, 1.0, 100.0), 3).0;
+        let basis = crate::brdf_space::test_support::basis(&crate::brdf_space::test_support::space(6, 6, 12, 12, 1.0, 100.0), 3).0;
         let plan: crate::ptt::types::CtaPlan = first(
             &run_on::<CtaCompress>(
                 &[("clusters", i(2)), ("eigenvectors", i(100)), ("lighting", i(24))],

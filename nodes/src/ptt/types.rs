@@ -2,8 +2,8 @@
 //! (`EnvLight`) and the vertices' visibility of it (`Visibility`).
 
 use crate::math::cubemap::CubeMap;
-use crate::types::pod_vec;
 use glam::Vec3;
+use relume_core::codec::pod_vec;
 use relume_core::PortValue;
 use serde::{Deserialize, Serialize};
 

@@ -53,7 +53,7 @@ impl ApplyMaterials {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::relight::scene_materials::scene_materials;
+    use crate::brdf_space::scene_materials::scene_materials;
     use crate::relight::test_support::scene;
     use crate::testing::{first, run_on};
     use relume_core::Value;

@@ -1,21 +1,16 @@
-//! Pixel relighting with dynamic BRDFs (PIPELINES.md pipeline 1; [S] chapter 4): the BRDF space
-//! and its basis (`BrdfSpaceSample`, `BrdfPca`), the dynamic objects' materials and their
-//! projection (`SceneMaterials`, `MaterialProject`), the precompute (`TransferPrecompute`, on
-//! the paths of `paths` weighted by `shades`; the terms a scene needs in `terms`; signed basis
-//! evaluation in `basis_brdf`), the interactive combine (`Relight`) and the same-seed render
-//! that measures the basis error alone (`RelightReference`).
+//! Pixel relighting with dynamic BRDFs ([S] chapter 4), on the BRDF space and basis of
+//! `brdf_space`: the precompute (`TransferPrecompute`, on the paths of `paths` weighted by
+//! `shades`; the terms a scene needs in `terms`), the interactive combine (`Relight`), the
+//! same-seed render that measures the basis error alone (`RelightReference`), material edits
+//! (`ApplyMaterials`, `PaintMaterial`) and the spatially varying extension (`SvTransferPrecompute`,
+//! `SvRelight`).
 
 pub mod apply_materials;
-pub mod basis_brdf;
-pub mod brdf_pca;
-pub mod brdf_space_sample;
-pub mod material_project;
 pub mod paint_material;
 pub mod paths;
 #[allow(clippy::module_inception)]
 pub mod relight;
 pub mod relight_reference;
-pub mod scene_materials;
 pub mod shades;
 pub mod sv_precompute;
 pub mod sv_relight;
@@ -24,15 +19,12 @@ pub mod sv_terms;
 pub mod sv_transfer_precompute;
 pub mod terms;
 pub mod transfer_precompute;
+pub mod types;
 
 use relume_core::Registry;
 
 /// Registers the relighting nodes.
 pub fn register(reg: &mut Registry) {
-    reg.add::<brdf_space_sample::BrdfSpaceSample>();
-    reg.add::<brdf_pca::BrdfPca>();
-    reg.add::<scene_materials::SceneMaterials>();
-    reg.add::<material_project::MaterialProject>();
     reg.add::<transfer_precompute::TransferPrecompute>();
     reg.add::<relight::Relight>();
     reg.add::<relight_reference::RelightReference>();
@@ -45,48 +37,9 @@ pub fn register(reg: &mut Registry) {
 /// Small BRDF spaces and bases for the unit tests of this folder, made by the nodes themselves.
 #[cfg(test)]
 pub(crate) mod test_support {
-    use crate::testing::{f, first, i, run_on};
-    use crate::types::{BrdfBasis, BrdfGrid, BrdfSample, BrdfSpace, Metrics};
+    use crate::testing::{first, i, run_on};
+    use crate::types::BrdfBasis;
     use relume_core::Value;
-
-    /// A Cook-Torrance `BrdfSpaceSample` on an n × n × 2n grid: `samples` − 1 specular samples,
-    /// roughnesses over [m_min, m_max] × `f0_count` F0 values over [0.02, 1].
-    pub fn ct_space(n: i64, samples: i64, f0_count: i64, m_min: f64, m_max: f64) -> BrdfSpace {
-        let p = [
-            ("n_theta_i", i(n)),
-            ("n_theta_o", i(n)),
-            ("n_phi", i(2 * n)),
-            ("samples", i(samples)),
-            ("model", crate::testing::id("CookTorrance")),
-            ("m_min", f(m_min)),
-            ("m_max", f(m_max)),
-            ("f0_count", i(f0_count)),
-        ];
-        first(&run_on::<super::brdf_space_sample::BrdfSpaceSample>(&p, vec![]).unwrap())
-    }
-
-    /// `BrdfSpaceSample` with the given grid, sample count and exponent range.
-    pub fn space(n_theta_i: i64, n_theta_o: i64, n_phi: i64, samples: i64, s_min: f32, s_max: f32) -> BrdfSpace {
-        let p = [
-            ("n_theta_i", i(n_theta_i)),
-            ("n_theta_o", i(n_theta_o)),
-            ("n_phi", i(n_phi)),
-            ("samples", i(samples)),
-            ("s_min", f(s_min as f64)),
-            ("s_max", f(s_max as f64)),
-        ];
-        first(&run_on::<super::brdf_space_sample::BrdfSpaceSample>(&p, vec![]).unwrap())
-    }
-
-    /// A space with the diffuse sample and specular samples of exactly the exponents `s`
-    /// (repeats allowed: rank-deficient sets).
-    pub fn space_of(n_theta_i: u32, n_theta_o: u32, n_phi: u32, s: &[f32]) -> BrdfSpace {
-        let grid = BrdfGrid { n_theta_i, n_theta_o, n_phi };
-        let samples: Vec<BrdfSample> =
-            std::iter::once(BrdfSample::diffuse(1.0)).chain(s.iter().map(|&s| BrdfSample::blinn_phong(0.0, 1.0, s))).collect();
-        let values = samples.iter().flat_map(|p| (0..grid.cells()).map(move |c| p.eval(grid.centre(c)) as f32)).collect();
-        BrdfSpace { grid, samples, values }
-    }
 
     /// The spheres scene made for relighting, `size`² pixels: spheres a and b one dynamic object
     /// ("glossy"), sphere c another (coloured), a fixed reddish floor, a point light and a
@@ -151,12 +104,14 @@ pub(crate) mod test_support {
         scene: &crate::types::Scene,
         basis: &BrdfBasis,
         counts: [i64; 4],
-    ) -> (Value, crate::types::ObjectMaterials, crate::types::Transfer, relume_core::cache::CacheEntry) {
+    ) -> (Value, crate::types::ObjectMaterials, crate::relight::types::Transfer, relume_core::cache::CacheEntry) {
         use crate::types::accel::BuildQuality;
         let accel = Value::new(crate::types::Accel::build(scene, BuildQuality::Fast));
         let m: crate::types::ObjectMaterials =
-            first(&run_on::<super::scene_materials::SceneMaterials>(&[], vec![Value::new(scene.clone())]).unwrap());
-        let m = first(&run_on::<super::material_project::MaterialProject>(&[], vec![Value::new(basis.clone()), Value::new(m)]).unwrap());
+            first(&run_on::<crate::brdf_space::scene_materials::SceneMaterials>(&[], vec![Value::new(scene.clone())]).unwrap());
+        let m = first(
+            &run_on::<crate::brdf_space::material_project::MaterialProject>(&[], vec![Value::new(basis.clone()), Value::new(m)]).unwrap(),
+        );
         let p = [
             ("spp", i(counts[0])),
             ("light_samples", i(counts[1])),
@@ -172,25 +127,19 @@ pub(crate) mod test_support {
     /// A 2 × 1 transfer by hand: one dynamic object "a", S = 1, a merged RGB direct image and a
     /// grey specular one (colour (1, 0.5, 0.25)); pixel 0 fixed, pixel 1 on "a"; `data` is
     /// the 16 floats (stride 8).
-    pub fn tiny_transfer(data: Vec<f32>) -> crate::types::Transfer {
+    pub fn tiny_transfer(data: Vec<f32>) -> crate::relight::types::Transfer {
         use super::terms::{Channels, First, Term};
-        crate::types::Transfer {
+        crate::relight::types::Transfer {
             width: 2,
             height: 1,
             terms: vec![(Term::Direct(First::Merged), Channels::Rgb), (Term::Direct(First::Specular(1)), Channels::Grey)],
             groups: vec!["a".into()],
             specular_bases: 1,
             colour: [1.0, 0.5, 0.25],
-            counts: crate::types::PathCounts { spp: 1, light_samples: 1, bounce_rays: 1, bounce_light_samples: 1, seed: 0 },
+            counts: crate::relight::types::PathCounts { spp: 1, light_samples: 1, bounce_rays: 1, bounce_light_samples: 1, seed: 0 },
             stride: 8,
             class: vec![0, 1],
             data,
         }
-    }
-
-    /// `BrdfPca` of `space` with `bases` bases: the basis and its metrics.
-    pub fn basis(space: &BrdfSpace, bases: i64) -> (BrdfBasis, Metrics) {
-        let out = run_on::<super::brdf_pca::BrdfPca>(&[("bases", i(bases))], vec![Value::new(space.clone())]).unwrap();
-        (out[0].get::<BrdfBasis>().unwrap().clone(), out[1].get::<Metrics>().unwrap().clone())
     }
 }

@@ -111,7 +111,7 @@ impl PaintMaterial {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::relight::scene_materials::scene_materials;
+    use crate::brdf_space::scene_materials::scene_materials;
     use crate::relight::test_support::scene;
     use crate::testing::{f, first, i, id, rgb, run_on, t};
     use relume_core::Value;

@@ -21,12 +21,13 @@
 
 use crate::math::frame::Frame;
 use crate::math::rng::uniform;
+use crate::relight::types::PathCounts;
 use crate::render::camera::CameraRays;
 use crate::render::integrator::Sampler;
 use crate::render::lights::LightSampler;
 use crate::render::surface::Surface;
 use crate::types::accel::{Accel, Hit};
-use crate::types::{PathCounts, Scene};
+use crate::types::Scene;
 use glam::Vec3;
 use std::f32::consts::PI;
 

@@ -1,8 +1,9 @@
 //! Relight node.
 
 use super::terms::{Channels, First, Second, Term};
+use crate::relight::types::Transfer;
 use crate::render::film::with_ctx;
-use crate::types::{Image, ObjectMaterials, Transfer};
+use crate::types::{Image, ObjectMaterials};
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
 /// Pixel relighting's interactive step ([S] 4-12, 4-26, 4-27): per pixel,
@@ -176,8 +177,9 @@ impl Relight {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::brdf_space::test_support::{basis, space, space_of};
     use crate::relight::relight_reference::{reference_rows, ReferenceBrdf};
-    use crate::relight::test_support::{basis, precompute, scene, space, space_of, tiny_transfer};
+    use crate::relight::test_support::{precompute, scene, tiny_transfer};
     use crate::testing::{first, run_on};
     use crate::types::{gather_rows, Accel, BrdfBasis};
     use relume_core::Value;

@@ -2,9 +2,10 @@
 
 use super::paths::{Paths, Slots};
 use super::shades::{check_scene_textured, MaterialBrdf, MaterialShade};
+use crate::relight::types::PathCounts;
 use crate::render::film::{per_pixel_layers, with_ctx};
 use crate::types::accel::Accel;
-use crate::types::{gather_rows, row_spec, BrdfBasis, Image, ImageRows, ObjectMaterials, PathCounts, Scene};
+use crate::types::{gather_rows, row_spec, BrdfBasis, Image, ImageRows, ObjectMaterials, Scene};
 use relume_core::{inputs, node, outputs, NodeError, ParamEnum, Params, RunCtx, ShardSpec};
 use std::ops::Range;
 
@@ -122,8 +123,9 @@ impl RelightReference {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::brdf_space::test_support::{basis, space};
     use crate::reference::path_trace::{render, PathTrace};
-    use crate::relight::test_support::{basis, precompute, scene, space};
+    use crate::relight::test_support::{precompute, scene};
     use crate::testing::{cancels_midway, first, id, run_on};
     use relume_core::Value;
 

@@ -25,8 +25,9 @@ use super::sv_terms::SvTerms;
 use crate::image::median_filter::median_plane_by_class;
 use crate::math::haar;
 use crate::math::streamed_pca::{Gram, StreamedPca};
+use crate::relight::types::{PathCounts, SparsePlane, SvBlock, SvTransfer};
 use crate::types::accel::Accel;
-use crate::types::{BrdfBasis, PathCounts, Scene, SparsePlane, SvBlock, SvTransfer};
+use crate::types::{BrdfBasis, Scene};
 use relume_core::memory::fmt_bytes;
 use relume_core::{NodeError, RunCtx};
 
@@ -356,7 +357,8 @@ pub fn sv_precompute(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::relight::test_support::{basis, space, sv_scene};
+    use crate::brdf_space::test_support::{basis, space};
+    use crate::relight::test_support::sv_scene;
     use relume_core::CancelToken;
 
     pub(crate) fn settings(n: usize, pca_keep: f64, haar_keep: f64, median_radius: usize) -> SvSettings {

@@ -2,8 +2,9 @@
 
 use super::sv_shade::cell_rect;
 use crate::math::haar;
+use crate::relight::types::SvTransfer;
 use crate::render::film::with_ctx;
-use crate::types::{BasisFamily, BrdfBasis, Image, Material, ObjectMaterial, ObjectMaterials, SvTransfer};
+use crate::types::{BasisFamily, BrdfBasis, Image, Material, ObjectMaterial, ObjectMaterials};
 use glam::{Vec2, Vec3};
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -198,12 +199,14 @@ impl SvRelight {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::brdf_space::scene_materials::scene_materials;
+    use crate::brdf_space::test_support::{basis, space};
     use crate::relight::relight::relight;
     use crate::relight::relight_reference::{reference_rows, ReferenceBrdf};
-    use crate::relight::scene_materials::scene_materials;
     use crate::relight::sv_precompute::{sv_precompute, SvSettings};
-    use crate::relight::test_support::{basis, precompute, space, sv_scene};
-    use crate::types::{gather_rows, Accel, PathCounts, Scene, Texture};
+    use crate::relight::test_support::{precompute, sv_scene};
+    use crate::relight::types::PathCounts;
+    use crate::types::{gather_rows, Accel, Scene, Texture};
     use relume_core::CancelToken;
 
     const COUNTS: PathCounts = PathCounts { spp: 2, light_samples: 1, bounce_rays: 4, bounce_light_samples: 1, seed: 3 };
@@ -290,7 +293,7 @@ mod tests {
         let e = sv_relight(&t, &b4, &diffuse(&scene, &b), None).unwrap_err().to_string();
         assert!(e.contains("4 BRDFs") && e.contains("computed on 3"), "{e}");
         // A Cook-Torrance space's basis has no c(s) table for the texels' exponents.
-        let (ct, _) = basis(&crate::relight::test_support::ct_space(4, 5, 2, 0.1, 0.6), 3);
+        let (ct, _) = basis(&crate::brdf_space::test_support::ct_space(4, 5, 2, 0.1, 0.6), 3);
         let e = sv_relight(&t, &ct, &diffuse(&scene, &b), None).unwrap_err().to_string();
         assert!(e.contains("Cook-Torrance"), "{e}");
     }

@@ -2,8 +2,9 @@
 
 use super::sv_precompute::{sv_precompute, SvSettings};
 use super::sv_shade::scene_sv_terms;
+use crate::relight::types::{PathCounts, SvTransfer};
 use crate::types::accel::Accel;
-use crate::types::{BrdfBasis, PathCounts, Scene, SvTransfer};
+use crate::types::{BrdfBasis, Scene};
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
@@ -133,7 +134,8 @@ impl SvTransferPrecompute {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::relight::test_support::{basis, space, sv_scene};
+    use crate::brdf_space::test_support::{basis, space};
+    use crate::relight::test_support::sv_scene;
     use crate::testing::{cancels_midway, f, i, run_full};
     use relume_core::Value;
 

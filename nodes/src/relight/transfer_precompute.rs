@@ -3,9 +3,10 @@
 use super::paths::{Paths, Slots};
 use super::shades::{check_scene, light_colour, scene_terms, BasisShade};
 use super::terms::{Channels, TermSet};
+use crate::relight::types::{floats_and_stride, PathCounts, Transfer, TransferRows, MAX_TRANSFER_BYTES};
 use crate::render::film::with_ctx;
 use crate::types::accel::Accel;
-use crate::types::{floats_and_stride, row_spec, BrdfBasis, PathCounts, Scene, Transfer, TransferRows, MAX_TRANSFER_BYTES};
+use crate::types::{row_spec, BrdfBasis, Scene};
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx, ShardSpec};
 use std::ops::Range;
@@ -232,8 +233,9 @@ impl TransferPrecompute {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::brdf_space::test_support::{basis, space};
     use crate::relight::terms::{Second, Term};
-    use crate::relight::test_support::{basis, precompute, scene, space};
+    use crate::relight::test_support::{precompute, scene};
     use crate::testing::{cancels_midway, i};
     use crate::types::{Material, ObjectMaterials};
     use relume_core::Value;

@@ -277,10 +277,10 @@ impl DeformMesh {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::closed_mesh::{enclosed_volume, open_edges};
     use crate::scene::builder::SceneBuilder;
     use crate::testing::{first, id, run_on, t, test_scene};
     use crate::types::Material;
-    use crate::volume::scanline::{enclosed_volume, open_edges};
     use relume_core::{PortValue, Value};
     use std::collections::HashMap;
 

@@ -78,8 +78,8 @@ impl TurnEnvironment {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::latlong::{dir_to_uv, uv_to_dir};
     use crate::scene::builder::SceneBuilder;
-    use crate::scene::envmap::{dir_to_uv, uv_to_dir};
     use crate::testing::{f, first, run_on};
     use glam::{Mat3, Vec2, Vec3};
     use relume_core::Value;

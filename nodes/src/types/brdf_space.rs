@@ -32,10 +32,10 @@
 //! 30 × 30 × 60, is 43 MB instead of 87 MB). The PCA reads them as f64 and works in f64; the
 //! coefficient table c(s) (a few thousand numbers) is kept in f64.
 
-use super::pod_vec;
 use crate::brdf::{blinn_phong, cook_torrance};
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Vec3};
+use relume_core::codec::pod_vec;
 use relume_core::{codec, PortValue};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::{FRAC_1_PI, FRAC_PI_2, PI};

@@ -29,7 +29,7 @@ pub struct Clusters {
     pub tile: usize,
     pub clusters: Vec<Cluster>,
     /// Cluster index (into `clusters`) of each receiver.
-    #[serde(with = "super::pod_vec")]
+    #[serde(with = "relume_core::codec::pod_vec")]
     pub of_receiver: Vec<u32>,
 }
 

@@ -20,7 +20,7 @@ pub struct ImageRows {
 
 /// One image's pixels in a band.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Layer(#[serde(with = "super::pod_vec")] pub Vec<[f32; 3]>);
+pub struct Layer(#[serde(with = "relume_core::codec::pod_vec")] pub Vec<[f32; 3]>);
 
 impl ImageRows {
     /// The band of rows `rows` holding the given images (each `width × rows.len()`).

@@ -1,8 +1,8 @@
 //! `SurfacePoints`: points on a scene's surfaces, each standing for a small disk of area.
 
 use super::material::Material;
-use super::pod_vec;
 use glam::Vec3;
+use relume_core::codec::pod_vec;
 use relume_core::{codec, PortValue};
 use serde::{Deserialize, Serialize};
 

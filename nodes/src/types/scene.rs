@@ -2,10 +2,10 @@
 //! environment and a camera. Conventions (Mitsuba 3's): right-handed, y up, linear RGB.
 
 use super::material::Material;
-use super::pod_vec;
 use super::triangle_planes::{SceneDerived, TrianglePlanes};
 use crate::math::sampling::Bilinear2D;
 use glam::{Vec2, Vec3};
+use relume_core::codec::pod_vec;
 use relume_core::{codec, PortValue};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::ops::Range;

@@ -13,7 +13,7 @@ pub struct Texture {
     pub width: u32,
     pub height: u32,
     /// Row-major, `width × height` texels, linear RGB.
-    #[serde(with = "super::pod_vec")]
+    #[serde(with = "relume_core::codec::pod_vec")]
     pub texels: Vec<Vec3>,
 }
 

@@ -3,7 +3,7 @@
 //! replicated, so a constant volume stays constant and the sum is kept away from the faces.
 //! Each output voxel is one fixed-order sum: the same bytes on any thread count.
 
-use crate::types::volume::Volume;
+use crate::volume::types::volume::Volume;
 use relume_core::{NodeError, RunCtx};
 
 /// The normalised Gaussian of `2 · radius + 1` taps with standard deviation `sigma` voxels

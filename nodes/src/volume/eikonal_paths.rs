@@ -3,8 +3,9 @@
 use super::octree::{CLEAR, CLEARANCE, LEVEL, MAX_STEP};
 use super::optics::{box_interval, leaf_exit, ray_step, voxel_of, Clearance, Integrator, Ray};
 use crate::render::camera::CameraRays;
-use crate::types::view_paths::{Gather, PathEnd};
-use crate::types::{Accel, Camera, Sampler, ViewPaths, Volume};
+use crate::types::{Accel, Camera};
+use crate::volume::types::view_paths::{Gather, PathEnd};
+use crate::volume::types::{Sampler, ViewPaths, Volume};
 use glam::Vec3;
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};

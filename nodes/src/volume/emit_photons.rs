@@ -3,7 +3,8 @@
 use super::optics::{box_interval, intensity_along, luminance, photon_lights, PhotonLight};
 use crate::math::cubemap::rect_solid_angle;
 use crate::math::rng::uniform;
-use crate::types::{Accel, Light, Photons, Scene, Volume};
+use crate::types::{Accel, Light, Scene};
+use crate::volume::types::{Photons, Volume};
 use glam::Vec3;
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, NodeError, ParamEnum, Params, RunCtx};

@@ -19,6 +19,7 @@ pub mod pyramid;
 pub mod scanline;
 #[cfg(test)]
 pub(crate) mod test_support;
+pub mod types;
 pub mod volume_paint;
 pub mod volume_slice;
 pub mod volume_source;

@@ -1,7 +1,7 @@
 //! Octree node.
 
 use super::pyramid::MinMaxPyramid;
-use crate::types::Volume;
+use crate::volume::types::Volume;
 use glam::Vec3;
 use rayon::prelude::*;
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};

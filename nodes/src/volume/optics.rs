@@ -5,7 +5,8 @@
 
 use super::octree::{CLEARANCE, INDEX};
 use crate::render::lights::delta_sample;
-use crate::types::{Light, Sampler, Scene, Volume};
+use crate::types::{Light, Scene};
+use crate::volume::types::{Sampler, Volume};
 use glam::Vec3;
 use relume_core::{NodeError, ParamEnum};
 

@@ -8,7 +8,7 @@
 //! unbounded: measured on the glass sphere, long photon steps crossed the interface's edge
 //! there.)
 
-use crate::types::volume::Volume;
+use crate::volume::types::volume::Volume;
 use rayon::prelude::*;
 
 /// One level: its dimensions and (min, max) per cell, x fastest.
@@ -144,7 +144,7 @@ mod tests {
         assert_eq!(p.range_at(1, 0, 0, 0), (1.0, 1.0));
         assert_eq!(p.range_at(1, 6, 0, 0), (2.4, 2.4));
         // The trilinear index inside a cell stays within its range.
-        let s = crate::types::Sampler::new(&v);
+        let s = crate::volume::types::Sampler::new(&v);
         for k in 0..=80 {
             let x = k as f32 / 80.0;
             let n = s.sample_n::<1>(Vec3::new(x, 0.5, 0.5), 0)[0];

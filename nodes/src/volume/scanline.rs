@@ -2,55 +2,10 @@
 //! along x at a (y, z) position crosses a closed mesh an even number of times, and between
 //! crossings 2k and 2k + 1 it is inside; a voxel's fraction along such a line is exact in x.
 //! Crossings are found in the (y, z) projection with edge functions in f64 and a top-left rule,
-//! so a line through a shared edge or vertex counts it once. `closed_check` tells a mesh that
-//! parity cannot be trusted on (edges not shared by exactly two faces, after welding vertices
-//! that coincide within a tolerance).
+//! so a line through a shared edge or vertex counts it once. Parity holds only on a closed mesh:
+//! `geometry::closed_mesh::open_edges` tells one it cannot be trusted on.
 
 use glam::{DVec3, Vec3};
-use std::collections::HashMap;
-
-/// Edges not shared by exactly two faces after welding vertices within `tol` (degenerate faces
-/// skipped): 0 for a closed (watertight, edge-manifold) mesh.
-pub fn open_edges(tris: &[[Vec3; 3]], tol: f32) -> usize {
-    let mut cells: HashMap<[i64; 3], Vec<(Vec3, u32)>> = HashMap::new();
-    let mut next = 0u32;
-    let mut weld = |p: Vec3| -> u32 {
-        let c = (p / tol).floor();
-        let key = [c.x as i64, c.y as i64, c.z as i64];
-        for dz in -1..=1 {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    if let Some(list) = cells.get(&[key[0] + dx, key[1] + dy, key[2] + dz]) {
-                        if let Some((_, id)) = list.iter().find(|(q, _)| q.distance(p) <= tol) {
-                            return *id;
-                        }
-                    }
-                }
-            }
-        }
-        next += 1;
-        cells.entry(key).or_default().push((p, next - 1));
-        next - 1
-    };
-    let mut edges: HashMap<(u32, u32), u32> = HashMap::new();
-    for t in tris {
-        let v = t.map(&mut weld);
-        if v[0] == v[1] || v[1] == v[2] || v[0] == v[2] {
-            continue;
-        }
-        for k in 0..3 {
-            let (a, b) = (v[k], v[(k + 1) % 3]);
-            *edges.entry((a.min(b), a.max(b))).or_default() += 1;
-        }
-    }
-    edges.values().filter(|&&n| n != 2).count()
-}
-
-/// The volume a closed mesh encloses (divergence theorem: signed tetrahedra from the origin,
-/// in f64; positive for outward-facing winding, so the magnitude is returned).
-pub fn enclosed_volume(tris: &[[Vec3; 3]]) -> f64 {
-    tris.iter().map(|t| t[0].as_dvec3().dot(t[1].as_dvec3().cross(t[2].as_dvec3()))).sum::<f64>().abs() / 6.0
-}
 
 /// A triangle prepared for scanlines: its corners in f64, oriented so its (y, z) projection
 /// has positive area (triangles seen edge-on are dropped).
@@ -142,16 +97,6 @@ mod tests {
     }
 
     #[test]
-    fn a_tessellated_sphere_is_closed_and_a_quad_or_a_cut_sphere_is_not() {
-        let (pos, _, tris) = sphere(Vec3::new(0.0, 0.6, 0.0), 0.5, 12, 24);
-        let t = mesh(&pos, &tris);
-        assert_eq!(open_edges(&t, 1e-5), 0, "seam and pole vertices weld");
-        assert!(open_edges(&t[..t.len() - 3], 1e-5) > 0);
-        let quad = [[Vec3::ZERO, Vec3::X, Vec3::ONE], [Vec3::ZERO, Vec3::ONE, Vec3::Y]];
-        assert_eq!(open_edges(&quad, 1e-5), 4);
-    }
-
-    #[test]
     fn a_line_through_a_sphere_crosses_it_twice_even_through_shared_edges_and_vertices() {
         let (pos, _, tris) = sphere(Vec3::ZERO, 1.0, 8, 16);
         let proj: Vec<Projected> = mesh(&pos, &tris).iter().filter_map(Projected::new).collect();
@@ -164,14 +109,6 @@ mod tests {
         }
         let outside: Vec<f64> = proj.iter().filter_map(|t| t.crossing(1.2, 0.0)).collect();
         assert!(outside.is_empty());
-    }
-
-    #[test]
-    fn the_enclosed_volume_of_a_sphere_mesh_is_near_four_thirds_pi_r_cubed() {
-        let (pos, _, tris) = sphere(Vec3::new(3.0, -1.0, 2.0), 2.0, 48, 96);
-        let v = enclosed_volume(&mesh(&pos, &tris));
-        let want = 4.0 / 3.0 * std::f64::consts::PI * 8.0;
-        assert!((v - want).abs() < 0.005 * want, "{v} vs {want}");
     }
 
     #[test]

@@ -9,7 +9,8 @@ use super::octree::{self, Octree};
 use super::voxelize::Voxelize;
 use crate::testing::{i, run_on, t};
 use crate::types::accel::BuildQuality;
-use crate::types::{Accel, Camera, CausticMap, Image, Photons, Scene, ViewPaths, Volume};
+use crate::types::{Accel, Camera, Image, Scene};
+use crate::volume::types::{CausticMap, Photons, ViewPaths, Volume};
 use relume_core::{CancelToken, RunCtx, Value};
 
 /// The canonical `glass` scene (graphs/scenes/glass.ron).

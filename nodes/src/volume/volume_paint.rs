@@ -1,6 +1,6 @@
 //! VolumePaint node.
 
-use crate::types::Volume;
+use crate::volume::types::Volume;
 use glam::{EulerRot, Quat, Vec3};
 use relume_core::{inputs, node, outputs, NodeError, ParamEnum, Params, RunCtx};
 

@@ -1,6 +1,7 @@
 //! VolumeSlice node.
 
-use crate::types::{Image, Volume};
+use crate::types::Image;
+use crate::volume::types::Volume;
 use relume_core::{inputs, node, outputs, NodeError, ParamEnum, Params, RunCtx};
 
 /// A plane through a volume as an image, to look at a voxelised index, a painted weight or the

@@ -1,7 +1,7 @@
 //! VolumeSource node.
 
 use crate::math::rng::uniform;
-use crate::types::Volume;
+use crate::volume::types::Volume;
 use glam::Vec3;
 use relume_core::{node, outputs, NodeError, ParamEnum, Params, RunCtx};
 

@@ -1,8 +1,10 @@
 //! Voxelize node.
 
 use super::blur::{blur, kernel};
-use super::scanline::{add_coverage, enclosed_volume, open_edges, Projected};
-use crate::types::{Material, Scene, Volume};
+use super::scanline::{add_coverage, Projected};
+use crate::geometry::closed_mesh::{enclosed_volume, open_edges};
+use crate::types::{Material, Scene};
+use crate::volume::types::Volume;
 use glam::{UVec3, Vec3};
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 

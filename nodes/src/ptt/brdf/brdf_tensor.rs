@@ -1,7 +1,9 @@
 //! BrdfTensor node.
 
 use super::types::{BrdfFamily, BrdfTensorTable, DiskGrid, MAX_BRDF_TENSOR_BYTES};
-use relume_core::{memory::fmt_bytes, node, outputs, MemoryEstimate, NodeError, ParamEnum, Params, PortSize, RunCtx};
+use crate::brdf::BrdfModel;
+use crate::math::spread;
+use relume_core::{memory::fmt_bytes, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
 /// Samples the specular (non-diffuse) part of a BRDF family, ks = 1, into the tensor
 /// F(h, ωo, ωi) of [S] 5.2.2 (N_h × N_ωo × N_ωi) for `TuckerDecompose` (directly, or after
@@ -65,22 +67,7 @@ pub struct BrdfTensor {
     pub f0_max: f32,
 }
 
-/// The BRDF model `BrdfTensor` samples.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ParamEnum)]
-pub enum BrdfModel {
-    /// normalised Blinn-Phong over the exponent s
-    BlinnPhong,
-    /// Cook-Torrance over Beckmann roughness m × Schlick F0
-    CookTorrance,
-}
-
 outputs!(pub BrdfTensorOut { tensor: BrdfTensorTable });
-
-/// `count` values spread linearly over [lo, hi] (`lo` alone for one).
-pub(crate) fn spread(count: usize, lo: f32, hi: f32) -> Vec<f64> {
-    let (lo, hi) = (lo as f64, hi as f64);
-    (0..count).map(|j| if count > 1 { lo + (hi - lo) * j as f64 / (count - 1) as f64 } else { lo }).collect()
-}
 
 impl BrdfTensor {
     /// N_h the parameters ask for.

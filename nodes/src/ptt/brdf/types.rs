@@ -30,8 +30,9 @@
 //! the nodes compute in f64 and accessors sum in f64.
 
 use crate::brdf::{blinn_phong, cook_torrance};
-use crate::types::{pod_vec, Material, ObjectMaterial, Specular};
+use crate::types::{Material, ObjectMaterial, Specular};
 use glam::{DVec3, Vec3};
+use relume_core::codec::pod_vec;
 use relume_core::{codec, PortValue};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;

@@ -55,7 +55,7 @@ pub struct PointTree {
     pub nodes: Vec<TreeNode>,
     pub root: u32,
     /// Outgoing radiance B of each point, by point index (what leaves send, exactly).
-    #[serde(with = "super::pod_vec")]
+    #[serde(with = "relume_core::codec::pod_vec")]
     pub point_radiance: Vec<Vec3>,
     /// Where the points facing the inside of glass (`faces_inside`: `TwinDielectrics`' inner
     /// twins) were kept apart: the root's two children, [the other points' subtree, theirs].
@@ -70,17 +70,17 @@ pub struct PointTree {
 /// Whether a point of material `m` faces the inside of glass: a dielectric of relative
 /// index below 1, the inner twin of a glass of index above 1 (`TwinDielectrics`). A glass of
 /// index exactly 1 bends nothing; its twins stay with the outer points.
-pub fn faces_inside(m: &super::Material) -> bool {
-    matches!(m, super::Material::Dielectric { ior, .. } if *ior < 1.0)
+pub fn faces_inside(m: &crate::types::Material) -> bool {
+    matches!(m, crate::types::Material::Dielectric { ior, .. } if *ior < 1.0)
 }
 
 /// The nodes on disk as one flat array of 4-byte words (52 per node), so that a tree of
 /// 200,000 nodes loads at memory speed instead of one serde call per field.
 mod disk_nodes {
     use super::TreeNode;
-    use crate::types::pod_vec;
     use bytemuck::{Pod, Zeroable};
     use glam::Vec3;
+    use relume_core::codec::pod_vec;
     use serde::{Deserializer, Serializer};
 
     #[derive(Clone, Copy, Pod, Zeroable)]

@@ -3,8 +3,8 @@
 //! and each (ρ′, R1, ρ1) group's block of n² sub-region images as PCA weights along the
 //! sub-regions times basis images kept as their largest Haar coefficients.
 
-use super::pod_vec;
 use super::transfer::PathCounts;
+use relume_core::codec::pod_vec;
 use relume_core::{codec, PortValue};
 use serde::{Deserialize, Serialize};
 

@@ -1,10 +1,10 @@
 //! Wavelet PBGI's port types: `PointWavelets`, each surface point's outgoing radiance as
 //! sparse cube-map Haar coefficients, and `CodedWavelets`, those coded along the point tree.
 
-use super::pod_vec;
 use crate::math::cube_haar::SparseCubeHaar;
 use crate::math::tree_coding::CodedTree;
 use glam::Vec3;
+use relume_core::codec::pod_vec;
 use relume_core::PortValue;
 use serde::{Deserialize, Serialize};
 

@@ -1,6 +1,6 @@
 //! MaterialProject node.
 
-use crate::ptt::brdf::brdf_tensor::BrdfModel;
+use crate::brdf::BrdfModel;
 use crate::types::{BasisFamily, BrdfBasis, BrdfSample, ObjectMaterial, ObjectMaterials, Specular};
 use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 
@@ -155,7 +155,7 @@ impl MaterialProject {
 mod tests {
     use super::*;
     use crate::brdf::cook_torrance;
-    use crate::relight::test_support::{basis, ct_space, space};
+    use crate::brdf_space::test_support::{basis, ct_space, space};
     use crate::testing::{f, first, rgb, run_full, run_on, t};
     use crate::types::BrdfGrid;
     use relume_core::Value;

@@ -2,8 +2,8 @@
 //! medium's box (entry point, direction, RGB power), and `CausticMap`, the irradiance
 //! photons bring to a planar receiver.
 
-use super::pod_vec;
 use glam::{Vec2, Vec3};
+use relume_core::codec::pod_vec;
 use relume_core::{codec, PortValue};
 use serde::{Deserialize, Serialize};
 

@@ -1,8 +1,8 @@
 //! `ViewPaths`: the camera's curved rays through a medium (pipeline 3, [S] 6.3.5), traced once
 //! by `EikonalPaths` and shaded by `EikonalRender` as often as the light changes.
 
-use super::pod_vec;
 use glam::Vec3;
+use relume_core::codec::pod_vec;
 use relume_core::{codec, PortValue};
 use serde::{Deserialize, Serialize};
 

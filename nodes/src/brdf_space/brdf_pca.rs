@@ -265,9 +265,9 @@ impl BrdfPca {
 mod tests {
     use super::*;
     use crate::brdf::blinn_phong;
+    use crate::brdf_space::brdf_space_sample::BrdfSpaceSample;
+    use crate::brdf_space::test_support::{basis, ct_space, space, space_of};
     use crate::math::rng::uniform;
-    use crate::relight::brdf_space_sample::BrdfSpaceSample;
-    use crate::relight::test_support::{basis, ct_space, space, space_of};
     use crate::testing::{cancels_midway, first, i, id, run_full, run_on};
     use crate::types::BrdfGrid;
     use glam::Vec3;

@@ -40,8 +40,8 @@ pub fn eval_material(basis: &BrdfBasis, c: &[f64], frame: &Frame, wi: Vec3, wo: 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::brdf_space::test_support::{basis, space};
     use crate::math::rng::uniform;
-    use crate::relight::test_support::{basis, space};
     use crate::types::BrdfGrid;
 
     /// A direction of the upper hemisphere with cos θ ∈ [0.05, 1).

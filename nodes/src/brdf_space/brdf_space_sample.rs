@@ -1,6 +1,7 @@
 //! BrdfSpaceSample node.
 
-use crate::ptt::brdf::brdf_tensor::{spread, BrdfModel};
+use crate::brdf::BrdfModel;
+use crate::math::spread;
 use crate::types::{cos_half, BrdfGrid, BrdfSample, BrdfSpace, MAX_BRDF_SPACE_BYTES};
 use relume_core::{memory::fmt_bytes, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
@@ -157,7 +158,7 @@ impl BrdfSpaceSample {
 mod tests {
     use super::*;
     use crate::brdf::{blinn_phong, cook_torrance};
-    use crate::relight::test_support::{ct_space, space};
+    use crate::brdf_space::test_support::{ct_space, space};
     use crate::testing::{cancels_midway, f, i, id, run_on};
     use glam::Vec3;
     use relume_core::PortValue;

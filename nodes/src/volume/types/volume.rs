@@ -3,8 +3,8 @@
 //! radiance). Voxel (x, y, z) covers `min + voxel · [x, x+1] × …`; values sit at voxel centres
 //! and are read trilinearly between them (clamped at the faces).
 
-use super::pod_vec;
 use glam::{UVec3, Vec3, Vec4};
+use relume_core::codec::pod_vec;
 use relume_core::memory::fmt_bytes;
 use relume_core::{codec, NodeError, PortValue};
 use serde::{Deserialize, Serialize};

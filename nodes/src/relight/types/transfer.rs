@@ -1,11 +1,9 @@
 //! The stored transfer of pixel relighting ([S] 4.1.1, 4.1.3): `Transfer` (every image of one
 //! scene's terms, pixel-major, with the per-pixel object class), its band `TransferRows` (the
-//! partial result of the precompute sharded over rows), and `ObjectMaterials` (the dynamic
-//! objects' materials and their basis coefficients, what `Relight` weighs the images with).
+//! partial result of the precompute sharded over rows).
 
-use super::pod_vec;
-use super::texture::MaterialMaps;
 use crate::relight::terms::{Channels, Term};
+use relume_core::codec::pod_vec;
 use relume_core::{codec, PortValue};
 use serde::{Deserialize, Serialize};
 
@@ -87,9 +85,9 @@ impl Transfer {
             .collect()
     }
     /// One term's image as RGB (grey images times `colour`), for display and tests.
-    pub fn image(&self, term: usize) -> super::Image {
+    pub fn image(&self, term: usize) -> crate::types::Image {
         let (off, ch) = (self.offsets()[term], self.terms[term].1);
-        super::Image::from_fn(self.width as usize, self.height as usize, |x, y| {
+        crate::types::Image::from_fn(self.width as usize, self.height as usize, |x, y| {
             let d = &self.data[(y * self.width as usize + x) * self.stride as usize + off..];
             match ch {
                 Channels::Grey => self.colour.map(|c| c * d[0]),
@@ -149,52 +147,6 @@ impl PortValue for TransferRows {
     relume_core::serde_codec!();
 }
 
-/// One dynamic object's material, Kd/π + Ks × (its `specular` lobe: Blinn-Phong
-/// (s+2)/(8π) cos^s δ by default, or Cook-Torrance), and its coefficients on a BRDF basis per
-/// colour channel: basis 0 (diffuse) Kd, basis k Ks · c_k (c(s) for Blinn-Phong).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct ObjectMaterial {
-    pub name: String,
-    pub kd: [f32; 3],
-    pub ks: [f32; 3],
-    /// The Blinn-Phong exponent (unused when `specular` is Cook-Torrance).
-    pub s: f32,
-    /// Empty until projected (`MaterialProject`); then one RGB triple per basis.
-    pub coefficients: Vec<[f64; 3]>,
-    /// Texture maps multiplying Kd, Ks and s over the object's UVs (the spatially varying
-    /// extension, [S] 4.2; `PaintMaterial` edits them). None by default.
-    #[serde(default)]
-    pub maps: MaterialMaps,
-    /// The specular model; absent in materials written before Cook-Torrance (Blinn-Phong).
-    #[serde(default)]
-    pub specular: Specular,
-}
-
-/// The specular lobe of an [`ObjectMaterial`].
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub enum Specular {
-    /// Normalised Blinn-Phong with the material's exponent s.
-    #[default]
-    BlinnPhong,
-    /// Cook-Torrance (`brdf/cook_torrance.rs`): Beckmann roughness m, Schlick F0.
-    CookTorrance { m: f32, f0: f32 },
-}
-
-/// The materials of a scene's dynamic objects, in `Scene::dynamic_groups` order.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct ObjectMaterials(pub Vec<ObjectMaterial>);
-
-/// Disk encoding: serde through postcard (a short list).
-impl PortValue for ObjectMaterials {
-    const NAME: &'static str = "ObjectMaterials";
-    const COLOR: [u8; 3] = [230, 180, 250];
-    const DOC: &'static str = "the dynamic objects' materials and their coefficients on a BRDF basis";
-    fn byte_size(&self) -> usize {
-        self.0.iter().map(|m| m.name.len() + 40 + m.coefficients.len() * 24 + m.maps.byte_size()).sum::<usize>() + 8
-    }
-    relume_core::serde_codec!();
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -217,16 +169,6 @@ mod tests {
         for len in [0, 3, bytes.len() / 2, bytes.len() - 1] {
             assert!(Transfer::decode(&bytes[..len]).is_none(), "{len}");
         }
-        let m = ObjectMaterials(vec![ObjectMaterial {
-            name: "a".into(),
-            kd: [0.1; 3],
-            ks: [0.2; 3],
-            s: 3.0,
-            coefficients: vec![[1.0, -0.5, 0.0]],
-            maps: Default::default(),
-            specular: Specular::CookTorrance { m: 0.3, f0: 0.5 },
-        }]);
-        assert_eq!(ObjectMaterials::decode(&m.encode()).unwrap(), m);
     }
 
     #[test]

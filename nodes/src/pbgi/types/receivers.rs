@@ -1,9 +1,9 @@
 //! `Receivers`: the camera's primary hits (PBGI gathers indirect light at each), and
 //! `PointRadiance`: outgoing radiance per surface point.
 
-use super::material::Material;
-use super::pod_vec;
+use crate::types::Material;
 use glam::Vec3;
+use relume_core::codec::pod_vec;
 use relume_core::{codec, PortValue};
 use serde::{Deserialize, Serialize};
 
