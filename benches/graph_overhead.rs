@@ -15,14 +15,14 @@ fn main() {
 fn cold(bencher: divan::Bencher) {
     let g = generated_graph(N);
     bencher
-        .with_inputs(|| Engine::new(relume_nodes::registry()))
+        .with_inputs(|| Engine::new(relume_cli::registry()))
         .bench_local_values(|engine| engine.run(&g, &RunOptions::default()).unwrap().report.ran);
 }
 
 #[divan::bench(sample_count = 200)]
 fn warm(bencher: divan::Bencher) {
     let g = generated_graph(N);
-    let engine = Engine::new(relume_nodes::registry());
+    let engine = Engine::new(relume_cli::registry());
     engine.run(&g, &RunOptions::default()).unwrap();
     bencher.bench_local(|| {
         let r = engine.run(&g, &RunOptions::default()).unwrap();
@@ -34,7 +34,7 @@ fn warm(bencher: divan::Bencher) {
 #[divan::bench(sample_count = 50)]
 fn after_one_edit(bencher: divan::Bencher) {
     let mut g = generated_graph(N);
-    let engine = Engine::new(relume_nodes::registry());
+    let engine = Engine::new(relume_cli::registry());
     engine.run(&g, &RunOptions::default()).unwrap();
     let node = edit_node(N);
     let step = AtomicU64::new(0);

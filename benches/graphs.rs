@@ -15,7 +15,7 @@ const GRAPHS: &[&str] =
     &["filters.ron", "image_error.ron", "reference_cornell.ron", "pbgi_cornell.ron", "fpbgi_cornell.ron", "pbgi_vs_reference.ron"];
 
 fn engine() -> Engine {
-    Engine::new(relume_nodes::registry())
+    Engine::new(relume_cli::registry())
 }
 
 #[divan::bench(args = GRAPHS, sample_count = 3, sample_size = 1)]

@@ -96,7 +96,7 @@ pub fn graph_edits() -> Vec<GraphEdit> {
 /// pixel) come down to 64, so that a cold run takes seconds, not minutes; everything else is
 /// as the file says.
 pub fn bench_graph(name: &str) -> Graph {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let mut g = Graph::load(&graphs_dir().join(name), &reg).expect("graph loads");
     for n in g.nodes.clone() {
         if n.kind == "PathTrace" && n.param("spp").is_some_and(|v| v.to_text().parse::<i64>().is_ok_and(|spp| spp > 64)) {
@@ -115,13 +115,13 @@ pub fn add_output(g: &mut Graph, name: &str, port: &str) {
 /// Runs one registered node kind by name with its default parameters on `inputs` in
 /// declared order: a kernel benchmark through the node's own interface.
 pub fn run_kind(kind: &str, inputs: &[relume_core::Value]) -> Vec<relume_core::Value> {
-    relume_core::run_kind(&relume_nodes::registry(), kind, &[], &graphs_dir(), inputs).unwrap_or_else(|e| panic!("{kind}: {e}")).outputs
+    relume_core::run_kind(&relume_cli::registry(), kind, &[], &graphs_dir(), inputs).unwrap_or_else(|e| panic!("{kind}: {e}")).outputs
 }
 
 /// A canonical scene from `graphs/scenes/`, optionally at another resolution.
-pub fn scene(name: &str, size: Option<usize>) -> relume_nodes::types::Scene {
+pub fn scene(name: &str, size: Option<usize>) -> relume_base::types::Scene {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../graphs/scenes").join(format!("{name}.ron"));
-    let mut s = relume_nodes::scene::format::load_scene_file(&path).expect("scene loads").scene;
+    let mut s = relume_base::scene::format::load_scene_file(&path).expect("scene loads").scene;
     if let Some(n) = size {
         s.camera.width = n;
         s.camera.height = n;
@@ -136,7 +136,7 @@ mod tests {
 
     #[test]
     fn every_generated_node_is_needed_and_one_edit_reaches_a_part_of_the_graph() {
-        let reg = relume_nodes::registry();
+        let reg = relume_cli::registry();
         let mut g = generated_graph(200);
         g.validate(&reg).unwrap();
         assert_eq!(g.node(&edit_node(200)).unwrap().kind, "GaussianBlur");
@@ -158,7 +158,7 @@ mod tests {
         let mut listed: Vec<&str> = graph_edits().iter().map(|e| e.0).collect();
         listed.sort();
         assert_eq!(names, listed, "benches/lib.rs graph_edits() lists every graph");
-        let reg = relume_nodes::registry();
+        let reg = relume_cli::registry();
         for (name, param, value) in graph_edits() {
             let mut g = Graph::load(&graphs_dir().join(name), &reg).unwrap();
             g.set_param_text(&reg, param, &value(1)).unwrap_or_else(|e| panic!("{name}: {e}"));

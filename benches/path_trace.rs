@@ -3,9 +3,9 @@
 //! machine with `benches/scripts/mitsuba_cornell.py`.
 
 use divan::counter::ItemsCount;
+use relume_base::reference::path_trace::{render, PathTrace};
+use relume_base::types::accel::{Accel, BuildQuality};
 use relume_benches::scene;
-use relume_nodes::reference::path_trace::{render, PathTrace};
-use relume_nodes::types::accel::{Accel, BuildQuality};
 
 fn main() {
     divan::main();

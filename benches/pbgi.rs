@@ -4,9 +4,9 @@
 //! times the two gather nodes on its outputs. Prints the MSE between the two indirect images
 //! and the nodes rasterised per receiver of each (once, at start-up).
 
+use relume_base::types::{Image, Metrics};
 use relume_benches::{add_output, bench_graph, run_kind};
 use relume_core::{Engine, RunOptions, Value};
-use relume_nodes::types::{Image, Metrics};
 use std::sync::OnceLock;
 
 fn main() {
@@ -23,8 +23,8 @@ struct Setup {
 fn setup(name: &str) -> &'static Setup {
     static CACHE: OnceLock<Vec<(String, &'static Setup)>> = OnceLock::new();
     let all = CACHE.get_or_init(|| {
-        let reg = relume_nodes::registry();
-        let engine = Engine::new(relume_nodes::registry());
+        let reg = relume_cli::registry();
+        let engine = Engine::new(relume_cli::registry());
         ["cornell", "cornell-bunny"]
             .iter()
             .map(|&name| {

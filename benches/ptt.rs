@@ -9,7 +9,7 @@
 
 use relume_benches::graphs_dir;
 use relume_core::{Engine, Graph, RunOptions};
-use relume_nodes::ptt::test_size as ptt_test_size;
+use relume_ptt::test_size as ptt_test_size;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;
 
@@ -24,9 +24,9 @@ fn test_mode() -> bool {
 
 /// ptt_envlit.ron: full size with the workspace's disk cache, or test size.
 fn graph_and_engine() -> (Graph, Engine) {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let mut g = Graph::load(&graphs_dir().join("ptt_envlit.ron"), &reg).expect("graph loads");
-    let mut e = Engine::new(relume_nodes::registry());
+    let mut e = Engine::new(relume_cli::registry());
     if let Some(mb) = std::env::var("PTT_BENCH_CACHE_MB").ok().and_then(|v| v.parse::<usize>().ok()) {
         e = e.with_memory_budget(mb << 20);
     }
@@ -142,8 +142,8 @@ fn camera_hits_adaptive_culled(bencher: divan::Bencher, spp: i64) {
 
 fn time_camera_hits(bencher: divan::Bencher, spp: i64, adaptive: bool, cull: bool) {
     use relume_core::{run_standalone, ParamValue, Value};
-    use relume_nodes::ptt::camera_hits::CameraHits;
-    let loaded = relume_nodes::scene::format::load_scene_file(&graphs_dir().join("scenes/envlit.ron")).expect("envlit loads");
+    use relume_ptt::camera_hits::CameraHits;
+    let loaded = relume_base::scene::format::load_scene_file(&graphs_dir().join("scenes/envlit.ron")).expect("envlit loads");
     let mut scene = loaded.scene;
     if test_mode() {
         (scene.camera.width, scene.camera.height) = (24, 24);

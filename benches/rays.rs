@@ -3,9 +3,9 @@
 
 use divan::counter::ItemsCount;
 use glam::Vec3;
+use relume_base::render::camera::CameraRays;
+use relume_base::types::accel::{Accel, BuildQuality};
 use relume_benches::scene;
-use relume_nodes::render::camera::CameraRays;
-use relume_nodes::types::accel::{Accel, BuildQuality};
 
 fn main() {
     divan::main();

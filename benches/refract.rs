@@ -7,16 +7,16 @@
 //! of each march's caustic map against a fine one (fixed quarter-voxel steps).
 //! `cargo bench -p relume-benches --bench refract`.
 
+use relume_base::types::{Accel, Scene};
 use relume_benches::{add_output, bench_graph};
 use relume_core::{shard::run_all, CancelToken, Engine, Graph, RunCtx, RunOptions};
-use relume_nodes::types::{Accel, Scene};
-use relume_nodes::volume::eikonal_paths::{trace, EikonalPaths, EikonalPathsIn};
-use relume_nodes::volume::eikonal_render::{render, EikonalRender, EikonalRenderIn};
-use relume_nodes::volume::emit_photons::{emit, EmitPhotons, Proxy};
-use relume_nodes::volume::march_photons::{MarchPhotons, MarchPhotonsIn};
-use relume_nodes::volume::octree::{build, Octree};
-use relume_nodes::volume::optics::Integrator;
-use relume_nodes::volume::types::{CausticMap, Photons, ViewPaths, Volume};
+use relume_volume::eikonal_paths::{trace, EikonalPaths, EikonalPathsIn};
+use relume_volume::eikonal_render::{render, EikonalRender, EikonalRenderIn};
+use relume_volume::emit_photons::{emit, EmitPhotons, Proxy};
+use relume_volume::march_photons::{MarchPhotons, MarchPhotonsIn};
+use relume_volume::octree::{build, Octree};
+use relume_volume::optics::Integrator;
+use relume_volume::types::{CausticMap, Photons, ViewPaths, Volume};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;
 
@@ -96,7 +96,7 @@ fn map_error(a: &CausticMap, reference: &CausticMap) -> f64 {
 fn stages() -> &'static Stages {
     static S: OnceLock<Stages> = OnceLock::new();
     S.get_or_init(|| {
-        let reg = relume_nodes::registry();
+        let reg = relume_cli::registry();
         let mut g = bench_graph("refract_glass.ron");
         add_output(&mut g, "scene", "light.scene");
         add_output(&mut g, "accel", "bvh.accel");
@@ -164,7 +164,7 @@ fn march_fixed(bencher: divan::Bencher, step: f64) {
     bencher.bench(|| march(s, &s.fixed, &p));
 }
 
-fn camera_256(s: &Stages) -> relume_nodes::types::Camera {
+fn camera_256(s: &Stages) -> relume_base::types::Camera {
     let mut camera = s.scene.camera.clone();
     (camera.width, camera.height) = (256, 256);
     camera
@@ -176,7 +176,7 @@ fn paths_256(s: &Stages, octree: &Volume, adaptive: bool) -> ViewPaths {
     cx(|c| trace(&i, &EikonalPaths { samples: 1, step: 1.0, adaptive, integrator: Integrator::Verlet }, c)).unwrap()
 }
 
-fn shade_256(s: &Stages, paths: &ViewPaths) -> relume_nodes::types::Image {
+fn shade_256(s: &Stages, paths: &ViewPaths) -> relume_base::types::Image {
     let i = EikonalRenderIn {
         scene: &s.scene,
         accel: s.accel(),
@@ -189,7 +189,7 @@ fn shade_256(s: &Stages, paths: &ViewPaths) -> relume_nodes::types::Image {
     cx(|c| render(&i, &EikonalRender { g: 0.0 }, c)).unwrap().0
 }
 
-fn render_256(s: &Stages, octree: &Volume, adaptive: bool) -> relume_nodes::types::Image {
+fn render_256(s: &Stages, octree: &Volume, adaptive: bool) -> relume_base::types::Image {
     shade_256(s, &paths_256(s, octree, adaptive))
 }
 
@@ -215,7 +215,7 @@ fn render_256_fixed(bencher: divan::Bencher) {
 
 /// refract_glass.ron at 256², one ray a pixel, asking for the image only.
 fn edit_graph() -> Graph {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let mut g = bench_graph("refract_glass.ron");
     for (k, v) in [("scene.width", "256"), ("scene.height", "256"), ("paths.samples", "1")] {
         g.set_param_text(&reg, k, v).unwrap();
@@ -228,7 +228,7 @@ const EDITS: &[&str] = &["light.translation", "paint.weight", "camera.azimuth"];
 #[divan::bench(args = EDITS, sample_count = 10, sample_size = 1)]
 fn edit_256(bencher: divan::Bencher, param: &str) {
     let mut g = edit_graph();
-    let e = Engine::new(relume_nodes::registry());
+    let e = Engine::new(relume_cli::registry());
     let opts = RunOptions { outputs: Some(vec!["image".into()]), ..Default::default() };
     e.run(&g, &opts).unwrap();
     let k = AtomicU64::new(1);

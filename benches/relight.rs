@@ -6,11 +6,11 @@
 //! The ratio quoted in the README is copy time / relight time from one run of this bench.
 
 use rayon::prelude::*;
+use relume_base::types::ObjectMaterials;
 use relume_benches::{add_output, bench_graph};
 use relume_core::{Engine, RunOptions};
-use relume_nodes::relight::relight::relight;
-use relume_nodes::relight::types::Transfer;
-use relume_nodes::types::ObjectMaterials;
+use relume_relight::relight::relight;
+use relume_relight::types::Transfer;
 use std::sync::OnceLock;
 
 fn main() {
@@ -20,7 +20,7 @@ fn main() {
 fn setup() -> &'static (Transfer, ObjectMaterials) {
     static S: OnceLock<(Transfer, ObjectMaterials)> = OnceLock::new();
     S.get_or_init(|| {
-        let reg = relume_nodes::registry();
+        let reg = relume_cli::registry();
         let mut g = bench_graph("relight_cornell_bunny.ron");
         for (k, v) in [("scene.width", "512"), ("scene.height", "512"), ("transfer.spp", "1"), ("transfer.bounce_rays", "1")] {
             g.set_param_text(&reg, k, v).unwrap();

@@ -6,11 +6,11 @@
 //! fixed fraction, not by the paths). Also the plain relight's image combine alone, without
 //! the bounce (`direct_only`), to say where the time goes.
 
+use relume_base::types::{BrdfBasis, ObjectMaterials};
 use relume_benches::{add_output, bench_graph};
 use relume_core::{Engine, RunOptions};
-use relume_nodes::relight::sv_relight::sv_relight;
-use relume_nodes::relight::types::SvTransfer;
-use relume_nodes::types::{BrdfBasis, ObjectMaterials};
+use relume_relight::sv_relight::sv_relight;
+use relume_relight::types::SvTransfer;
 use std::sync::OnceLock;
 
 fn main() {
@@ -20,7 +20,7 @@ fn main() {
 fn setup() -> &'static (SvTransfer, BrdfBasis, ObjectMaterials) {
     static S: OnceLock<(SvTransfer, BrdfBasis, ObjectMaterials)> = OnceLock::new();
     S.get_or_init(|| {
-        let reg = relume_nodes::registry();
+        let reg = relume_cli::registry();
         let mut g = bench_graph("relight_sv_spot.ron");
         for (k, v) in [("scene.width", "512"), ("scene.height", "512"), ("transfer.spp", "4"), ("transfer.bounce_rays", "8")] {
             g.set_param_text(&reg, k, v).unwrap();

@@ -6,14 +6,14 @@
 //! bounce: gathering, reflecting, coding again) with either walk. Prints, once, the pairs
 //! decided and nodes rasterised per point by each walk.
 
+use relume_base::math::frame::Frame;
 use relume_benches::{add_output, bench_graph};
 use relume_core::{CancelToken, Engine, RunCtx, RunOptions, Value};
-use relume_nodes::math::frame::Frame;
-use relume_nodes::pbgi::microbuffer::Microbuffer;
-use relume_nodes::pbgi::traversal::tree_extent;
-use relume_nodes::pbgi::types::{CodedWavelets, PointTree};
-use relume_nodes::pbgi::view_walk::{ViewWalk, WalkCounts};
-use relume_nodes::pbgi::wavelet_radiance::WaveletSource;
+use relume_pbgi::microbuffer::Microbuffer;
+use relume_pbgi::traversal::tree_extent;
+use relume_pbgi::types::{CodedWavelets, PointTree};
+use relume_pbgi::view_walk::{ViewWalk, WalkCounts};
+use relume_pbgi::wavelet_radiance::WaveletSource;
 use std::sync::OnceLock;
 
 fn main() {
@@ -30,7 +30,7 @@ struct Setup {
 fn setup() -> &'static Setup {
     static S: OnceLock<Setup> = OnceLock::new();
     S.get_or_init(|| {
-        let engine = Engine::new(relume_nodes::registry());
+        let engine = Engine::new(relume_cli::registry());
         let mut g = bench_graph("vpbgi_cornell.ron");
         for (o, port) in [("tree", "tree.tree"), ("points", "points.points"), ("wavelets", "wavelets.wavelets"), ("coded", "coded.coded")] {
             add_output(&mut g, o, port);
@@ -91,7 +91,7 @@ fn bounce(s: &Setup, walk: &str) -> Vec<Value> {
     use relume_core::ParamValue::{Float, Ident, Int};
     let params = [("resolution", Int(8)), ("split", Int(8)), ("view_threshold", Float(0.08)), ("walk", Ident(walk.into()))];
     let inputs = [s.tree.clone(), s.points.clone(), s.wavelets.clone()];
-    relume_core::run_kind(&relume_nodes::registry(), "ViewTree", &params, &relume_benches::graphs_dir(), &inputs).unwrap().outputs
+    relume_core::run_kind(&relume_cli::registry(), "ViewTree", &params, &relume_benches::graphs_dir(), &inputs).unwrap().outputs
 }
 
 #[divan::bench(sample_count = 3)]

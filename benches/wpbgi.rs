@@ -5,10 +5,10 @@
 //! coded and uncoded bytes and the nodes rasterised per receiver; receivers/s is the
 //! receiver count over a gather's time.
 
+use relume_base::types::Metrics;
 use relume_benches::{add_output, bench_graph, run_kind};
 use relume_core::{Engine, RunOptions, Value};
-use relume_nodes::pbgi::types::{CodedWavelets, Receivers};
-use relume_nodes::types::Metrics;
+use relume_pbgi::types::{CodedWavelets, Receivers};
 use std::sync::OnceLock;
 
 fn main() {
@@ -26,8 +26,8 @@ struct Setup {
 fn setup() -> &'static Setup {
     static S: OnceLock<Setup> = OnceLock::new();
     S.get_or_init(|| {
-        let reg = relume_nodes::registry();
-        let engine = Engine::new(relume_nodes::registry());
+        let reg = relume_cli::registry();
+        let engine = Engine::new(relume_cli::registry());
         let mut g = bench_graph("wpbgi_ring.ron");
         for (o, port) in [("tree", "tree.tree"), ("receivers", "gbuffer.receivers"), ("coded", "coded.coded"), ("wavelets", "wavelets.wavelets")] {
             add_output(&mut g, o, port);

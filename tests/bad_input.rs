@@ -1,4 +1,4 @@
-//! Bad graph files (QUALITY.md §4): every message names the file, line, node and parameter
+//! Bad graph files (docs/QUALITY.md §4): every message names the file, line, node and parameter
 //! it is about.
 
 use relume_core::Graph;
@@ -8,7 +8,7 @@ fn load_error(text: &str) -> String {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("bad.ron");
     std::fs::write(&path, text).unwrap();
-    let e = Graph::load(&path, &relume_nodes::registry()).expect_err("the graph must be refused").to_string();
+    let e = Graph::load(&path, &relume_cli::registry()).expect_err("the graph must be refused").to_string();
     assert!(e.contains("bad.ron:"), "names the file: {e}");
     e
 }
@@ -48,7 +48,7 @@ fn an_unknown_parameter_suggests_the_closest_one() {
         ),
         "{e}"
     );
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let mut g = Graph::load(&relume_tests::graphs_dir().join("filters.ron"), &reg).unwrap();
     let e = g.set_param_text(&reg, "blur.truncat", "3").unwrap_err().to_string();
     assert!(e.contains("GaussianBlur has no parameter `truncat` (did you mean `truncate`? it has: sigma, truncate)"), "{e}");
@@ -59,7 +59,7 @@ fn an_unconnected_input_names_the_graph_file_as_relume_check_reports_it() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("g.ron");
     std::fs::write(&path, "Graph(version: 1, nodes: {\n \"t\": (kind: \"Tonemap\", params: ()),\n})").unwrap();
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let g = Graph::load(&path, &reg).unwrap();
     let e: Vec<String> = g.unconnected_inputs(&reg, "t").iter().map(|e| e.to_string()).collect();
     assert_eq!(e, [format!("{}:2:2: node \"t\": input `image` (Image) is not connected", path.display())]);
@@ -83,7 +83,7 @@ fn saving_graph(dir: &std::path::Path, target: &str) -> std::path::PathBuf {
 fn a_graph_cannot_make_save_image_write_outside_its_folder_unless_the_run_allows_it() {
     use relume_core::{RunOptions, WritePolicy};
     let dir = tempfile::tempdir().unwrap();
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let escape = dir.path().join("elsewhere").join("x.png");
     let g = Graph::load(&saving_graph(dir.path(), "../elsewhere/x.png"), &reg).unwrap();
     let e = relume_tests::engine().run(&g, &RunOptions::default()).err().expect("refused").to_string();
@@ -198,7 +198,7 @@ fn a_missing_input_file_names_node_parameter_and_path_before_anything_runs() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("g.ron");
     std::fs::write(&path, "Graph(version: 1, nodes: {\n  \"img\": (kind: \"LoadImage\", params: (path: \"nope.exr\")),\n}, outputs: { \"x\": \"img.image\" })").unwrap();
-    let g = Graph::load(&path, &relume_nodes::registry()).unwrap();
+    let g = Graph::load(&path, &relume_cli::registry()).unwrap();
     let e = relume_tests::engine().run(&g, &Default::default()).err().unwrap().to_string();
     assert!(e.contains("g.ron:2:3: node \"img\": parameter `path`: cannot read") && e.contains("nope.exr"), "{e}");
 }
@@ -212,7 +212,7 @@ fn a_device_or_a_folder_named_as_an_input_file_or_a_scene_is_an_error_not_a_hang
         let path = dir.path().join("g.ron");
         let out = if param == "LoadImage" { "img.image" } else { "img.scene" };
         std::fs::write(&path, format!("Graph(version: 1, nodes: {{\n  \"img\": (kind: \"{param}\", params: (path: \"{target}\")),\n}}, outputs: {{ \"x\": \"{out}\" }})")).unwrap();
-        let g = Graph::load(&path, &relume_nodes::registry()).unwrap();
+        let g = Graph::load(&path, &relume_cli::registry()).unwrap();
         let e = relume_tests::engine().run(&g, &Default::default()).err().unwrap().to_string();
         assert!(e.contains("g.ron:2:3: node \"img\": parameter `path`: cannot read") && e.contains("it is"), "{e}");
     }
@@ -231,7 +231,7 @@ fn structural_mistakes_are_all_reported_in_one_go() {
 
 #[test]
 fn bad_set_overrides_name_the_node_and_parameter() {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let mut g = Graph::load(&relume_tests::graphs_dir().join("filters.ron"), &reg).unwrap();
     let e = g.set_param_text(&reg, "blur.sigma", "-1").unwrap_err().to_string();
     assert_eq!(e, "node \"blur\": parameter `sigma`: -1 is out of range [0, 256] px");
@@ -255,7 +255,7 @@ mod never_panics {
         #[test]
         fn the_loader_survives_arbitrary_text(text in "\\PC{0,200}") {
             if let Ok(g) = Graph::parse(&text, None) {
-                let _ = g.validate(&relume_nodes::registry());
+                let _ = g.validate(&relume_cli::registry());
             }
         }
 
@@ -272,7 +272,7 @@ mod never_panics {
             let damaged = format!("{}{}{}", &text[..start], junk, &text[end..]);
             match Graph::parse(&damaged, None) {
                 Ok(g) => {
-                    if let Err(e) = g.validate(&relume_nodes::registry()) {
+                    if let Err(e) = g.validate(&relume_cli::registry()) {
                         prop_assert!(!e.0.is_empty());
                     }
                 }

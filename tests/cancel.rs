@@ -41,17 +41,17 @@ fn graph() -> relume_core::Graph {
 #[test]
 fn cancelling_each_heavy_node_midway_stops_the_run_and_leaves_the_cache_consistent() {
     let g = graph();
-    let clean = Engine::new(relume_nodes::registry()).run(&g, &RunOptions::default()).unwrap();
+    let clean = Engine::new(relume_cli::registry()).run(&g, &RunOptions::default()).unwrap();
     for target in ["points", "shade", "tree", "gbuffer", "clusters", "pbgi", "fpbgi", "direct", "reference", "pbgi_error"] {
         let dir = tempfile::tempdir().unwrap();
         let engine =
-            Engine::new(relume_nodes::registry()).with_disk_cache(dir.path()).with_disk_policy(DiskPolicy::Always).with_parallelism(1);
+            Engine::new(relume_cli::registry()).with_disk_cache(dir.path()).with_disk_policy(DiskPolicy::Always).with_parallelism(1);
         let obs = CancelAt { target, token: CancelToken::new() };
         let opts = RunOptions { cancel: obs.token.clone(), observer: Some(&obs), ..Default::default() };
         let err = engine.run(&g, &opts).err();
         assert!(matches!(err, Some(RunError::Cancelled)), "{target}: the run did not stop: {err:?}");
         // A fresh engine on the same disk cache: the cancelled node left nothing there.
-        let after = Engine::new(relume_nodes::registry()).with_disk_cache(dir.path());
+        let after = Engine::new(relume_cli::registry()).with_disk_cache(dir.path());
         let r = after.run(&g, &RunOptions::default()).unwrap();
         assert_eq!(r.report.node(target).unwrap().status, "ran", "{target} was cached although cancelled");
         // The same engine again: nothing of the cancelled node is in memory either, and the

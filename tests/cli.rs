@@ -1,7 +1,7 @@
 //! The `relume` command line, in process: run twice (second run all cached), plan, check,
 //! nodes, and exit codes with messages a person can act on.
 
-use relume_nodes::cli::main_from;
+use relume_cli::main_from;
 use relume_tests::graphs_dir;
 use std::path::Path;
 
@@ -256,7 +256,7 @@ fn exr_layers_hold_every_image_output_of_a_real_run_bit_identical_with_its_prove
     let names: Vec<String> = layer.channel_data.list.iter().map(|c| c.name.to_string()).collect();
     assert_eq!(names, ["image.B", "image.G", "image.R", "variance.B", "variance.G", "variance.R"]);
     for output in ["image", "variance"] {
-        let single = relume_nodes::image::io::read_image(&out.join(format!("{output}.exr"))).unwrap();
+        let single = relume_base::image::io::read_image(&out.join(format!("{output}.exr"))).unwrap();
         for (c, s) in ["R", "G", "B"].iter().enumerate() {
             let ch = layer.channel_data.list.iter().find(|ch| ch.name.to_string() == format!("{output}.{s}")).unwrap();
             assert!(matches!(ch.sample_data, FlatSamples::F32(_)), "full float by default");

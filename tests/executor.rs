@@ -68,7 +68,7 @@ fn a_cancelled_run_stops_reports_cancelled_and_leaves_the_cache_consistent() {
 
 #[test]
 fn a_failing_node_is_named_with_its_kind_and_message() {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let g = Graph::parse(
         r#"(version: 1, nodes: { "a": (kind: "TestPattern", params: (width: 4, height: 4)), "b": (kind: "TestPattern", params: (width: 5, height: 4)), "sum": (kind: "Combine", params: ()) },
            edges: [("a.image", "sum.a"), ("b.image", "sum.b")], outputs: { "x": "sum.image" })"#,

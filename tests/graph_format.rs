@@ -7,7 +7,7 @@ use relume_tests::{all_graphs, engine, ran, run};
 
 #[test]
 fn a_graph_relume_saved_loads_and_saves_back_byte_identical() {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     assert!(all_graphs().len() >= 2);
     for path in all_graphs() {
         let g = Graph::load(&path, &reg).unwrap();
@@ -23,7 +23,7 @@ fn a_graph_relume_saved_loads_and_saves_back_byte_identical() {
 
 #[test]
 fn a_hand_written_graph_keeps_its_meaning_when_saved() {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let e = engine();
     let path = relume_tests::graphs_dir().join("filters.ron");
     let hand = Graph::load(&path, &reg).unwrap();

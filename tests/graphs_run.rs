@@ -1,12 +1,12 @@
 //! Every graph in graphs/ runs, and its outputs are finite and sensible.
 
+use relume_base::types::{Image, Metrics};
 use relume_core::{Graph, RunOptions};
-use relume_nodes::types::{Image, Metrics};
 use relume_tests::{all_graphs, engine, graphs_dir, ptt_test_size};
 
 #[test]
 fn every_graph_in_graphs_runs_and_its_outputs_are_finite() {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let e = engine();
     for path in all_graphs() {
         let mut g = Graph::load(&path, &reg).unwrap_or_else(|err| panic!("{err}"));
@@ -53,7 +53,7 @@ fn every_graph_in_graphs_runs_and_its_outputs_are_finite() {
 
 #[test]
 fn the_median_filter_lowers_the_error_of_the_noisy_render_in_image_error_ron() {
-    let g = Graph::load(&graphs_dir().join("image_error.ron"), &relume_nodes::registry()).unwrap();
+    let g = Graph::load(&graphs_dir().join("image_error.ron"), &relume_cli::registry()).unwrap();
     let r = engine().run(&g, &RunOptions::default()).unwrap();
     let m = |name: &str| r.output(name).unwrap().get::<Metrics>().unwrap().clone();
     let (raw, denoised) = (m("metrics"), m("metrics_denoised"));
@@ -66,7 +66,7 @@ fn the_median_filter_lowers_the_error_of_the_noisy_render_in_image_error_ron() {
 
 #[test]
 fn the_filters_graph_denoises_its_checkerboard() {
-    let g = Graph::load(&graphs_dir().join("filters.ron"), &relume_nodes::registry()).unwrap();
+    let g = Graph::load(&graphs_dir().join("filters.ron"), &relume_cli::registry()).unwrap();
     let r = engine().run(&g, &RunOptions::default()).unwrap();
     let m = r.output("metrics").unwrap().get::<Metrics>().unwrap();
     // Noise of amplitude 0.4 alone has MSE 0.4²/12 ≈ 0.0133; the filters must not make it worse

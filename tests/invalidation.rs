@@ -5,7 +5,7 @@ use relume_tests::{engine, files_under, graphs_dir, ran, run, test_registry, Log
 use std::path::Path;
 
 fn filters() -> Graph {
-    Graph::load(&graphs_dir().join("filters.ron"), &relume_nodes::registry()).unwrap()
+    Graph::load(&graphs_dir().join("filters.ron"), &relume_cli::registry()).unwrap()
 }
 
 fn set(g: &mut Graph, e: &Engine, lhs: &str, v: &str) {
@@ -59,7 +59,7 @@ fn copy_image_error_graph(dir: &Path) -> Graph {
     for f in ["image_error.ron", "assets/reference.exr", "assets/render.exr"] {
         std::fs::copy(graphs_dir().join(f), dir.join(f)).unwrap();
     }
-    Graph::load(&dir.join("image_error.ron"), &relume_nodes::registry()).unwrap()
+    Graph::load(&dir.join("image_error.ron"), &relume_cli::registry()).unwrap()
 }
 
 #[test]
@@ -106,9 +106,9 @@ fn a_second_engine_on_a_disk_cache_written_with_the_always_policy_finds_every_no
     let dir = tempfile::tempdir().unwrap();
     let g = copy_image_error_graph(&dir.path().join("g"));
     let cache = dir.path().join("cache");
-    let first = Engine::new(relume_nodes::registry()).with_disk_cache(&cache).with_disk_policy(DiskPolicy::Always);
+    let first = Engine::new(relume_cli::registry()).with_disk_cache(&cache).with_disk_policy(DiskPolicy::Always);
     assert_eq!(run(&first, &g).ran, 5);
-    let second = Engine::new(relume_nodes::registry()).with_disk_cache(&cache);
+    let second = Engine::new(relume_cli::registry()).with_disk_cache(&cache);
     let r = run(&second, &g);
     assert_eq!((r.ran, r.cached), (0, 5));
     assert!(r.nodes.iter().all(|n| n.cache == Some("disk")));
@@ -183,7 +183,7 @@ fn editing_a_mesh_named_inside_a_scene_file_reruns_the_scene_loader_and_what_fol
     }, edges: [("scene.scene", "bvh.scene"), ("scene.scene", "pt.scene"), ("bvh.accel", "pt.accel")],
     outputs: { "image": "pt.image" })"#;
     std::fs::write(dir.path().join("g.ron"), text).unwrap();
-    let g = Graph::load(&dir.path().join("g.ron"), &relume_nodes::registry()).unwrap();
+    let g = Graph::load(&dir.path().join("g.ron"), &relume_cli::registry()).unwrap();
     let e = engine();
     assert_eq!(ran(&run(&e, &g)), ["bvh", "pt", "scene"]);
     assert!(ran(&run(&e, &g)).is_empty());

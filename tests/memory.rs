@@ -10,7 +10,7 @@ const SIX_K: [(&str, &str); 4] = [("clean.width", "6000"), ("clean.height", "600
 #[test]
 fn filters_at_6000_squared_is_refused_under_a_4_gib_budget_before_any_node_runs() {
     let g = load_graph("filters.ron", &SIX_K);
-    let e = Engine::new(relume_nodes::registry()).with_run_budget(4 << 30);
+    let e = Engine::new(relume_cli::registry()).with_run_budget(4 << 30);
     let plan = relume_core::make_plan(&g, e.registry(), None).unwrap();
     let est = e.estimate(&g, &plan);
     eprintln!("estimated peak {} bytes", est.peak);
@@ -26,17 +26,17 @@ fn filters_at_6000_squared_is_refused_under_a_4_gib_budget_before_any_node_runs(
     let planned = e.plan(&g, None).expect_err("plan refuses the same").to_string();
     assert_eq!(planned, msg, "check/plan give the refusal run gives");
     // The same graph fits a budget above the estimate (planned only: running it takes a minute).
-    assert!(Engine::new(relume_nodes::registry()).with_run_budget(16 << 30).plan(&g, None).is_ok());
+    assert!(Engine::new(relume_cli::registry()).with_run_budget(16 << 30).plan(&g, None).is_ok());
 }
 
 #[test]
 fn a_budget_too_small_for_one_node_with_actual_inputs_is_refused_at_that_node() {
     // LoadImage's size is known from the file header; downstream estimates follow from it.
     let g = load_graph("image_error.ron", &[]);
-    let e = Engine::new(relume_nodes::registry()).with_run_budget(1 << 20);
+    let e = Engine::new(relume_cli::registry()).with_run_budget(1 << 20);
     let msg = e.run(&g, &RunOptions::default()).err().expect("refused").to_string();
     assert!(msg.contains("over the memory budget of 1.0 MiB"), "{msg}");
-    let ok = Engine::new(relume_nodes::registry()).with_run_budget(1 << 30).run(&g, &RunOptions::default());
+    let ok = Engine::new(relume_cli::registry()).with_run_budget(1 << 30).run(&g, &RunOptions::default());
     assert!(ok.is_ok(), "the same graph runs under 1 GiB");
 }
 
@@ -79,7 +79,7 @@ fn relume_check_plan_and_run_refuse_the_same_run_with_exit_code_2() {
         if cmd == "run" {
             args.extend(["--out", out.to_str().unwrap(), "--quiet"]);
         }
-        relume_nodes::cli::main_from(args.iter().copied())
+        relume_cli::main_from(args.iter().copied())
     };
     assert_eq!(relume("check", "4G"), 2);
     assert_eq!(relume("plan", "4G"), 2);

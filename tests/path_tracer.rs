@@ -1,12 +1,12 @@
 //! The reference path tracer against analytic answers, and on the stiff cases of
-//! QUALITY.md §2 (geometry, transport, lighting rows): finite output, no energy created.
+//! docs/QUALITY.md §2 (geometry, transport, lighting rows): finite output, no energy created.
 
 use glam::Vec3;
-use relume_nodes::reference::path_trace::{render, PathTrace};
-use relume_nodes::render::camera::CameraRays;
-use relume_nodes::scene::builder::SceneBuilder;
-use relume_nodes::types::accel::{Accel, BuildQuality};
-use relume_nodes::types::{EnvMap, Environment, Image, Light, Material, Scene};
+use relume_base::reference::path_trace::{render, PathTrace};
+use relume_base::render::camera::CameraRays;
+use relume_base::scene::builder::SceneBuilder;
+use relume_base::types::accel::{Accel, BuildQuality};
+use relume_base::types::{EnvMap, Environment, Image, Light, Material, Scene};
 
 fn trace(scene: &Scene, spp: u32, max_depth: i32) -> (Image, Image) {
     let accel = Accel::build(scene, BuildQuality::Medium);
@@ -194,7 +194,7 @@ fn degenerate_and_duplicated_geometry_gives_finite_images() {
 
 #[test]
 fn dielectrics_and_media_stay_finite_from_clear_glass_to_extinction_ten_thousand() {
-    use relume_nodes::types::Medium;
+    use relume_base::types::Medium;
     for (ior, medium) in [
         (1.0, None),
         (1.5, None),

@@ -3,8 +3,8 @@
 //! `--set`-style overrides; only the coincident-points case builds its input by hand.
 
 use glam::Vec3;
+use relume_base::types::{Image, Metrics};
 use relume_core::Engine;
-use relume_nodes::types::{Image, Metrics};
 use relume_tests::{add_output, engine, load_graph, ran, run, run_kind, run_outputs, tests_dir};
 
 fn scene_path(name: &str) -> String {
@@ -41,11 +41,11 @@ fn mean(img: &Image) -> f64 {
 fn the_indirect_light_between_two_planes_matches_the_path_tracer_within_five_percent() {
     let e = engine();
     let mut g = pbgi_graph("two_planes.ron", 60_000, 32);
-    g.set_param_text(&relume_nodes::registry(), "reference.spp", "512").unwrap();
+    g.set_param_text(&relume_cli::registry(), "reference.spp", "512").unwrap();
     let reference =
         |g: &relume_core::Graph| run_outputs(&e, g, &["reference"]).output("reference").unwrap().get::<Image>().unwrap().clone();
     let three = reference(&g);
-    g.set_param_text(&relume_nodes::registry(), "reference.max_depth", "2").unwrap();
+    g.set_param_text(&relume_cli::registry(), "reference.max_depth", "2").unwrap();
     let two = reference(&g);
     let ref_mean = three.pixels.iter().zip(&two.pixels).map(|(a, b)| (a[0] - b[0]) as f64).sum::<f64>() / three.pixels.len() as f64;
     let m = mean(&indirect(&e, &g));
@@ -69,9 +69,9 @@ fn stiff_pbgi_cases_stay_finite_and_bounded() {
 
 #[test]
 fn coincident_points_build_a_tree_and_gather_finitely() {
+    use relume_base::types::{Material, SurfacePoints};
     use relume_core::Value;
-    use relume_nodes::pbgi::types::PointRadiance;
-    use relume_nodes::types::{Material, SurfacePoints};
+    use relume_pbgi::types::PointRadiance;
     let pts = SurfacePoints {
         position: vec![Vec3::new(0.0, 1.0, 0.0); 50],
         normal: vec![-Vec3::Y; 50],
@@ -91,7 +91,7 @@ fn coincident_points_build_a_tree_and_gather_finitely() {
 
 #[test]
 fn moving_the_light_reruns_shading_onward_but_not_the_surface_points() {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let mut g = load_graph(
         "pbgi_cornell.ron",
         &[("scene.width", "16"), ("scene.height", "16"), ("points.count", "3000"), ("direct.pixel_samples", "2"), ("shade.samples", "2")],
@@ -131,7 +131,7 @@ fn the_factorized_gather_rasterises_far_fewer_nodes_per_receiver_and_agrees_with
 
 #[test]
 fn changing_k_reruns_only_the_clustering_and_the_factorized_gather() {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let mut g = load_graph(
         "fpbgi_cornell.ron",
         &[("scene.width", "16"), ("scene.height", "16"), ("points.count", "3000"), ("direct.pixel_samples", "2"), ("shade.samples", "2")],
@@ -157,11 +157,11 @@ fn a_second_process_that_changes_the_microbuffer_loads_points_shading_tree_and_d
     let dir = tempfile::tempdir().unwrap();
     let sets = [("scene.width", "128"), ("scene.height", "128"), ("direct.pixel_samples", "8")];
     let g = load_graph("pbgi_cornell.ron", &sets);
-    let first = Engine::new(relume_nodes::registry()).with_disk_cache(dir.path());
+    let first = Engine::new(relume_cli::registry()).with_disk_cache(dir.path());
     let r1 = run(&first, &g);
     let mut g2 = g.clone();
-    g2.set_param_text(&relume_nodes::registry(), "gather.resolution", "8").unwrap();
-    let second = Engine::new(relume_nodes::registry()).with_disk_cache(dir.path());
+    g2.set_param_text(&relume_cli::registry(), "gather.resolution", "8").unwrap();
+    let second = Engine::new(relume_cli::registry()).with_disk_cache(dir.path());
     let r2 = run(&second, &g2);
     for id in ["points", "shade", "tree", "direct"] {
         assert_eq!(r2.node(id).unwrap().cache, Some("disk"), "{id} comes from disk");

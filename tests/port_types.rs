@@ -27,7 +27,7 @@ fn every_port_graph() -> Graph {
 
 /// `g` with every output port of every node as an output.
 fn every_port(mut g: Graph) -> Graph {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     g.outputs.clear();
     for n in g.nodes.clone() {
         for p in &reg.node(&n.kind).unwrap().ports().outputs {
@@ -56,10 +56,10 @@ fn small_relight(name: &str, extra: &[(&str, &str)]) -> Graph {
 
 #[test]
 fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let g = every_port_graph();
     let dir = tempfile::tempdir().unwrap();
-    let first = Engine::new(relume_nodes::registry()).with_disk_cache(dir.path()).with_disk_policy(DiskPolicy::Always);
+    let first = Engine::new(relume_cli::registry()).with_disk_cache(dir.path()).with_disk_policy(DiskPolicy::Always);
     let r1 = first.run(&g, &RunOptions::default()).unwrap();
     // The relighting types come from the ring's relighting graph (same engine, same cache).
     let b = every_port(small_relight("relight_ring.ron", &[]));
@@ -146,7 +146,7 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
     }
 
     // A second engine (another process) gets every node's result from disk, the same values.
-    let second = Engine::new(relume_nodes::registry()).with_disk_cache(dir.path());
+    let second = Engine::new(relume_cli::registry()).with_disk_cache(dir.path());
     for (graph, r) in [(&g, &r1), (&b, &rb), (&c, &rc), (&d, &rd), (&e, &re), (&f, &rf), (&h, &rh)] {
         let r2 = second.run(graph, &RunOptions::default()).unwrap();
         assert_eq!(r2.report.ran, 0, "{:?}", r2.report.ran_ids());
@@ -170,7 +170,7 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
         let b = std::fs::read(&f).unwrap();
         std::fs::write(&f, &b[..b.len() / 2]).unwrap();
     }
-    let third = Engine::new(relume_nodes::registry()).with_disk_cache(dir.path()).with_disk_policy(DiskPolicy::Always);
+    let third = Engine::new(relume_cli::registry()).with_disk_cache(dir.path()).with_disk_policy(DiskPolicy::Always);
     let r3 = third.run(&g, &RunOptions::default()).unwrap();
     assert_eq!(r3.report.ran, g.nodes.len(), "every truncated entry is a miss");
     for ((_, v1), (_, v3)) in r1.outputs.iter().zip(&r3.outputs) {

@@ -1,13 +1,13 @@
 //! Pipeline 2 (precomputed transfer tensors) through its graph: each edit re-runs only what it
 //! reaches, asserted from the run report.
 
+use relume_base::types::Image;
 use relume_core::{Engine, Graph, RunOptions};
-use relume_nodes::types::Image;
 use relume_tests::{load_graph, ptt_test_size, ran};
 
 /// A pipeline-2 graph (`ptt_envlit.ron` or its Cook-Torrance variant) at test size.
 fn small_ptt(name: &str) -> Graph {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let mut g = load_graph(
         name,
         &[
@@ -30,8 +30,8 @@ fn small_ptt(name: &str) -> Graph {
 /// Runs `name` at test size, then orbits, edits the bunny's material with `material` (a
 /// `node.param` and its value) and turns the sky, asserting what each edit re-runs.
 fn edits_rerun_only_what_they_reach(name: &str, material: (&str, &str)) {
-    let reg = relume_nodes::registry();
-    let e = Engine::new(relume_nodes::registry());
+    let reg = relume_cli::registry();
+    let e = Engine::new(relume_cli::registry());
     let mut g = small_ptt(name);
     let r = e.run(&g, &RunOptions::default()).unwrap();
     let img = r.output("image").unwrap().get::<Image>().unwrap().clone();
@@ -73,7 +73,7 @@ fn the_cook_torrance_variant_reruns_the_same_nodes_for_a_roughness_edit() {
 
 #[test]
 fn the_bounce_graph_holds_the_cook_torrance_lobe_on_its_own_space_and_isolates_the_bounces() {
-    let e = Engine::new(relume_nodes::registry());
+    let e = Engine::new(relume_cli::registry());
     let r = e.run(&small_ptt("ptt_envlit_ct_bounce.ron"), &RunOptions::default()).unwrap();
     // The material fitted on the Cook-Torrance space's basis and on the Blinn-Phong one's: the
     // first holds the microfacet lobe, the second cannot (its growth toward grazing).

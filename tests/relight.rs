@@ -3,14 +3,14 @@
 //! scene needs, and a material edit re-runs exactly the projection, the combine and what
 //! compares them, nothing upstream.
 
+use relume_base::types::{Image, Metrics, ObjectMaterials};
 use relume_core::{Engine, Graph, RunOptions};
-use relume_nodes::types::{Image, Metrics, ObjectMaterials};
 use relume_tests::load_graph;
 
 #[test]
 fn the_brdf_basis_graph_reports_its_pca_error_and_a_material_edit_reruns_only_the_projection() {
-    let reg = relume_nodes::registry();
-    let e = Engine::new(relume_nodes::registry());
+    let reg = relume_cli::registry();
+    let e = Engine::new(relume_cli::registry());
     let mut g = load_graph("brdf_basis.ron", &[]);
     let r = e.run(&g, &RunOptions::default()).unwrap();
     let m = r.output("pca_error").unwrap().get::<Metrics>().unwrap();
@@ -46,7 +46,7 @@ fn the_brdf_basis_graph_reports_its_pca_error_and_a_material_edit_reruns_only_th
 
 /// A relighting graph at test size: 24² pixels, few paths, a small BRDF space, a 16-spp reference.
 fn small(name: &str) -> Graph {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let mut g = load_graph(name, &[]);
     for (k, v) in [
         ("scene.width", "24"),
@@ -66,8 +66,8 @@ fn small(name: &str) -> Graph {
 
 #[test]
 fn a_material_edit_reruns_the_projection_the_combine_and_their_comparisons_only() {
-    let reg = relume_nodes::registry();
-    let e = Engine::new(relume_nodes::registry());
+    let reg = relume_cli::registry();
+    let e = Engine::new(relume_cli::registry());
     let mut g = small("relight_cornell_bunny.ron");
     let r = e.run(&g, &RunOptions::default()).unwrap();
     let t = r.report.node("transfer").unwrap();
@@ -112,7 +112,7 @@ fn a_material_edit_reruns_the_projection_the_combine_and_their_comparisons_only(
 
 #[test]
 fn the_ring_stores_no_fixed_object_terms_and_says_so() {
-    let e = Engine::new(relume_nodes::registry());
+    let e = Engine::new(relume_cli::registry());
     let r = e.run(&small("relight_ring.ron"), &RunOptions::default()).unwrap();
     let t = r.report.node("transfer").unwrap();
     // D = 2, S = 5, no fixed object: grey 55, RGB 1 + D + 2DS = 23.
@@ -124,8 +124,8 @@ fn the_ring_stores_no_fixed_object_terms_and_says_so() {
 
 #[test]
 fn the_spatially_varying_graph_compresses_its_groups_and_a_brush_stroke_reruns_only_the_combine_and_the_comparison() {
-    let reg = relume_nodes::registry();
-    let e = Engine::new(relume_nodes::registry());
+    let reg = relume_cli::registry();
+    let e = Engine::new(relume_cli::registry());
     let mut g = small("relight_sv_spot.ron");
     g.set_param_text(&reg, "transfer.sub_regions", "4").unwrap();
     let r = e.run(&g, &RunOptions::default()).unwrap();

@@ -1,8 +1,8 @@
-//! The canonical scenes load exactly as SCENES.md gives them.
+//! The canonical scenes load exactly as docs/SCENES.md gives them.
 
 use glam::Vec3;
-use relume_nodes::scene::format::load_scene_file;
-use relume_nodes::types::{Environment, Light, Material, Scene};
+use relume_base::scene::format::load_scene_file;
+use relume_base::types::{Environment, Light, Material, Scene};
 use relume_tests::graphs_dir;
 
 fn load(name: &str) -> (Scene, Vec<String>) {
@@ -10,7 +10,7 @@ fn load(name: &str) -> (Scene, Vec<String>) {
     (l.scene, l.notes)
 }
 
-fn object<'a>(s: &'a Scene, name: &str) -> &'a relume_nodes::types::Object {
+fn object<'a>(s: &'a Scene, name: &str) -> &'a relume_base::types::Object {
     s.objects.iter().find(|o| o.name == name).unwrap_or_else(|| panic!("no {name}"))
 }
 
@@ -53,7 +53,7 @@ fn ring_envlit_and_glass_load_with_their_lights() {
     let Some(Environment::Map(m)) = &env.environment else { panic!("envlit has a map") };
     assert_eq!((m.width, m.height), (512, 256));
     let sun = m.eval(Vec3::new(0.663, 0.643, 0.383).normalize());
-    assert!(sun.max_element() > 1000.0, "the sun is where SCENES.md says: {sun}");
+    assert!(sun.max_element() > 1000.0, "the sun is where docs/SCENES.md says: {sun}");
     let (glass, _) = load("glass");
     assert!(matches!(object(&glass, "glass").material, Material::Dielectric { ior, medium: None } if ior == 1.5));
     assert_eq!(object(&glass, "light").emission, Vec3::splat(400.0));
@@ -78,11 +78,11 @@ fn cornell_spot_textures_the_cow_and_the_path_tracer_shows_the_texture() {
     small.camera.height = 48;
     let mut plain = small.clone();
     plain.objects.iter_mut().for_each(|o| *o.maps = Default::default());
-    let accel = relume_nodes::types::Accel::build(&small, relume_nodes::types::accel::BuildQuality::Fast);
-    let pt = relume_nodes::reference::path_trace::PathTrace { spp: 16, max_depth: 2, rr_depth: 5, seed: 1 };
-    let render = |sc: &Scene| relume_nodes::reference::path_trace::render(sc, &accel, &pt, None).unwrap().0;
+    let accel = relume_base::types::Accel::build(&small, relume_base::types::accel::BuildQuality::Fast);
+    let pt = relume_base::reference::path_trace::PathTrace { spp: 16, max_depth: 2, rr_depth: 5, seed: 1 };
+    let render = |sc: &Scene| relume_base::reference::path_trace::render(sc, &accel, &pt, None).unwrap().0;
     let (textured, untextured) = (render(&small), render(&plain));
-    let cam = relume_nodes::render::camera::CameraRays::new(&small.camera);
+    let cam = relume_base::render::camera::CameraRays::new(&small.camera);
     let spot_index = s.objects.iter().position(|o| o.name == "spot").unwrap() as u32;
     let (mut on, mut on_plain, mut off, mut off_plain) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
     for y in 0..48 {

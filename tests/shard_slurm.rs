@@ -4,7 +4,7 @@
 //! missing; and `relume slurm` writes (and submits) the sbatch scripts it should.
 //!
 //! relume runs in separate processes: this test binary started again with `RELUME_CHILD_ARGS`
-//! set runs the command line (`relume_nodes::cli::main_from`, what the `relume` binary runs)
+//! set runs the command line (`relume_cli::main_from`, what the `relume` binary runs)
 //! in its test `child_process_runs_the_relume_command_line`, which does nothing otherwise.
 //! (`tests/scripts/slurm_e2e.sh` runs the same on a real one-node Slurm cluster.)
 
@@ -21,7 +21,7 @@ const CHILD_ARGS: &str = "RELUME_CHILD_ARGS";
 fn child_process_runs_the_relume_command_line() {
     let Ok(json) = std::env::var(CHILD_ARGS) else { return };
     let args: Vec<String> = serde_json::from_str(&json).expect("RELUME_CHILD_ARGS is a JSON list of strings");
-    let code = relume_nodes::cli::main_from(std::iter::once("relume".to_string()).chain(args));
+    let code = relume_cli::main_from(std::iter::once("relume".to_string()).chain(args));
     std::process::exit(code);
 }
 

@@ -21,7 +21,7 @@ pub fn tests_dir() -> PathBuf {
 
 /// Loads `graphs/NAME` and applies `--set`-style overrides (`node.param`, value text).
 pub fn load_graph(name: &str, sets: &[(&str, &str)]) -> Graph {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let mut g = Graph::load(&graphs_dir().join(name), &reg).unwrap_or_else(|e| panic!("{e}"));
     for (k, v) in sets {
         g.set_param_text(&reg, k, v).unwrap_or_else(|e| panic!("--set {k}={v}: {e}"));
@@ -44,7 +44,7 @@ pub fn run_outputs(engine: &Engine, g: &Graph, outputs: &[&str]) -> relume_core:
 /// Runs one registered node kind by name with its default parameters on `inputs` (declared
 /// order): a stage on inputs no graph produces (hand-made stiff cases).
 pub fn run_kind(kind: &str, inputs: &[Value]) -> Result<Vec<Value>, NodeError> {
-    relume_core::run_kind(&relume_nodes::registry(), kind, &[], &graphs_dir(), inputs).map(|e| e.outputs)
+    relume_core::run_kind(&relume_cli::registry(), kind, &[], &graphs_dir(), inputs).map(|e| e.outputs)
 }
 
 /// Every file below `dir` (a cache folder), sorted.
@@ -72,7 +72,7 @@ pub fn all_graphs() -> Vec<PathBuf> {
 
 /// An engine over every relume node, no disk cache.
 pub fn engine() -> Engine {
-    Engine::new(relume_nodes::registry())
+    Engine::new(relume_cli::registry())
 }
 
 /// Runs all outputs and returns the report (panics with the error's text on failure).
@@ -242,12 +242,34 @@ pub fn test_registry(log: &Log) -> Registry {
 }
 
 /// The cornell scene at 32 × 32 (for tests that trace it).
-pub fn small_cornell() -> relume_nodes::types::Scene {
-    let mut s = relume_nodes::scene::format::load_scene_file(&graphs_dir().join("scenes/cornell.ron")).unwrap().scene;
+pub fn small_cornell() -> relume_base::types::Scene {
+    let mut s = relume_base::scene::format::load_scene_file(&graphs_dir().join("scenes/cornell.ron")).unwrap().scene;
     s.camera.width = 32;
     s.camera.height = 32;
     s
 }
 
-/// Test-size parameters of the transfer-tensor nodes (`relume_nodes::ptt::test_size`).
-pub use relume_nodes::ptt::test_size as ptt_test_size;
+/// Test-size parameters of the transfer-tensor nodes (`relume_ptt::test_size`).
+pub use relume_ptt::test_size as ptt_test_size;
+
+/// A graph of `graphs/` at the small size the determinism and output-digest runs use.
+pub fn determinism_size(path: &std::path::Path) -> Graph {
+    let reg = relume_cli::registry();
+    let mut g = Graph::load(path, &reg).unwrap_or_else(|e| panic!("{e}"));
+    for n in g.nodes.clone() {
+        let set = |g: &mut Graph, p: &str, v: &str| g.set_param_text(&reg, &format!("{}.{p}", n.id), v).unwrap();
+        match n.kind.as_str() {
+            "LoadScene" => {
+                set(&mut g, "width", "24");
+                set(&mut g, "height", "20");
+            }
+            "PathTrace" => set(&mut g, "spp", "4"),
+            "SampleSurface" => set(&mut g, "count", "3000"),
+            "DirectLight" => set(&mut g, "pixel_samples", "4"),
+            "Voxelize" | "VolumeSource" => set(&mut g, "resolution", "32"),
+            "EmitPhotons" => set(&mut g, "resolution", "64"),
+            kind => relume_ptt::test_size(kind).iter().for_each(|(p, v)| set(&mut g, p, v)),
+        }
+    }
+    g
+}

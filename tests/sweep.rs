@@ -2,8 +2,8 @@
 //! baseline, cache reuse between variants (a repeated variant costs 0 ms) and exit code 2
 //! for input a person can correct.
 
-use relume_nodes::cli::main_from;
-use relume_nodes::image::io::read_image;
+use relume_base::image::io::read_image;
+use relume_cli::main_from;
 use relume_tests::graphs_dir;
 use std::path::Path;
 

@@ -1,15 +1,15 @@
 //! Pipeline 3 (in progress), through its graph: voxelising the glass sphere, a paint stroke
 //! and the octree; a stroke re-runs what reads the medium, never the voxelisation.
 
+use relume_base::types::Image;
 use relume_core::{Engine, RunOptions};
-use relume_nodes::types::Image;
-use relume_nodes::volume::types::Volume;
 use relume_tests::load_graph;
+use relume_volume::types::Volume;
 
 #[test]
 fn a_paint_stroke_reruns_the_octree_onward_and_not_the_voxelisation() {
-    let reg = relume_nodes::registry();
-    let e = Engine::new(relume_nodes::registry());
+    let reg = relume_cli::registry();
+    let e = Engine::new(relume_cli::registry());
     let mut g = load_graph("voxelize_glass.ron", &[("voxelize.resolution", "32")]);
     let r = e.run(&g, &RunOptions::default()).unwrap();
     let v = r.report.node("voxelize").unwrap();
@@ -45,8 +45,8 @@ fn small_refract(extra: &[(&str, &str)]) -> relume_core::Graph {
 
 #[test]
 fn each_edit_of_the_refraction_graph_reruns_only_what_it_reaches() {
-    let reg = relume_nodes::registry();
-    let e = Engine::new(relume_nodes::registry());
+    let reg = relume_cli::registry();
+    let e = Engine::new(relume_cli::registry());
     let mut g = small_refract(&[]);
     let r = e.run(&g, &RunOptions::default()).unwrap();
     let img = r.output("image").unwrap().get::<Image>().unwrap().clone();

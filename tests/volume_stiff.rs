@@ -1,23 +1,26 @@
-//! Pipeline 3 on stiff and extreme cases (QUALITY.md §2, "refraction" and "geometry"; issue
+//! Pipeline 3 on stiff and extreme cases (docs/QUALITY.md §2, "refraction" and "geometry"; issue
 //! 15): a jump of the index from 1 to 2.4 across one voxel, total internal reflection in a
 //! dense sphere, extinction 0 and 10⁴ per unit through MarchPhotons and EikonalRender, and
 //! the glass scene 10⁻³ and 10³ units across. Every stage is called directly (no engine), on
 //! grids of at most 48³ and at most 64² photons: counts and statistics, never time.
 
 use glam::Vec3;
+use relume_base::scene::builder::SceneBuilder;
+use relume_base::types::accel::BuildQuality;
+use relume_base::types::{Accel, Image, Light, Material, Scene};
 use relume_core::{run_standalone, CancelToken, ParamValue, RunCtx, Value};
-use relume_nodes::scene::builder::SceneBuilder;
-use relume_nodes::types::accel::BuildQuality;
-use relume_nodes::types::{Accel, Image, Light, Material, Scene};
-use relume_nodes::volume::eikonal_paths::{self, EikonalPaths, EikonalPathsIn};
-use relume_nodes::volume::eikonal_render::{self, EikonalRender, EikonalRenderIn};
-use relume_nodes::volume::emit_photons::{emit, EmitPhotons, Proxy};
-use relume_nodes::volume::march_photons::MarchPhotons;
-use relume_nodes::volume::octree::{self, Octree};
-use relume_nodes::volume::optics::{ray_step, Integrator, Ray};
-use relume_nodes::volume::types::{CausticMap, Photons, Sampler, Volume};
-use relume_nodes::volume::volume_source::VolumeSource;
-use relume_nodes::volume::voxelize::Voxelize;
+use relume_volume::eikonal_paths;
+use relume_volume::eikonal_paths::{EikonalPaths, EikonalPathsIn};
+use relume_volume::eikonal_render;
+use relume_volume::eikonal_render::{EikonalRender, EikonalRenderIn};
+use relume_volume::emit_photons::{emit, EmitPhotons, Proxy};
+use relume_volume::march_photons::MarchPhotons;
+use relume_volume::octree;
+use relume_volume::octree::Octree;
+use relume_volume::optics::{ray_step, Integrator, Ray};
+use relume_volume::types::{CausticMap, Photons, Sampler, Volume};
+use relume_volume::volume_source::VolumeSource;
+use relume_volume::voxelize::Voxelize;
 use std::path::Path;
 
 // ---------------------------------------------------------------------------------------

@@ -3,7 +3,7 @@
 //! re-runs; through the glass sphere (`graphs/vpbgi_glass.ron`): the caustic and the floor
 //! seen through it.
 
-use relume_nodes::types::{Image, Metrics};
+use relume_base::types::{Image, Metrics};
 use relume_tests::{engine, load_graph, ran, run, run_outputs};
 
 /// `vpbgi_cornell.ron` at `size`² with `count` points.
@@ -40,7 +40,7 @@ fn the_second_bounce_brings_the_image_toward_the_path_tracer_at_max_depth_4() {
 
 #[test]
 fn changing_bounces_reruns_the_view_tree_onward_only() {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let mut g = vpbgi_graph(16, 2000, 4);
     let e = engine();
     run(&e, &g);

@@ -4,8 +4,8 @@
 //! PBGI's.
 
 use glam::Vec3;
+use relume_base::types::{Image, Metrics};
 use relume_core::Value;
-use relume_nodes::types::{Image, Metrics};
 use relume_tests::{add_output, engine, graphs_dir, load_graph, ran, run, run_kind, run_outputs, tests_dir};
 
 /// `wpbgi_ring.ron` on a test scene (`tests/scenes`) with `count` points, 8² maps and a
@@ -72,7 +72,7 @@ fn the_rings_caustic_is_in_the_wavelet_image_with_the_path_tracers_energy() {
 
 #[test]
 fn changing_the_coding_threshold_reruns_the_coding_onward_not_sampling_or_direct_light() {
-    let reg = relume_nodes::registry();
+    let reg = relume_cli::registry();
     let mut g = load_graph(
         "wpbgi_ring.ron",
         &[
@@ -94,19 +94,19 @@ fn changing_the_coding_threshold_reruns_the_coding_onward_not_sampling_or_direct
 
 #[test]
 fn stiff_wavelet_pbgi_cases_stay_finite_and_bounded() {
-    // QUALITY.md §2 "PBGI". All points coplanar: one plane under a light sends itself nothing.
+    // docs/QUALITY.md §2 "PBGI". All points coplanar: one plane under a light sends itself nothing.
     let img = indirect(&wpbgi_graph("one_plane.ron", 3_000, 16));
     assert!(img.as_floats().iter().all(|x| x.is_finite() && x.abs() < 1e-6), "coplanar: no indirect light");
     // Microbuffers of 1 × 1 and 256 × 256, and three points (receivers inside node spheres
     // everywhere), uniform and adaptive: finite and not negative.
     for (res, count, max_level) in [(1, 2_000, 0), (256, 2_000, 0), (16, 3, 0), (2, 2_000, 3), (16, 3, 2)] {
         let mut g = wpbgi_graph("two_planes.ron", count, res);
-        g.set_param_text(&relume_nodes::registry(), "gather.max_level", &max_level.to_string()).unwrap();
+        g.set_param_text(&relume_cli::registry(), "gather.max_level", &max_level.to_string()).unwrap();
         assert!(finite_and_not_negative(&indirect(&g)), "res {res}, {count} points, max_level {max_level}");
     }
     // The adaptive buffer cannot start at 1 × 1, and says so.
     let mut g = wpbgi_graph("two_planes.ron", 500, 1);
-    g.set_param_text(&relume_nodes::registry(), "gather.max_level", "2").unwrap();
+    g.set_param_text(&relume_cli::registry(), "gather.max_level", "2").unwrap();
     let Err(err) = engine().run(&g, &relume_core::RunOptions { outputs: Some(vec!["indirect".into()]), ..Default::default() }) else {
         panic!("a 1 × 1 adaptive buffer ran");
     };
@@ -115,8 +115,8 @@ fn stiff_wavelet_pbgi_cases_stay_finite_and_bounded() {
 
 #[test]
 fn coincident_points_get_wavelets_code_and_gather_finitely() {
-    use relume_nodes::pbgi::types::PointRadiance;
-    use relume_nodes::types::{Material, SurfacePoints};
+    use relume_base::types::{Material, SurfacePoints};
+    use relume_pbgi::types::PointRadiance;
     let mut g = wpbgi_graph("two_planes.ron", 1_000, 16);
     for (o, port) in [("scene", "scene.scene"), ("accel", "bvh.accel"), ("receivers", "gbuffer.receivers")] {
         add_output(&mut g, o, port);
@@ -176,7 +176,7 @@ fn on_the_glossy_cornell_bunny_the_adaptive_buffer_lowers_the_error_over_the_sam
 
 #[test]
 fn glass_receivers_gather_through_the_spherical_microbuffer_and_leave_the_rest_alone() {
-    // `glass` (SCENES.md): the smooth sphere over the floor. With `gbuffer.dielectrics` the
+    // `glass` (docs/SCENES.md): the smooth sphere over the floor. With `gbuffer.dielectrics` the
     // pixels on the glass become receivers and read their spherical buffer along the
     // reflected and refracted directions; every other pixel keeps its bytes.
     let scene = graphs_dir().join("scenes/glass.ron").display().to_string();

@@ -9,8 +9,9 @@ only closing brackets) of
     `outputs!`, and the `#[node]` impl up to the `fn run` line;
 plus 2 lines for the `pub mod` and `reg.add` lines every node needs in its folder's mod.rs.
 
-Usage: decl_lines.py [--rev GITREV] [FILES...]  (default: every node file under nodes/src)
-Prints one line per node file and the median and max.
+Usage: decl_lines.py [--rev GITREV] [--max N]  (every node file under nodes/)
+Prints one line per node file and the median and max; with --max, exits 1 when a node takes
+more than N lines (CI runs it so, with the maximum ARCHITECTURE.md states).
 """
 import re, subprocess, sys, statistics
 
@@ -38,12 +39,13 @@ def is_code(l):
     return bool(s) and not closing and not s.startswith('//') and not s.startswith('use ') and not s.startswith('pub use ')
 
 def count_until_run(lines, a, b):
-    """Lines of an impl block up to the `fn run` signature, plus the closing brace."""
+    """Lines of an impl block up to the `fn run` signature (for a sharded node, the first of
+    `fn shard`, `fn run_items` and `fn gather`: its algorithm), plus the closing brace."""
     n = 0
     for i in range(a, b + 1):
         if is_code(lines[i]):
             n += 1
-        if re.search(r'\bfn run\b', lines[i]):
+        if re.search(r'\bfn (run|shard|run_items|gather)\b', lines[i]):
             # the signature may wrap over several lines
             j = i
             while not lines[j].rstrip().endswith('{'):
@@ -84,10 +86,10 @@ def measure(text):
 
 def node_files(rev):
     if rev:
-        names = subprocess.run(['git', 'ls-tree', '-r', '--name-only', rev, 'nodes/src'], capture_output=True, text=True).stdout.split()
+        names = subprocess.run(['git', 'ls-tree', '-r', '--name-only', rev, 'nodes'], capture_output=True, text=True).stdout.split()
         get = lambda f: subprocess.run(['git', 'show', f'{rev}:{f}'], capture_output=True, text=True).stdout
     else:
-        names = subprocess.run(['git', 'ls-files', '--cached', '--others', '--exclude-standard', 'nodes/src'], capture_output=True, text=True).stdout.split()
+        names = subprocess.run(['git', 'ls-files', '--cached', '--others', '--exclude-standard', 'nodes'], capture_output=True, text=True).stdout.split()
         get = lambda f: open(f).read()
     for f in sorted(names):
         if f.endswith('.rs'):
@@ -98,13 +100,21 @@ def node_files(rev):
 def main():
     args = sys.argv[1:]
     rev = None
-    if args[:1] == ['--rev']:
-        rev, args = args[1], args[2:]
+    limit = None
+    while args:
+        if args[:1] == ['--rev']:
+            rev, args = args[1], args[2:]
+        elif args[:1] == ['--max']:
+            limit, args = int(args[1]), args[2:]
+        else:
+            sys.exit(f'decl_lines.py: unknown argument {args[0]}')
     counts = []
     for f, t in node_files(rev):
         n = measure(t)
         counts.append(n)
         print(f'{n:4}  {f}')
     print(f'nodes {len(counts)}, median {statistics.median(counts)}, max {max(counts)}, total {sum(counts)}')
+    if limit is not None and max(counts) > limit:
+        sys.exit(f'a node takes {max(counts)} declaration lines, over the maximum of {limit}')
 
 main()

@@ -1,4 +1,4 @@
-"""Renders SCENES.md's `cornell` with Mitsuba 3 (scalar_rgb, path, max_depth -1, box filter,
+"""Renders docs/SCENES.md's `cornell` with Mitsuba 3 (scalar_rgb, path, max_depth -1, box filter,
 256 x 256) for throughput and image comparisons with relume's PathTrace.
 
 Not needed by the tests. Install with `pip install mitsuba numpy`, then:

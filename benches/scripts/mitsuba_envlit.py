@@ -1,4 +1,4 @@
-"""Renders SCENES.md's `envlit` (graphs/scenes/envlit.ron) with Mitsuba 3 (scalar_rgb, `path`,
+"""Renders docs/SCENES.md's `envlit` (graphs/scenes/envlit.ron) with Mitsuba 3 (scalar_rgb, `path`,
 box filter, `envmap` emitter) for image comparisons with relume's PathTrace.
 
 Not needed by the tests. Install with `pip install mitsuba numpy`, then:

@@ -1,11 +1,11 @@
 //! The whole-run memory check (see `memory.rs`): estimates propagated through the plan, what
 //! is held at once in plan order, and the refusal message.
 
-use crate::exec::Engine;
 use crate::graph::Graph;
 use crate::memory::{fmt_bytes, MemoryEstimate, PortSize};
 use crate::params::ParamValues;
 use crate::plan::Plan;
+use crate::registry::Registry;
 
 /// The estimate of a planned run, node by node in plan order.
 pub struct RunEstimate {
@@ -36,40 +36,38 @@ pub(crate) fn output_nodes(plan: &Plan) -> Vec<bool> {
     o
 }
 
-impl Engine {
-    /// Estimates, before running anything, what the plan will hold at once: each node's
-    /// estimate from its parameters and its inputs' estimated sizes, then a walk in plan
-    /// order that keeps a result until its last reader has run (or to the end, for outputs).
-    pub fn estimate(&self, graph: &Graph, plan: &Plan) -> RunEstimate {
-        let mut sizes: Vec<Vec<Option<PortSize>>> = vec![Vec::new(); graph.nodes.len()];
-        let mut nodes = Vec::with_capacity(plan.order.len());
-        for &i in &plan.order {
-            let kind = self.registry().node(&graph.nodes[i].kind).expect("validated graph");
-            let inputs: Vec<Option<PortSize>> = plan.sources[i].iter().map(|&(s, o)| sizes[s].get(o).copied().flatten()).collect();
-            let est = ParamValues::resolve(kind.schema(), &graph.nodes[i].params, &graph.base_dir)
-                .ok()
-                .and_then(|p| kind.memory(&p, &inputs).ok())
-                .unwrap_or_else(|| MemoryEstimate::unknown(kind.ports().outputs.len()));
-            sizes[i] = est.outputs.clone();
-            nodes.push((i, est));
-        }
-        let (mut remaining, keep) = (consumers(plan), output_nodes(plan));
-        let (mut held, mut peak, mut peak_node) = (0u64, 0u64, None);
-        for (i, est) in &nodes {
-            let now = held + est.working + est.output_bytes();
-            if now > peak {
-                (peak, peak_node) = (now, Some(*i));
-            }
-            held += est.output_bytes();
-            for &(s, _) in &plan.sources[*i] {
-                remaining[s] -= 1;
-                if remaining[s] == 0 && !keep[s] {
-                    held -= sizes[s].iter().flatten().map(|x| x.bytes).sum::<u64>();
-                }
-            }
-        }
-        RunEstimate { nodes, peak, peak_node }
+/// Estimates, before running anything, what the plan will hold at once: each node's estimate
+/// from its parameters and its inputs' estimated sizes, then a walk in plan order that keeps a
+/// result until its last reader has run (or to the end, for outputs).
+pub fn estimate(registry: &Registry, graph: &Graph, plan: &Plan) -> RunEstimate {
+    let mut sizes: Vec<Vec<Option<PortSize>>> = vec![Vec::new(); graph.nodes.len()];
+    let mut nodes = Vec::with_capacity(plan.order.len());
+    for &i in &plan.order {
+        let kind = registry.node(&graph.nodes[i].kind).expect("validated graph");
+        let inputs: Vec<Option<PortSize>> = plan.sources[i].iter().map(|&(s, o)| sizes[s].get(o).copied().flatten()).collect();
+        let est = ParamValues::resolve(kind.schema(), &graph.nodes[i].params, &graph.base_dir)
+            .ok()
+            .and_then(|p| kind.memory(&p, &inputs).ok())
+            .unwrap_or_else(|| MemoryEstimate::unknown(kind.ports().outputs.len()));
+        sizes[i] = est.outputs.clone();
+        nodes.push((i, est));
     }
+    let (mut remaining, keep) = (consumers(plan), output_nodes(plan));
+    let (mut held, mut peak, mut peak_node) = (0u64, 0u64, None);
+    for (i, est) in &nodes {
+        let now = held + est.working + est.output_bytes();
+        if now > peak {
+            (peak, peak_node) = (now, Some(*i));
+        }
+        held += est.output_bytes();
+        for &(s, _) in &plan.sources[*i] {
+            remaining[s] -= 1;
+            if remaining[s] == 0 && !keep[s] {
+                held -= sizes[s].iter().flatten().map(|x| x.bytes).sum::<u64>();
+            }
+        }
+    }
+    RunEstimate { nodes, peak, peak_node }
 }
 
 impl RunEstimate {

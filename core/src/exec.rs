@@ -34,7 +34,7 @@ pub struct Engine {
 /// Which results an engine with a disk cache writes there.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum DiskPolicy {
-    /// The rule (ARCHITECTURE.md, "Caching"): a result whose computation took longer than
+    /// The rule (docs/ARCHITECTURE.md, "Caching"): a result whose computation took longer than
     /// loading it would (`cache::worth_storing`).
     #[default]
     WhenCheaperToLoad,
@@ -169,6 +169,11 @@ impl Engine {
     }
     pub fn registry(&self) -> &Registry {
         &self.registry
+    }
+
+    /// Estimates, before running anything, what the plan will hold at once (`budget::estimate`).
+    pub fn estimate(&self, graph: &Graph, plan: &Plan) -> crate::budget::RunEstimate {
+        crate::budget::estimate(self.registry(), graph, plan)
     }
     pub fn disk(&self) -> Option<&DiskCache> {
         self.disk.as_ref()

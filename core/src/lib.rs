@@ -15,6 +15,7 @@ mod explain;
 mod file_hash;
 pub mod graph;
 mod hash;
+mod input_file;
 pub mod memory;
 mod node;
 mod params;
@@ -34,6 +35,7 @@ pub use explain::{PlanAction, PlanLine};
 pub use file_hash::content_hash;
 pub use graph::{Graph, FORMAT_VERSION};
 pub use hash::{Hash, Hasher};
+pub use input_file::read_input;
 pub use memory::{MemoryEstimate, PortSize};
 pub use node::{ports_of, run_typed, Caching, Documented, DynNode, Node};
 pub use params::{ParamEnum, ParamKind, ParamSpec, ParamValue, ParamValues, Params, Schema};
@@ -47,15 +49,3 @@ pub use registry::{closest, Registry};
 pub use report::{NodeReport, RunReport};
 pub use shard::{ShardMode, ShardSpec, Sharded};
 pub use standalone::{run_kind, run_standalone, run_standalone_with};
-
-/// Reads a file a person named (a graph, a scene, a mesh, an image, a file parameter): only a
-/// regular file, so that a path naming a device (`/dev/zero`), a FIFO or a folder is an error
-/// at once instead of a hang or an endless read.
-pub fn read_input(path: &std::path::Path) -> std::io::Result<Vec<u8>> {
-    let meta = std::fs::metadata(path)?;
-    if !meta.is_file() {
-        let what = if meta.is_dir() { "a folder" } else { "not a regular file (a device or a pipe)" };
-        return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, format!("it is {what}")));
-    }
-    std::fs::read(path)
-}

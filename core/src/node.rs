@@ -37,7 +37,7 @@ pub trait Documented {
 }
 
 /// A stage of a pipeline: its parameters are `Self` (`derive(Params)`), its ports the
-/// `Inputs` / `Outputs` structs. Implemented by `#[node]`; see ARCHITECTURE.md.
+/// `Inputs` / `Outputs` structs. Implemented by `#[node]`; see docs/ARCHITECTURE.md.
 pub trait Node: Params + Documented + Send + Sync + 'static {
     const KIND: &'static str;
     /// Bump when the output for the same inputs and parameters changes.

@@ -4,17 +4,19 @@
 
 use crate::document::Document;
 use crate::edit;
-use crate::file_dialog::FileDialog;
+use crate::file_dialog::{FileDialog, Purpose};
 use crate::palette::Palette;
+use crate::panels::{Action, Panels};
 use crate::runner::{NodeState, Runner};
 use crate::screenshot::ScreenshotJob;
 use crate::view::{GraphView, ViewEdit};
 use crate::viewer::Viewer;
+use relume_base::types::Image;
 use relume_core::graph::PortRef;
+use relume_core::ParamValue;
 use relume_core::{Engine, Graph, Registry, RunReport, Value};
-use relume_nodes::types::Image;
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -354,7 +356,7 @@ impl EditorApp {
         let dir = self.doc.graph.base_dir.clone();
         let mut graph = self.doc.graph.clone();
         graph.file = graph.file.or_else(|| self.doc.path.clone());
-        match relume_nodes::image::exr_layers::write_run_layers(&self.registry, &graph, &self.last_outputs, &dir, false) {
+        match relume_base::image::exr_layers::write_run_layers(&self.registry, &graph, &self.last_outputs, &dir, false) {
             Ok(path) => {
                 self.status = format!("saved image layers to {}", path.display());
                 Some(path)
@@ -487,7 +489,28 @@ impl EditorApp {
         }
         self.refresh_states();
         self.keep_recovery();
-        crate::panels::draw(self, ctx);
+        let image_outputs = self.image_outputs();
+        let panels = Panels {
+            registry: &self.registry,
+            doc: &self.doc,
+            view: &mut self.view,
+            viewer: &mut self.viewer,
+            palette: &mut self.palette,
+            dialog: &mut self.dialog,
+            auto_run: &mut self.auto_run,
+            running: self.runner.is_running(),
+            status: &self.status,
+            edit_to_image_ms: self.edit_to_image_ms,
+            view_target: self.view_target.clone(),
+            image_outputs,
+            preview_shown: self.preview_shown,
+            report: self.report.as_ref(),
+            quit_prompt: self.quit_prompt,
+            recovery_offer: self.recovery_offer.as_deref(),
+        };
+        for action in crate::panels::draw(panels, ctx) {
+            self.act(action, ctx);
+        }
         if let Some(job) = &mut self.screenshot {
             job.frame(ctx, &self.viewer, self.runner.is_running() || self.pending_run.is_some());
         }
@@ -509,12 +532,12 @@ impl EditorApp {
             self.undo();
         }
         if ctx.input_mut(|i| i.consume_shortcut(&cmd_shift(Key::S))) {
-            self.dialog = Some(crate::panels::save_as_dialog(self));
+            self.dialog = Some(self.save_as_dialog());
         } else if ctx.input_mut(|i| i.consume_shortcut(&cmd(Key::S))) {
             self.save();
         }
         if ctx.input_mut(|i| i.consume_shortcut(&cmd(Key::O))) {
-            self.dialog = Some(crate::panels::open_dialog(self));
+            self.dialog = Some(self.open_dialog());
         }
         if ctx.input_mut(|i| i.consume_key(Modifiers::NONE, Key::F5)) {
             self.run();
@@ -525,10 +548,104 @@ impl EditorApp {
         }
     }
 
+    /// A file dialog to open a graph, starting in the current graph's folder.
+    fn open_dialog(&self) -> FileDialog {
+        let start = self.doc.path.as_ref().and_then(|p| p.parent()).map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."));
+        FileDialog::new(Purpose::Open, &start, Some("ron"))
+    }
+
+    /// A file dialog to save the graph under a new name.
+    fn save_as_dialog(&self) -> FileDialog {
+        let start = self.doc.path.clone().unwrap_or_else(|| PathBuf::from("untitled.ron"));
+        FileDialog::new(Purpose::SaveAs, &start, Some("ron"))
+    }
+
+    /// Carries out what the user asked for in the panels.
+    fn act(&mut self, action: Action, ctx: &egui::Context) {
+        match action {
+            Action::AddNode { kind, at } => self.add_from_palette(kind, at),
+            Action::ViewEdits(edits) => self.apply_view_edits(edits),
+            Action::OpenDialog => self.dialog = Some(self.open_dialog()),
+            Action::SaveAsDialog => self.dialog = Some(self.save_as_dialog()),
+            Action::Save => self.save(),
+            Action::SaveExrLayers => {
+                self.save_exr_layers();
+            }
+            Action::Undo => self.undo(),
+            Action::Redo => self.redo(),
+            Action::DeleteSelected => self.delete_selected(),
+            Action::Run => self.run(),
+            Action::Cancel => self.cancel(),
+            Action::SetParam { node, name, value } => {
+                if let Err(m) = self.set_param(&node, name, value) {
+                    self.status = m;
+                }
+            }
+            Action::ResetParam { node, name } => {
+                self.apply(&format!("param:{node}.{name}"), true, |g| edit::reset_param(g, &node, name));
+                self.doc.seal();
+            }
+            Action::BrowseParam { node, name, start } => self.dialog = Some(FileDialog::new(Purpose::Param { node, name }, &start, None)),
+            Action::SetOutput { port, name, on } => {
+                self.apply("outputs", true, |g| edit::set_output(g, &port, &name, on));
+                self.doc.seal();
+            }
+            Action::ShowTarget(target) => {
+                self.view_target = target;
+                self.show_target();
+            }
+            Action::SaveAndClose => self.save_and_close(ctx),
+            Action::DiscardAndClose => self.discard_and_close(ctx),
+            Action::KeepEditing => self.quit_prompt = false,
+            Action::RestoreRecovery => {
+                let reg = self.registry.clone();
+                self.status = match self.doc.restore_recovery(&reg) {
+                    Ok(()) => "restored the unsaved changes (Ctrl+Z undoes)".into(),
+                    Err(e) => e,
+                };
+                self.recovery_offer = None;
+            }
+            Action::DropRecovery => {
+                self.doc.drop_recovery();
+                self.recovery_offer = None;
+            }
+            Action::Chosen(purpose, path) => self.chosen(purpose, path),
+        }
+    }
+
+    /// A file chosen in a file dialog, for the dialog's purpose.
+    fn chosen(&mut self, purpose: Purpose, path: PathBuf) {
+        match purpose {
+            Purpose::Open => {
+                if self.doc.is_dirty() {
+                    self.status = "save or undo the unsaved changes before opening another graph".into();
+                    return;
+                }
+                if let Err(e) = self.open(&path) {
+                    self.status = e;
+                }
+            }
+            Purpose::SaveAs => {
+                let path = if path.extension().is_none() { path.with_extension("ron") } else { path };
+                self.status = match self.doc.save_as(&path) {
+                    Ok(()) => format!("saved {}", path.display()),
+                    Err(e) => e,
+                };
+            }
+            Purpose::Param { node, name } => {
+                let base = self.doc.graph.base_dir.clone();
+                let rel = path.strip_prefix(&base).map(Path::to_path_buf).unwrap_or(path);
+                if let Err(m) = self.set_param(&node, &name, ParamValue::Text(rel.to_string_lossy().into_owned())) {
+                    self.status = m;
+                }
+            }
+        }
+    }
+
     /// Saves, or asks for a file when the graph has none.
     pub fn save(&mut self) {
         if self.doc.path.is_none() {
-            self.dialog = Some(crate::panels::save_as_dialog(self));
+            self.dialog = Some(self.save_as_dialog());
             return;
         }
         self.status = match self.doc.save() {

@@ -175,7 +175,7 @@ mod tests {
     use crate::edit;
 
     fn doc_in(dir: &Path) -> (Document, Registry) {
-        let reg = relume_nodes::registry();
+        let reg = crate::registry();
         let src = concat!(env!("CARGO_MANIFEST_DIR"), "/../graphs/filters.ron");
         let path = dir.join("filters.ron");
         std::fs::copy(src, &path).unwrap();

@@ -114,7 +114,7 @@ mod tests {
     use super::*;
 
     fn graph() -> (Graph, Registry) {
-        let reg = relume_nodes::registry();
+        let reg = crate::registry();
         let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../graphs/filters.ron")).unwrap();
         (Graph::parse(&text, None).unwrap(), reg)
     }

@@ -17,6 +17,18 @@ pub mod viewer;
 
 pub use app::EditorApp;
 
+use relume_core::Registry;
+
+/// A registry with every node kind: the base's and each pipeline's.
+pub fn registry() -> Registry {
+    let mut r = relume_base::registry();
+    relume_pbgi::register(&mut r);
+    relume_ptt::register(&mut r);
+    relume_relight::register(&mut r);
+    relume_volume::register(&mut r);
+    r
+}
+
 /// Milliseconds for people: `85 ms`, `1.24 s`.
 pub fn fmt_ms(ms: f64) -> String {
     if ms < 1000.0 {

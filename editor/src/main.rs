@@ -60,7 +60,7 @@ fn main() {
             std::process::exit(if m.is_empty() { 0 } else { 64 });
         }
     };
-    let registry = relume_nodes::registry();
+    let registry = relume_editor::registry();
     let mut engine = relume_core::Engine::new(registry.clone());
     if !args.no_disk_cache {
         let dir = args.cache.clone().or_else(|| std::env::var_os("RELUME_CACHE").map(PathBuf::from)).unwrap_or(".relume-cache".into());

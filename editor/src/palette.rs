@@ -49,7 +49,7 @@ mod tests {
 
     #[test]
     fn search_filters_by_name_and_category() {
-        let reg = relume_nodes::registry();
+        let reg = crate::registry();
         let mut p = Palette::default();
         let all: usize = p.matches(&reg).values().map(Vec::len).sum();
         assert_eq!(all, reg.nodes().count());

@@ -163,7 +163,7 @@ mod tests {
 
     #[test]
     fn every_schema_kind_draws_without_acting() {
-        let reg = relume_nodes::registry();
+        let reg = crate::registry();
         for n in reg.nodes() {
             for spec in &n.schema().0 {
                 let v = spec.default.clone();

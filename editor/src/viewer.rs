@@ -2,10 +2,10 @@
 //! the linear pixel value under the pointer, and the run report.
 
 use egui::{Color32, ColorImage, TextureHandle, TextureOptions};
+use relume_base::image::tonemap::{tonemap_channel, Operator};
+use relume_base::math::srgb::srgb_encode;
+use relume_base::types::Image;
 use relume_core::RunReport;
-use relume_nodes::image::tonemap::{tonemap_channel, Operator};
-use relume_nodes::math::srgb::srgb_encode;
-use relume_nodes::types::Image;
 use std::sync::Arc;
 
 pub struct Viewer {

@@ -15,7 +15,7 @@ fn graphs() -> PathBuf {
 }
 
 fn app() -> EditorApp {
-    let reg = relume_nodes::registry();
+    let reg = relume_editor::registry();
     EditorApp::new(reg.clone(), Engine::new(reg))
 }
 
@@ -57,7 +57,7 @@ fn stale(app: &EditorApp) -> Vec<String> {
 #[test]
 fn a_relume_saved_file_round_trips_byte_identical_through_the_editor() {
     let dir = tempfile::tempdir().unwrap();
-    let reg = relume_nodes::registry();
+    let reg = relume_editor::registry();
     for name in ["pbgi_cornell.ron", "filters.ron", "pbgi_vs_reference.ron"] {
         let g = Graph::load(&graphs().join(name), &reg).unwrap();
         let path = dir.path().join(name);

@@ -12,7 +12,7 @@ static REGISTRY: OnceLock<Registry> = OnceLock::new();
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else { return };
-    let reg = REGISTRY.get_or_init(relume_nodes::registry);
+    let reg = REGISTRY.get_or_init(relume_cli::registry);
     let result = Graph::parse(text, Some(Path::new("fuzz.ron"))).and_then(|g| g.validate(reg));
     if let Err(e) = result {
         // Rendering the message is part of loading: it must not panic either.

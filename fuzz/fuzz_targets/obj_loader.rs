@@ -5,7 +5,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use relume_nodes::scene::obj::load_obj;
+use relume_base::scene::obj::load_obj;
 use std::sync::OnceLock;
 
 static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();

@@ -5,7 +5,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use relume_nodes::scene::format::load_scene_file;
+use relume_base::scene::format::load_scene_file;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 

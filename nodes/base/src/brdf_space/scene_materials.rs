@@ -1,0 +1,81 @@
+use crate::types::{Material, ObjectMaterial, ObjectMaterials, Scene};
+use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+
+/// The materials of a scene's dynamic objects, as pixel relighting edits them: one entry per
+/// dynamic object (`Scene::dynamic_groups`: dynamic shapes sharing a named material are one
+/// object, the thesis' "white walls"), with its Blinn-Phong (Kd, Ks, s). A Lambert material is
+/// (Kd = albedo, Ks = 0). Other materials cannot be dynamic here (the BRDF space is
+/// Blinn-Phong's): an error names the object. Not yet projected: `MaterialProject` adds the
+/// basis coefficients and applies edits.
+#[derive(Params)]
+pub struct SceneMaterials {}
+
+inputs!(pub SceneMaterialsIn { scene: Scene });
+outputs!(pub SceneMaterialsOut { materials: ObjectMaterials });
+
+/// The dynamic objects' materials of `scene` (see the node's doc).
+pub fn scene_materials(scene: &Scene) -> Result<ObjectMaterials, String> {
+    let mut out = Vec::new();
+    for (name, members) in scene.dynamic_groups() {
+        let o = &scene.objects[members[0] as usize];
+        let (kd, ks, s) = match o.material {
+            Material::BlinnPhong { kd, ks, exponent } => (kd.to_array(), ks.to_array(), exponent),
+            Material::Lambert { albedo } => (albedo.to_array(), [0.0; 3], 1.0),
+            _ => {
+                return Err(format!(
+                    "dynamic object \"{name}\" ({}) is not Blinn-Phong or Lambert: pixel relighting's BRDF space is Blinn-Phong's",
+                    o.name
+                ))
+            }
+        };
+        out.push(ObjectMaterial { name, kd, ks, s, coefficients: vec![], maps: (*o.maps).clone(), specular: Default::default() });
+    }
+    Ok(ObjectMaterials(out))
+}
+
+#[node(category = "relight", version = 2)]
+impl SceneMaterials {
+    fn run(&self, i: SceneMaterialsIn, cx: &RunCtx) -> Result<SceneMaterialsOut, NodeError> {
+        let materials = scene_materials(i.scene).map_err(|m| NodeError::input("scene", m))?;
+        if materials.0.is_empty() {
+            cx.note("the scene has no dynamic object: there is no material to edit");
+        }
+        cx.metric("dynamic_objects", materials.0.len() as f64);
+        Ok(SceneMaterialsOut { materials })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::{first, run_on, test_scene};
+    use glam::Vec3;
+    use relume_core::Value;
+
+    #[test]
+    fn dynamic_objects_sharing_a_named_material_are_one_object() {
+        let mut scene = test_scene::spheres();
+        let n = scene.objects.len();
+        assert!(n >= 3);
+        for (i, o) in scene.objects.iter_mut().enumerate().take(3) {
+            o.dynamic = true;
+            o.material = Material::BlinnPhong { kd: Vec3::splat(0.1 * i as f32), ks: Vec3::splat(0.3), exponent: 40.0 };
+            o.material_name = if i < 2 { "shared".into() } else { String::new() };
+        }
+        let m = first::<ObjectMaterials>(&run_on::<SceneMaterials>(&[], vec![Value::new(scene.clone())]).unwrap());
+        assert_eq!(m.0.len(), 2);
+        assert_eq!(m.0[0].name, "shared");
+        assert_eq!(m.0[0].kd, [0.0; 3], "the group takes its first member's material");
+        assert_eq!((m.0[1].name.as_str(), m.0[1].s), (scene.objects[2].name.as_str(), 40.0));
+        assert_eq!(scene.dynamic_groups()[0].1, vec![0, 1]);
+    }
+
+    #[test]
+    fn a_dielectric_cannot_be_dynamic_and_the_error_names_it() {
+        let mut scene = test_scene::spheres();
+        scene.objects[0].dynamic = true;
+        scene.objects[0].material = Material::Dielectric { ior: 1.5, medium: None };
+        let e = run_on::<SceneMaterials>(&[], vec![Value::new(scene.clone())]).unwrap_err();
+        assert!(e.to_string().contains(&scene.objects[0].name), "{e}");
+    }
+}

@@ -1,0 +1,49 @@
+use crate::image::io::write_image;
+use crate::types::Image;
+use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use std::path::PathBuf;
+
+/// Writes its input to a file (.exr: linear float; .png: 8-bit sRGB, clamped) and passes
+/// the image on. It has a side effect, so it is never cached and runs whenever needed.
+#[derive(Params)]
+pub struct SaveImage {
+    /// file to write (.exr or .png), relative to the graph file; it must lie below the graph's
+    /// folder or the run's output folder unless the run allows writes anywhere
+    #[param(output)]
+    pub path: PathBuf,
+}
+
+inputs!(pub SaveImageIn { image: Image });
+outputs!(pub SaveImageOut { image: Image });
+
+#[node(category = "image", caching = Never)]
+impl SaveImage {
+    fn run(&self, i: SaveImageIn, cx: &RunCtx) -> Result<SaveImageOut, NodeError> {
+        cx.check_write_path("path", &self.path)?;
+        if let Some(dir) = self.path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| NodeError::param("path", format!("cannot create {}: {e}", dir.display())))?;
+        }
+        write_image(&self.path, i.image).map_err(|m| NodeError::param("path", m))?;
+        Ok(SaveImageOut { image: i.image.clone() })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::run_node;
+    use relume_core::{ParamValue, Value};
+
+    #[test]
+    fn writes_exr_and_png_and_refuses_other_extensions() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = Image::from_fn(2, 2, |x, _| [x as f32, 0.5, 2.0]);
+        for name in ["sub/a.exr", "b.png"] {
+            run_node::<SaveImage>(&[("path", ParamValue::Text(name.into()))], dir.path(), vec![Value::new(img.clone())]).unwrap();
+            assert!(dir.path().join(name).is_file(), "{name}");
+        }
+        assert_eq!(crate::image::io::read_image(&dir.path().join("sub/a.exr")).unwrap(), img);
+        let err = run_node::<SaveImage>(&[("path", ParamValue::Text("c.tiff".into()))], dir.path(), vec![Value::new(img)]).unwrap_err();
+        assert!(err.to_string().contains("unsupported"), "{err}");
+    }
+}

@@ -1,0 +1,172 @@
+use crate::render::camera::CameraRays;
+use crate::render::film::{with_ctx, Film};
+use crate::render::integrator::{Settings, Tracer};
+use crate::types::accel::Accel;
+use crate::types::{gather_rows, row_spec, Image, ImageRows, Scene};
+use glam::Vec3;
+use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx, ShardSpec};
+use std::ops::Range;
+
+/// Reference path tracer (the ground truth every pipeline reports its error against):
+/// unbiased; next-event estimation with MIS (power heuristic) against BSDF sampling;
+/// importance-sampled environment maps; smooth dielectrics with homogeneous media;
+/// `max_depth` as in Mitsuba 3 (1: emitters only, 2: direct light, 3: one bounce, −1:
+/// unbounded with Russian roulette from `rr_depth`); box pixel filter. Samples are taken
+/// in passes of doubling size (progress and cancellation between rows); each pixel's
+/// random numbers depend only on (seed, pixel, sample), so the image has the same bytes on
+/// any thread count. Outputs the mean and the per-pixel variance of the mean. Sharded over
+/// image rows (chunks of about 4096 pixels): `relume shard`, `relume slurm` and
+/// `--processes` split it across processes and machines with the same bytes.
+#[derive(Params)]
+pub struct PathTrace {
+    /// samples per pixel
+    #[param(default = 16, range = 1..=(1 << 20), unit = "samples/pixel")]
+    pub spp: u32,
+    /// maximum path segments (Mitsuba's meaning); -1 = unbounded
+    #[param(default = -1, range = -1..=1024)]
+    pub max_depth: i32,
+    /// depth at which Russian roulette starts
+    #[param(default = 5, range = 1..=1024)]
+    pub rr_depth: u32,
+    /// random seed
+    #[param(default = 0, range = 0..=u32::MAX)]
+    pub seed: u64,
+}
+
+inputs!(pub PathTraceIn { scene: Scene, accel: Accel });
+outputs!(pub PathTraceOut { image: Image, variance: Image });
+
+/// Camera sample `s` of pixel (x, y) of a `width`-wide image as the reference takes it (box
+/// filter: a point uniform over the pixel, from (seed, pixel, sample) only): the ray's origin,
+/// direction and the sample's id, which keys the sample's further random numbers. Renderers
+/// whose antialiased edges must match the reference's take their samples here.
+pub fn camera_sample(cam: &CameraRays, seed: u64, width: usize, x: usize, y: usize, s: u32) -> (Vec3, Vec3, u64) {
+    let id = ((y * width + x) as u64) << 32 | s as u64;
+    let (jx, jy) = (crate::math::rng::uniform(seed ^ 0x5EED, id, 0), crate::math::rng::uniform(seed ^ 0x5EED, id, 1));
+    let (o, d) = cam.ray(x as f32 + jx, y as f32 + jy);
+    (o, d, id)
+}
+
+/// Renders `p.spp` samples per pixel of the rows `rows`; returns them as a band with the
+/// mean, the variance of the mean and the counters [rays, samples dropped as NaN or
+/// infinite]. Each pixel depends only on (seed, pixel, sample): any split of the rows gives
+/// the same bytes. `cx` reports progress and cancels; `None` outside a graph.
+pub fn render_rows(scene: &Scene, accel: &Accel, p: &PathTrace, rows: Range<usize>, cx: Option<&RunCtx>) -> Result<ImageRows, NodeError> {
+    let cam = &scene.camera;
+    let w = cam.width;
+    let mut film = Film::try_new(w, rows.len())?;
+    if !scene.has_lights() {
+        let (mean, var) = (Image::try_new(w, rows.len())?, Image::try_new(w, rows.len())?);
+        return Ok(ImageRows::new(w, rows, vec![mean, var], vec![0, 0]));
+    }
+    let tracer = Tracer::new(scene, accel, Settings { max_depth: p.max_depth, rr_depth: p.rr_depth, seed: p.seed });
+    let cam_rays = CameraRays::new(cam);
+    let y0 = rows.start;
+    with_ctx(cx, |cx| {
+        film.add_passes(cx, p.spp, |x, y, s, counts| {
+            let (o, d, id) = camera_sample(&cam_rays, p.seed, w, x, y + y0, s);
+            tracer.radiance(o, d, id, counts)
+        })
+    })?;
+    let counters = vec![film.rays(), film.nonfinite()];
+    let (mean, var) = film.finish();
+    Ok(ImageRows::new(w, rows, vec![mean, var], counters))
+}
+
+/// The whole image: (mean, variance of the mean, rays, samples dropped as NaN or infinite);
+/// the same bytes as the node's sharded run.
+pub fn render(scene: &Scene, accel: &Accel, p: &PathTrace, cx: Option<&RunCtx>) -> Result<(Image, Image, u64, u64), NodeError> {
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let band = render_rows(scene, accel, p, 0..h, cx)?;
+    let (mut imgs, c) = gather_rows(w, h, 2, &[&band])?;
+    let var = imgs.pop().expect("two layers");
+    Ok((imgs.pop().expect("two layers"), var, c[0], c[1]))
+}
+
+#[node(category = "reference", sharded)]
+impl PathTrace {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        // The film of a band (a sum and a sum of squares, f64 RGB, per pixel), the bands of
+        // the chunks (mean and variance) and the gathered images.
+        let image = inputs[0].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));
+        relume_core::MemoryEstimate { outputs: vec![image, image], working: inputs[0].and_then(|s| s.pixels()).map_or(0, |p| p * 72) }
+    }
+
+    fn shard(&self, i: &PathTraceIn) -> Result<ShardSpec, NodeError> {
+        Ok(row_spec(i.scene.camera.width, i.scene.camera.height))
+    }
+
+    fn run_items(&self, i: &PathTraceIn, rows: Range<u64>, cx: &RunCtx) -> Result<ImageRows, NodeError> {
+        render_rows(i.scene, i.accel, self, rows.start as usize..rows.end as usize, Some(cx))
+    }
+
+    fn gather(&self, i: &PathTraceIn, parts: &[&ImageRows], cx: &RunCtx) -> Result<PathTraceOut, NodeError> {
+        let cam = &i.scene.camera;
+        let (mut imgs, c) = gather_rows(cam.width, cam.height, 2, parts)?;
+        let (var, mean) = (imgs.pop().expect("two layers"), imgs.pop().expect("two layers"));
+        if !i.scene.has_lights() {
+            cx.note("the scene has no light: the image is black (nothing was traced)");
+            return Ok(PathTraceOut { image: mean, variance: var });
+        }
+        let (rays, nonfinite) = (c[0], c[1]);
+        cx.metric("spp", self.spp as f64);
+        cx.metric("rays", rays as f64);
+        cx.metric("nonfinite_samples", nonfinite as f64);
+        if nonfinite > 0 {
+            cx.note(format!("{nonfinite} samples were NaN or infinite and were dropped"));
+        }
+        if self.spp == 1 {
+            cx.note("variance needs spp ≥ 2: it is written as 0");
+        }
+        Ok(PathTraceOut { image: mean, variance: var })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::{cancels_midway, i, test_scene};
+    use crate::types::accel::BuildQuality;
+    use relume_core::Value;
+
+    fn params(spp: u32, max_depth: i32) -> PathTrace {
+        PathTrace { spp, max_depth, rr_depth: 5, seed: 1 }
+    }
+
+    #[test]
+    fn max_depth_one_sees_only_emitters_and_more_depth_adds_light() {
+        let scene = test_scene::spheres();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let sum = |d| render(&scene, &accel, &params(4, d), None).unwrap().0.as_floats().iter().map(|&x| x as f64).sum::<f64>();
+        let (one, two, three) = (sum(1), sum(2), sum(3));
+        assert_eq!(one, 0.0, "no emitter is visible: a point light only");
+        assert!(two > 0.0 && three > two, "{two} {three}");
+    }
+
+    #[test]
+    fn variance_shrinks_as_samples_grow_and_is_zero_for_one_sample() {
+        let scene = test_scene::spheres();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let var = |spp| render(&scene, &accel, &params(spp, 3), None).unwrap().1.as_floats().iter().map(|&x| x as f64).sum::<f64>();
+        assert_eq!(var(1), 0.0);
+        let (v4, v64) = (var(4), var(64));
+        assert!(v64 < v4 / 4.0, "variance of the mean falls like 1/n: {v4} → {v64}");
+    }
+
+    #[test]
+    fn a_cancelled_render_stops_with_cancelled() {
+        let scene = test_scene::spheres();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let cancel = relume_core::CancelToken::new();
+        cancel.cancel();
+        let cx = RunCtx::new("t", &cancel, None);
+        assert_eq!(render(&scene, &accel, &params(4, 3), Some(&cx)).err(), Some(NodeError::Cancelled));
+    }
+
+    #[test]
+    fn the_node_stops_midway_when_cancelled() {
+        let scene = test_scene::spheres();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        cancels_midway::<PathTrace>(&[("spp", i(64)), ("max_depth", i(3))], vec![Value::new(scene), Value::new(accel)]);
+    }
+}

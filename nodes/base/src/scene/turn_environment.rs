@@ -1,0 +1,130 @@
+use crate::types::{EnvMap, Environment, Scene};
+use relume_core::memory::fmt_bytes;
+use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+
+/// The scene with its environment turned about the vertical (+y) axis by `rotation_deg`
+/// (right-handed: seen from above, counter-clockwise) and its radiance scaled by `scale`: the
+/// lighting edit of environment-lit pipelines ([S] chapter 5), applied to the scene so that
+/// the reference path tracer and the relighting see the same sky. A turn about +y shifts the
+/// lat-long map along u: each texel row is resampled linearly in u between its two nearest
+/// texels (with wrap), which is exact when the turn is a whole number of texel widths
+/// (360° / width: 0.703° for a 512-wide map) and otherwise blurs each texel by at most one
+/// texel width along u. A constant environment is only scaled. Wire it into what reads the
+/// sky (the environment lighting, the reference, the rasteriser's background), not into the
+/// precompute: the transfer never depends on the environment.
+#[derive(Params)]
+pub struct TurnEnvironment {
+    /// turn of the environment about the vertical (+y) axis, right-handed
+    #[param(default = 0.0, range = -360.0..=360.0, unit = "°")]
+    pub rotation_deg: f64,
+    /// radiance multiplier
+    #[param(default = 1.0, range = 0.0..=1.0e6)]
+    pub scale: f64,
+}
+
+inputs!(pub TurnEnvironmentIn { scene: Scene });
+outputs!(pub TurnEnvironmentOut { scene: Scene });
+
+impl TurnEnvironment {
+    /// `map` turned and scaled (see the node's doc).
+    pub fn turn(&self, map: &EnvMap) -> Result<EnvMap, String> {
+        let (w, h) = (map.width, map.height);
+        let shift = (self.rotation_deg / 360.0).rem_euclid(1.0) * w as f64;
+        let (whole, t) = (shift.floor() as usize, (shift - shift.floor()) as f32);
+        let scale = self.scale as f32;
+        let mut texels = Vec::with_capacity(w * h);
+        for y in 0..h {
+            let row = &map.texels[y * w..(y + 1) * w];
+            texels.extend((0..w).map(|x| {
+                let (a, b) = (row[(x + whole) % w], row[(x + whole + 1) % w]);
+                (a + (b - a) * t) * scale
+            }));
+        }
+        EnvMap::new(w, h, texels)
+    }
+}
+
+#[node(category = "scene")]
+impl TurnEnvironment {
+    fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
+        MemoryEstimate { outputs: vec![inputs[0]], working: 0 }
+    }
+
+    fn run(&self, i: TurnEnvironmentIn, cx: &RunCtx) -> Result<TurnEnvironmentOut, NodeError> {
+        let mut scene = i.scene.clone();
+        scene.environment = match &i.scene.environment {
+            None => {
+                return Err(NodeError::input("scene", "the scene has no environment to turn (add `environment: Map(…)` or `Constant(…)`)"))
+            }
+            Some(Environment::Constant(c)) => Some(Environment::Constant(*c * self.scale as f32)),
+            Some(Environment::Map(m)) => {
+                let bytes = (m.texels.len() as u64) * 12 * 3;
+                if bytes > cx.memory_budget() {
+                    return Err(NodeError::over_limit(format!(
+                        "the turned map would hold {}, over the {} budget",
+                        fmt_bytes(bytes),
+                        fmt_bytes(cx.memory_budget())
+                    )));
+                }
+                Some(Environment::Map(self.turn(m).map_err(|e| NodeError::input("scene", e))?))
+            }
+        };
+        Ok(TurnEnvironmentOut { scene })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::latlong::{dir_to_uv, uv_to_dir};
+    use crate::scene::builder::SceneBuilder;
+    use crate::testing::{f, first, run_on};
+    use glam::{Mat3, Vec2, Vec3};
+    use relume_core::Value;
+
+    /// A 64 × 32 map: dim sky, a bright texel toward `sun`.
+    fn sunny(sun: Vec3) -> Scene {
+        let (w, h) = (64, 32);
+        let uv = dir_to_uv(sun);
+        let (sx, sy) = ((uv.x * w as f32) as usize, (uv.y * h as f32) as usize);
+        let texels = (0..w * h).map(|k| if k == sy * w + sx { Vec3::splat(1e4) } else { Vec3::splat(0.5) }).collect();
+        SceneBuilder::new(Vec3::Z, Vec3::ZERO, 40.0, 8, 8).environment(Environment::Map(EnvMap::new(w, h, texels).expect("map"))).build()
+    }
+
+    fn turned(s: &Scene, p: &[(&str, relume_core::ParamValue)]) -> Scene {
+        first(&run_on::<TurnEnvironment>(p, vec![Value::new(s.clone())]).expect("runs"))
+    }
+
+    fn brightest(s: &Scene) -> Vec3 {
+        let Some(Environment::Map(m)) = &s.environment else { panic!("a map") };
+        let k = (0..m.texels.len()).max_by(|&a, &b| m.texels[a].x.total_cmp(&m.texels[b].x)).expect("texels");
+        uv_to_dir(Vec2::new(((k % m.width) as f32 + 0.5) / m.width as f32, (k / m.width) as f32 / (m.height - 1) as f32))
+    }
+
+    #[test]
+    fn a_whole_texel_turn_moves_the_sun_exactly_and_keeps_the_energy() {
+        let s = sunny(Vec3::new(0.6, 0.5, 0.3).normalize());
+        let sun = brightest(&s);
+        // 90° is 16 texels of a 64-wide map: the sun lands exactly on the turned direction.
+        let t = turned(&s, &[("rotation_deg", f(90.0))]);
+        let want = Mat3::from_rotation_y(90f32.to_radians()) * sun;
+        assert!(brightest(&t).dot(want) > 0.9999, "{} against {want}", brightest(&t));
+        let (Some(Environment::Map(a)), Some(Environment::Map(b))) = (&s.environment, &t.environment) else { panic!("maps") };
+        let sum = |m: &EnvMap| m.texels.iter().map(|t| t.x as f64).sum::<f64>();
+        assert_eq!(sum(a), sum(b), "a whole-texel turn permutes texels");
+        // A fractional turn splits the sun between two texels, keeping the row's sum.
+        let half = turned(&s, &[("rotation_deg", f(90.0 + 360.0 / 128.0))]);
+        let Some(Environment::Map(h)) = &half.environment else { panic!("map") };
+        assert!((sum(h) / sum(a) - 1.0).abs() < 1e-6);
+        assert_eq!(h.texels.iter().filter(|t| t.x > 1000.0).count(), 2);
+        // A full turn is none; the scale multiplies; a constant sky is only scaled.
+        let full = turned(&s, &[("rotation_deg", f(360.0)), ("scale", f(2.0))]);
+        let Some(Environment::Map(fm)) = &full.environment else { panic!("map") };
+        assert!(fm.texels.iter().zip(&a.texels).all(|(x, y)| *x == *y * 2.0));
+        let c = SceneBuilder::new(Vec3::Z, Vec3::ZERO, 40.0, 8, 8).environment(Environment::Constant(Vec3::ONE)).build();
+        assert_eq!(turned(&c, &[("rotation_deg", f(30.0)), ("scale", f(3.0))]).environment_radiance(Vec3::Y), Vec3::splat(3.0));
+        let none = SceneBuilder::new(Vec3::Z, Vec3::ZERO, 40.0, 8, 8).build();
+        let e = run_on::<TurnEnvironment>(&[], vec![Value::new(none)]).expect_err("no sky");
+        assert!(e.to_string().contains("no environment"), "{e}");
+    }
+}

@@ -1,0 +1,193 @@
+//! The command line's shared arguments: the graph and how to run it (`GraphArgs`), `check` /
+//! `plan` (`CheckArgs`), `run` (`RunArgs`) and its multi-process options (`ClusterArgs`), and
+//! what they build: the graph with its `--set`s, the engine and its disk cache.
+
+use crate::error::CliError;
+use clap::Args;
+use relume_core::{Graph, Registry, WritePolicy};
+use std::path::{Path, PathBuf};
+
+#[derive(Args, Clone)]
+pub(crate) struct GraphArgs {
+    /// The graph file (.ron).
+    pub(crate) graph: PathBuf,
+    /// Override a parameter: --set node.param=value (repeatable).
+    #[arg(long = "set", value_name = "NODE.PARAM=VALUE")]
+    pub(crate) sets: Vec<String>,
+    /// Produce only these outputs (repeatable; default: all).
+    #[arg(long = "output", value_name = "NAME")]
+    pub(crate) outputs: Vec<String>,
+    /// Disk cache folder (default: $RELUME_CACHE or .relume-cache).
+    #[arg(long)]
+    pub(crate) cache: Option<PathBuf>,
+    /// Do not read or write the disk cache.
+    #[arg(long)]
+    pub(crate) no_disk_cache: bool,
+    /// Write every result to the disk cache, not only those that cost more to compute than
+    /// to load (a cache that other machines or later sweeps must not recompute anything from).
+    #[arg(long)]
+    pub(crate) cache_all: bool,
+    /// What one run may hold in memory at once, e.g. `8G` or `512M` (default: 80 % of the
+    /// machine's memory). A run whose estimate is larger is refused before anything runs.
+    #[arg(long, value_name = "BYTES", value_parser = parse_budget)]
+    pub(crate) memory_budget: Option<u64>,
+    /// Threads each node's inner loops may use (default: one per core).
+    #[arg(long, value_name = "N")]
+    pub(crate) threads: Option<usize>,
+    /// Let the graph's output-file parameters (SaveImage's `path`) write anywhere. Without
+    /// it they may write only below the graph file's folder and the output folder (--out): a
+    /// graph from someone else cannot overwrite files elsewhere.
+    #[arg(long)]
+    pub(crate) allow_writes_anywhere: bool,
+}
+
+/// `relume check` and `relume plan`.
+#[derive(Args)]
+pub(crate) struct CheckArgs {
+    #[command(flatten)]
+    pub(crate) g: GraphArgs,
+    /// The output folder a run would use (output-file parameters are checked against it).
+    #[arg(long, default_value = "out")]
+    pub(crate) out: PathBuf,
+}
+
+#[derive(Args)]
+pub(crate) struct RunArgs {
+    #[command(flatten)]
+    pub(crate) g: GraphArgs,
+    /// Folder for the outputs.
+    #[arg(long, default_value = "out")]
+    pub(crate) out: PathBuf,
+    /// Write the JSON run report here.
+    #[arg(long)]
+    pub(crate) report: Option<PathBuf>,
+    /// No progress bars and no table.
+    #[arg(long, short)]
+    pub(crate) quiet: bool,
+    /// Also write every image output of the run as a layer of one multi-layer EXR,
+    /// `OUT/GRAPH.layers.exr` (`image.R/G/B`, `variance.R/G/B`, …), with the graph, each
+    /// layer's node and its parameters in the header.
+    #[arg(long)]
+    pub(crate) exr_layers: bool,
+    /// Half floats in the multi-layer EXR (default: full 32-bit floats).
+    #[arg(long, requires = "exr_layers")]
+    pub(crate) exr_half: bool,
+    #[command(flatten)]
+    pub(crate) cluster: ClusterArgs,
+}
+
+#[derive(Args, Clone, Default)]
+pub(crate) struct ClusterArgs {
+    /// Run as one of several processes sharing the sharded nodes: HOSTFILE lists one
+    /// `host:port` per line, in process order (`#` comments allowed); give --process too.
+    #[arg(long, value_name = "HOSTFILE", requires = "process")]
+    pub workers: Option<PathBuf>,
+    /// This process's index in HOSTFILE, 0-based (process 0 writes the outputs).
+    #[arg(long, value_name = "I", requires = "workers")]
+    pub process: Option<usize>,
+    /// Start N processes on this machine (127.0.0.1) sharing the sharded nodes and the cache
+    /// folder; re-run them when one dies (--retries), resuming from the cache.
+    #[arg(long, value_name = "N", conflicts_with = "workers")]
+    pub processes: Option<usize>,
+    /// Every process sees the same --cache folder (a network file system): partial results
+    /// travel between processes as cache keys instead of bytes.
+    #[arg(long)]
+    pub shared_cache: bool,
+    /// Seconds to wait for every process of the host file to connect.
+    #[arg(long, value_name = "SECONDS", default_value_t = 60)]
+    pub connect_timeout: u64,
+    /// With --processes: how many times to re-run after a process died.
+    #[arg(long, value_name = "N", default_value_t = 2)]
+    pub retries: u32,
+}
+
+impl GraphArgs {
+    /// Loads the graph and applies `--set` overrides.
+    pub(crate) fn load(&self, reg: &Registry) -> Result<Graph, CliError> {
+        let mut g = Graph::load(&self.graph, reg).map_err(CliError::graph)?;
+        for s in &self.sets {
+            let (lhs, value) = s.split_once('=').ok_or_else(|| CliError::graph(format!("--set {s}: expected node.param=value")))?;
+            g.set_param_text(reg, lhs, value).map_err(|e| CliError::graph(format!("--set {s}: {e}")))?;
+        }
+        Ok(g)
+    }
+
+    /// The engine for `plan`: reads the disk cache, writes nothing.
+    pub(crate) fn engine(&self, reg: &Registry) -> relume_core::Engine {
+        let mut engine = relume_core::Engine::new(reg.clone());
+        if let Some(b) = self.memory_budget {
+            engine = engine.with_run_budget(b);
+        }
+        if let Some(t) = self.threads {
+            engine = engine.with_threads(t);
+        }
+        match self.cache_dir() {
+            None => engine,
+            Some((dir, _)) => engine.with_disk_cache(dir).with_disk_policy(self.disk_policy()),
+        }
+    }
+
+    /// The engine for `run` and `sweep`, and the note for the report when its disk cache
+    /// cannot be written: said once on stderr, before anything runs (results are then kept in
+    /// memory only; entries already there are still read).
+    pub(crate) fn engine_for_writing(&self, reg: &Registry) -> (relume_core::Engine, Option<String>) {
+        let engine = self.engine(reg);
+        let Some((dir, from)) = self.cache_dir() else { return (engine, None) };
+        let problem = engine.disk().map(|d| d.check_writable()).and_then(Result::err);
+        let note = problem.map(|why| {
+            eprintln!(
+                "warning: the disk cache {} ({from}) cannot be written: {why}; results will not be kept on disk for later runs \
+                 (point --cache or RELUME_CACHE at a writable folder, or pass --no-disk-cache)",
+                dir.display()
+            );
+            format!("the disk cache {} ({from}) could not be written: {why}; results were not kept on disk", dir.display())
+        });
+        (engine, note)
+    }
+
+    /// The disk cache folder and where it came from; `None` with --no-disk-cache.
+    pub(crate) fn cache_dir(&self) -> Option<(PathBuf, &'static str)> {
+        if self.no_disk_cache {
+            return None;
+        }
+        Some(match (&self.cache, std::env::var_os("RELUME_CACHE")) {
+            (Some(d), _) => (d.clone(), "from --cache"),
+            (None, Some(d)) => (PathBuf::from(d), "from RELUME_CACHE"),
+            (None, None) => (Path::new(".relume-cache").to_path_buf(), "the default"),
+        })
+    }
+
+    pub(crate) fn disk_policy(&self) -> relume_core::DiskPolicy {
+        if self.cache_all {
+            relume_core::DiskPolicy::Always
+        } else {
+            relume_core::DiskPolicy::WhenCheaperToLoad
+        }
+    }
+
+    /// Where the graph's output-file parameters may write: the graph's folder and `out`, or
+    /// anywhere with --allow-writes-anywhere.
+    pub(crate) fn write_policy(&self, out: &Path) -> WritePolicy {
+        if self.allow_writes_anywhere {
+            WritePolicy::Anywhere
+        } else {
+            WritePolicy::Within(vec![out.to_path_buf()])
+        }
+    }
+
+    pub(crate) fn requested(&self) -> Option<Vec<String>> {
+        (!self.outputs.is_empty()).then(|| self.outputs.clone())
+    }
+}
+
+/// `--memory-budget`: `8G`, `512MiB`, `1.5g` or bytes.
+fn parse_budget(s: &str) -> Result<u64, String> {
+    relume_core::memory::parse_bytes(s).ok_or_else(|| format!("`{s}` is not a size (write e.g. 8G, 512M or a number of bytes)"))
+}
+
+/// The command line this process was started with (`--processes` starts copies of it).
+pub(crate) static COMMAND_LINE: std::sync::OnceLock<Vec<std::ffi::OsString>> = std::sync::OnceLock::new();
+
+pub(crate) fn command_line() -> Vec<std::ffi::OsString> {
+    COMMAND_LINE.get().cloned().unwrap_or_else(|| std::env::args_os().collect())
+}

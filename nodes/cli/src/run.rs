@@ -1,0 +1,172 @@
+//! `relume run`, `relume plan` and `relume check`.
+
+use crate::args::{CheckArgs, RunArgs};
+use crate::error::CliError;
+use crate::files::{prepare_file, prepare_out_dir, write_refusals};
+use crate::interrupt::Watch;
+use crate::outputs::write_outputs;
+use crate::progress::Bars;
+use relume_core::shard::ShardPeers;
+use relume_core::{make_plan, Graph, GraphErrors, Observer, PlanAction, Registry, RunError, RunOptions, ShardMode};
+
+/// The ids of the sharded nodes a run of `outputs` needs (what processes other than 0 run).
+pub(crate) fn sharded_nodes(reg: &Registry, graph: &Graph, outputs: Option<&[String]>) -> Result<Vec<String>, CliError> {
+    let plan = make_plan(graph, reg, outputs).map_err(CliError::graph)?;
+    Ok(plan
+        .order
+        .iter()
+        .map(|&i| &graph.nodes[i])
+        .filter(|n| reg.node(&n.kind).is_some_and(|k| k.sharded().is_some()))
+        .map(|n| n.id.clone())
+        .collect())
+}
+
+/// Runs the graph; with `peers`, as one process of several sharing its sharded nodes (process
+/// 0 runs the whole graph and writes the outputs; the others run only the sharded nodes and
+/// what they need, and write nothing).
+pub(crate) fn run_graph(reg: &Registry, a: &RunArgs, peers: Option<&dyn ShardPeers>) -> Result<(), CliError> {
+    let graph = a.g.load(reg)?;
+    let writer = peers.is_none_or(|p| p.process() == 0);
+    // Everything the run will write is checked before it runs: the output folder, the
+    // report's folder, and where the graph's own output files go.
+    if writer {
+        prepare_out_dir("--out", &a.out)?;
+        if let Some(path) = &a.report {
+            prepare_file("--report", path)?;
+        }
+    }
+    let writes = a.g.write_policy(&a.out);
+    refuse_writes(reg, &graph, a.g.requested().as_deref(), &writes)?;
+    let (engine, cache_note) = a.g.engine_for_writing(reg);
+    let watch = Watch::new();
+    let bars = (!a.quiet).then(Bars::new);
+    let (outputs, nodes) = match peers {
+        Some(_) if !writer => (Some(Vec::new()), sharded_nodes(reg, &graph, a.g.requested().as_deref())?),
+        _ => (a.g.requested(), Vec::new()),
+    };
+    let opts = RunOptions {
+        outputs,
+        nodes,
+        shards: peers.map_or(ShardMode::All, ShardMode::Peers),
+        observer: bars.as_ref().map(|b| b as &dyn Observer),
+        cancel: watch.token.clone(),
+        writes,
+    };
+    let result = engine.run(&graph, &opts).map_err(|e| run_error(&graph, e));
+    drop(bars);
+    let mut result = result?;
+    result.report.notes.extend(cache_note);
+    if !writer {
+        if !a.quiet {
+            print!("{}", result.report.table());
+        }
+        return Ok(());
+    }
+    let mut files = write_outputs(&a.out, &result.outputs).map_err(CliError::run)?;
+    if a.exr_layers {
+        let path =
+            relume_base::image::exr_layers::write_run_layers(reg, &graph, &result.outputs, &a.out, a.exr_half).map_err(CliError::run)?;
+        files.push(path);
+    }
+    if let Some(path) = &a.report {
+        relume_core::graph::write_atomic(path, result.report.to_json().as_bytes())
+            .map_err(|e| CliError::run(format!("cannot write report {}: {e}", path.display())))?;
+    }
+    if watch.interrupted() {
+        return Err(CliError::interrupted("interrupted: the run had finished; its outputs were written"));
+    }
+    if !a.quiet {
+        print!("{}", result.report.table());
+        for f in files {
+            println!("wrote {}", f.display());
+        }
+        if let Some(path) = &a.report {
+            println!("report {}", path.display());
+        }
+    }
+    Ok(())
+}
+
+/// The command-line error for a failed run: graph problems and requests over a limit are bad
+/// input (exit 2), a node failing is a failed run (exit 1), Ctrl-C exits 130. A node's error
+/// names the graph file and the line where the node is written.
+pub(crate) fn run_error(graph: &Graph, e: RunError) -> CliError {
+    match e {
+        RunError::Graph(g) => CliError::graph(g),
+        RunError::Cancelled => CliError::interrupted(
+            "interrupted: the run was cancelled; nothing was written (results of the nodes that finished are kept in the cache)",
+        ),
+        RunError::Node { id, kind, error } => {
+            let at = match (&graph.file, graph.node(&id)) {
+                (Some(f), Some(n)) => format!("{}:{}:{}: ", f.display(), n.pos.line, n.pos.col),
+                (Some(f), None) => format!("{}: ", f.display()),
+                _ => String::new(),
+            };
+            if error.is_over_limit() {
+                CliError::graph(format!("{at}node \"{id}\" ({kind}) refused: {error}; ask for less (a smaller size or count)"))
+            } else {
+                CliError::run(format!("{at}node \"{id}\" ({kind}) failed: {error}"))
+            }
+        }
+    }
+}
+
+/// Refuses, before running, output-file parameters of the needed nodes that would write
+/// outside the folders allowed (exit 2, naming file, line, node and parameter).
+pub(crate) fn refuse_writes(
+    reg: &Registry,
+    graph: &Graph,
+    outputs: Option<&[String]>,
+    writes: &relume_core::WritePolicy,
+) -> Result<(), CliError> {
+    // A graph the planner refuses is reported by the run itself, with the same message.
+    let Ok(plan) = make_plan(graph, reg, outputs) else { return Ok(()) };
+    let errs = write_refusals(reg, graph, plan.order.iter().map(|&i| graph.nodes[i].id.as_str()), writes);
+    if errs.is_empty() {
+        Ok(())
+    } else {
+        Err(CliError::graph(GraphErrors(errs)))
+    }
+}
+
+pub(crate) fn plan(reg: &Registry, a: &CheckArgs) -> Result<(), CliError> {
+    let graph = a.g.load(reg)?;
+    let engine = a.g.engine(reg);
+    let lines = engine.explain(&graph, a.g.requested().as_deref()).map_err(CliError::graph)?;
+    refuse_writes(reg, &graph, a.g.requested().as_deref(), &a.g.write_policy(&a.out))?;
+    let (mut run, mut cached) = (0, 0);
+    for l in &lines {
+        let what = match l.action {
+            PlanAction::Run => {
+                run += 1;
+                "run"
+            }
+            PlanAction::Cached => {
+                cached += 1;
+                "cached"
+            }
+            PlanAction::Skip => "skip",
+        };
+        println!("{what:<7} {:<20} {:<16} {}", l.id, l.kind, l.reason);
+    }
+    println!("{run} to run, {cached} cached");
+    Ok(())
+}
+
+pub(crate) fn check(reg: &Registry, a: &CheckArgs) -> Result<(), CliError> {
+    let graph = a.g.load(reg)?;
+    let mut errs = Vec::new();
+    for n in &graph.nodes {
+        errs.extend(graph.unconnected_inputs(reg, &n.id));
+    }
+    errs.extend(write_refusals(reg, &graph, graph.nodes.iter().map(|n| n.id.as_str()), &a.g.write_policy(&a.out)));
+    if !errs.is_empty() {
+        errs.sort_by_key(|e| e.pos.map(|p| (p.line, p.col)).unwrap_or((u32::MAX, 0)));
+        return Err(CliError::graph(GraphErrors(errs)));
+    }
+    // The memory model's refusal, as `run` would give it.
+    a.g.engine(reg).plan(&graph, a.g.requested().as_deref()).map_err(CliError::graph)?;
+    let outs: Vec<_> = graph.outputs.iter().map(|o| o.name.as_str()).collect();
+    println!("ok: {} nodes, {} edges, outputs: {}", graph.nodes.len(), graph.edges.len(), outs.join(", "));
+    Ok(())
+}

@@ -1,0 +1,54 @@
+//! Point-based global illumination (docs/PIPELINES.md pipeline 4; [P] chapters 2–3).
+
+pub mod adaptive_microbuffer;
+pub mod brdf_wavelets;
+pub mod cluster_receivers;
+pub mod factorized_gather;
+pub mod gather;
+pub mod gbuffer;
+pub mod incident;
+pub mod microbuffer;
+pub mod pbgi_gather;
+pub mod point_tree;
+pub mod preview_splat;
+pub mod shade_direct;
+pub mod spherical_microbuffer;
+pub mod surfel_wavelets;
+#[cfg(test)]
+pub(crate) mod test_support;
+pub mod texel_cache;
+pub mod traversal;
+pub mod twin_dielectrics;
+pub mod types;
+pub mod view_pairs;
+pub mod view_tree;
+pub mod view_walk;
+pub mod wavelet_gather;
+pub mod wavelet_radiance;
+pub mod wavelet_tree;
+
+use relume_core::Registry;
+
+pub fn register(reg: &mut Registry) {
+    reg.add::<shade_direct::ShadeDirect>();
+    reg.add::<point_tree::BuildPointTree>();
+    reg.add::<gbuffer::GBuffer>();
+    reg.add::<pbgi_gather::PbgiGather>();
+    reg.add::<cluster_receivers::ClusterReceivers>();
+    reg.add::<factorized_gather::FactorizedGather>();
+    reg.add::<surfel_wavelets::SurfelWavelets>();
+    reg.add::<wavelet_tree::WaveletTree>();
+    reg.add::<wavelet_gather::WaveletGather>();
+    reg.add::<view_tree::ViewTree>();
+    reg.add::<preview_splat::PreviewSplat>();
+    reg.add::<twin_dielectrics::TwinDielectrics>();
+}
+
+/// A registry with the base's node kinds and this crate's (what the pipeline's own graphs
+/// need, for its tests).
+#[cfg(test)]
+pub(crate) fn registry() -> Registry {
+    let mut r = relume_base::registry();
+    register(&mut r);
+    r
+}

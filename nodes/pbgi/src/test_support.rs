@@ -1,0 +1,123 @@
+//! Small point-based GI set-ups for the unit tests of this folder, made by the pipeline's own
+//! graph and nodes.
+
+/// A small point-based GI set-up from the pipeline's own graph: `graphs/fpbgi_cornell.ron`
+/// at 16 × 16 with 3,000 points, one shading sample, tiles of 8² pixels with k = 4 clusters.
+pub mod pbgi_setup {
+    use crate::types::{PointTree, Receivers};
+    use relume_base::types::Clusters;
+    use relume_core::graph::{Output, PortRef};
+    use relume_core::{Engine, Graph, RunOptions};
+    use std::sync::OnceLock;
+
+    /// The point tree, receivers and clusters (computed once per test binary).
+    pub fn tree_receivers_clusters() -> (PointTree, Receivers, Clusters) {
+        static SETUP: OnceLock<(PointTree, Receivers, Clusters)> = OnceLock::new();
+        SETUP
+            .get_or_init(|| {
+                let reg = crate::registry();
+                let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../graphs/fpbgi_cornell.ron");
+                let mut g = Graph::load(&path, &reg).unwrap_or_else(|e| panic!("{e}"));
+                let sets = [
+                    ("scene.width", "16"),
+                    ("scene.height", "16"),
+                    ("points.count", "3000"),
+                    ("points.seed", "1"),
+                    ("shade.samples", "1"),
+                    ("clusters.tile", "8"),
+                    ("clusters.k", "4"),
+                    ("clusters.iterations", "5"),
+                    ("clusters.seed", "1"),
+                ];
+                for (k, v) in sets {
+                    g.set_param_text(&reg, k, v).unwrap();
+                }
+                for (name, port) in [("tree", "tree.tree"), ("receivers", "gbuffer.receivers"), ("clusters", "clusters.clusters")] {
+                    g.outputs.push(Output { name: name.into(), port: PortRef::parse(port).unwrap(), pos: Default::default() });
+                }
+                let outputs = Some(["tree", "receivers", "clusters"].map(String::from).to_vec());
+                let r = Engine::new(reg).run(&g, &RunOptions { outputs, ..Default::default() }).unwrap_or_else(|e| panic!("{e}"));
+                let get = |n: &str| r.output(n).unwrap().clone();
+                (
+                    get("tree").get::<PointTree>().unwrap().clone(),
+                    get("receivers").get::<Receivers>().unwrap().clone(),
+                    get("clusters").get::<Clusters>().unwrap().clone(),
+                )
+            })
+            .clone()
+    }
+
+    pub fn tree_and_receivers() -> (PointTree, Receivers) {
+        let (t, r, _) = tree_receivers_clusters();
+        (t, r)
+    }
+}
+
+/// A small wavelet-PBGI set-up: a floor and a back wall under a point light, 3,000 points,
+/// 6 × 32² maps, seen from the front at 12 × 12.
+pub mod wpbgi_setup {
+    use crate::shade_direct::{shade_direct, ShadeDirect};
+    use crate::surfel_wavelets::SurfelWavelets;
+    use crate::types::{CodedWavelets, PointTree, PointWavelets, Receivers};
+    use crate::wavelet_tree::WaveletTree;
+    use glam::Vec3;
+    use relume_base::scene::builder::SceneBuilder;
+    use relume_base::testing::{first, i, run_on};
+    use relume_base::types::accel::{Accel, BuildQuality};
+    use relume_base::types::{Light, Material, Scene, SurfacePoints};
+    use relume_core::{CancelToken, RunCtx, Value};
+
+    /// The scene (a grey Lambert floor, the back wall of material `wall`) and its points.
+    pub fn corner(wall: Material) -> (Scene, SurfacePoints) {
+        let grey = Material::Lambert { albedo: Vec3::splat(0.6) };
+        let scene = SceneBuilder::new(Vec3::new(0.0, 1.2, 2.5), Vec3::new(0.0, 0.4, 0.0), 50.0, 12, 12)
+            .quad("floor", Vec3::new(-1.0, 0.0, 1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -2.0), grey, Vec3::ZERO)
+            .quad("wall", Vec3::new(-1.0, 0.0, -1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 1.5, 0.0), wall, Vec3::ZERO)
+            .light(Light::Point { position: Vec3::new(0.3, 1.2, 0.6), intensity: Vec3::splat(3.0) })
+            .build();
+        let pts = relume_base::geometry::sample_surface::sample_surface(
+            &scene,
+            &relume_base::geometry::sample_surface::SampleSurface {
+                method: relume_base::geometry::sample_surface::Method::AreaCdf,
+                count: 3000,
+                seed: 2,
+                emitters: true,
+            },
+        )
+        .unwrap();
+        (scene, pts)
+    }
+
+    /// Everything a wavelet gather or a view tree reads.
+    pub struct Setup {
+        pub points: SurfacePoints,
+        /// The diffuse tree (`ShadeDirect`'s radiance).
+        pub tree: PointTree,
+        pub wavelets: PointWavelets,
+        /// `wavelets` coded at the default split (20) and threshold (0.002).
+        pub coded: CodedWavelets,
+        pub receivers: Receivers,
+    }
+
+    pub fn setup(wall: Material) -> Setup {
+        let (scene, points) = corner(wall);
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let cancel = CancelToken::new();
+        let (b, _) = shade_direct(&scene, &accel, &points, &ShadeDirect { samples: 1, seed: 0 }, &RunCtx::new("t", &cancel, None)).unwrap();
+        let tree = PointTree::build(&points, &b);
+        let acc = || Value::new(Accel::build(&scene, BuildQuality::Fast));
+        let wavelets: PointWavelets = first(
+            &run_on::<SurfelWavelets>(&[("resolution", i(32))], vec![Value::new(scene.clone()), acc(), Value::new(points.clone())])
+                .unwrap(),
+        );
+        let coded: CodedWavelets = first(
+            &run_on::<WaveletTree>(
+                &[("report_uncoded", relume_core::ParamValue::Bool(false))],
+                vec![Value::new(tree.clone()), Value::new(wavelets.clone())],
+            )
+            .unwrap(),
+        );
+        let receivers: Receivers = first(&run_on::<crate::gbuffer::GBuffer>(&[], vec![Value::new(scene.clone()), acc()]).unwrap());
+        Setup { points, tree, wavelets, coded, receivers }
+    }
+}

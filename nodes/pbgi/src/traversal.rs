@@ -1,0 +1,331 @@
+//! What the two gathers (PbgiGather, FactorizedGather) share: their microbuffer parameters,
+//! the traversal of the point tree for one receiver, and its counts.
+
+use super::microbuffer::Microbuffer;
+use crate::types::PointTree;
+use glam::Vec3;
+use relume_base::math::frame::Frame;
+use relume_base::types::Metrics;
+
+/// Declares a gather node's struct with the microbuffer parameters both gathers share
+/// (`resolution`, `threshold`: first, flat in the graph file, declared once here), followed by
+/// the node's own fields:
+///
+/// ```ignore
+/// microbuffer_params! {
+///     /// The node's doc comment.
+///     #[derive(Params)]
+///     pub struct MyGather { /* more parameters */ }
+/// }
+/// ```
+macro_rules! microbuffer_params {
+    ($(#[$m:meta])* pub struct $name:ident { $($rest:tt)* }) => {
+        $(#[$m])*
+        pub struct $name {
+            /// microbuffer side (N × N pixels over the hemisphere)
+            #[param(default = 16, range = 1..=256, unit = "px")]
+            pub resolution: usize,
+            /// largest solid angle of a rasterised node, in microbuffer pixels
+            #[param(default = 1.0, range = 0.01..=100.0, unit = "pixels")]
+            pub threshold: f32,
+            $($rest)*
+        }
+    };
+}
+pub(crate) use microbuffer_params;
+
+/// Counts of one receiver's traversal.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GatherCounts {
+    pub visited: u64,
+    pub rasterised: u64,
+    pub near_leaves: u64,
+}
+
+impl std::ops::Add for GatherCounts {
+    type Output = GatherCounts;
+    fn add(self, o: GatherCounts) -> GatherCounts {
+        GatherCounts {
+            visited: self.visited + o.visited,
+            rasterised: self.rasterised + o.rasterised,
+            near_leaves: self.near_leaves + o.near_leaves,
+        }
+    }
+}
+
+/// Per-receiver means of the counts, for the report and the stats output.
+pub fn count_metrics(c: GatherCounts, receivers: usize) -> Metrics {
+    let n = receivers.max(1) as f64;
+    Metrics(vec![
+        ("receivers".into(), receivers as f64),
+        ("nodes_visited_per_receiver".into(), c.visited as f64 / n),
+        ("nodes_rasterised_per_receiver".into(), c.rasterised as f64 / n),
+        ("near_leaves_per_receiver".into(), c.near_leaves as f64 / n),
+    ])
+}
+
+/// The scale the gathers derive their ε from: the diameter of the tree's root sphere (1 for an
+/// empty tree).
+pub fn tree_extent(tree: &PointTree) -> f32 {
+    tree.nodes.get(tree.root as usize).map_or(1.0, |n| 2.0 * n.radius)
+}
+
+/// What a traversal reads of every node, packed into 48 bytes in the tree's depth-first order
+/// (the whole tree's SH would not stay in cache; it is read only for nodes rasterised).
+#[derive(Clone, Copy)]
+struct HotNode {
+    center: Vec3,
+    /// `TreeNode::bound`; for a leaf the disk's radius.
+    bound: f32,
+    /// Cone axis (a leaf's normal).
+    axis: Vec3,
+    area: f32,
+    slab: [f32; 2],
+    /// Right child (the left one follows its parent); `u32::MAX` for leaves.
+    right: u32,
+}
+
+/// What tree nodes send toward a receiver: the diffuse tree's SH radiance (`PointTree`
+/// itself) or the wavelet tree's (`wavelet_radiance::WaveletSource`).
+pub trait NodeRadiance: Sync {
+    /// Node i's projected area seen from `dir` (unit, from the node toward the receiver) and
+    /// the radiance it sends that way.
+    fn area_and_radiance(&self, i: u32, dir: Vec3) -> (f32, Vec3);
+    /// The radiance alone (a near leaf's, ray-cast as a disk).
+    fn radiance_toward(&self, i: u32, dir: Vec3) -> Vec3 {
+        self.area_and_radiance(i, dir).1
+    }
+}
+
+impl NodeRadiance for PointTree {
+    fn area_and_radiance(&self, i: u32, dir: Vec3) -> (f32, Vec3) {
+        PointTree::area_and_radiance(self, i, dir)
+    }
+    fn radiance_toward(&self, i: u32, dir: Vec3) -> Vec3 {
+        PointTree::radiance_toward(self, i, dir)
+    }
+}
+
+/// Where a traversal rasterises: the uniform `Microbuffer`, or the adaptive one that keeps
+/// its nodes and refines where the light asks (`adaptive_microbuffer`).
+pub trait Raster {
+    /// The solid angle one pixel stands for where local direction `d` lands (the traversal
+    /// rasterises a node whose solid angle is at most `threshold` times this).
+    fn pixel_solid_angle(&self, d: Vec3) -> f32;
+    /// Whether what lies wholly under the receiver's horizon is skipped (a hemispherical
+    /// buffer); a receiver that transmits light sees the whole sphere.
+    fn culls_horizon(&self) -> bool {
+        true
+    }
+    /// Rasterises node `node` seen in local direction `d` at distance `dist`, of solid angle
+    /// `omega` and radiance `l`. A raster that refines may hand nodes back for another visit
+    /// by pushing them on `stack`.
+    fn splat(&mut self, node: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, stack: &mut Vec<u32>);
+    /// Ray-casts a near leaf exactly as a disk (centre `c`, normal `nrm`, radius `r`, local).
+    fn disk(&mut self, node: u32, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32);
+}
+
+impl Raster for Microbuffer {
+    fn pixel_solid_angle(&self, _: Vec3) -> f32 {
+        self.mean_pixel_solid_angle()
+    }
+    fn splat(&mut self, _: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, _: &mut Vec<u32>) {
+        Microbuffer::splat(self, d, dist, omega, l)
+    }
+    fn disk(&mut self, _: u32, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
+        self.disk_exact(c, nrm, r, l, eps)
+    }
+}
+
+/// A buffer a gather fills per receiver: prepared for the receiver's material and outgoing
+/// direction (local), filled by a traversal, then convolved into its outgoing radiance.
+pub trait GatherBuffer: Raster + Clone + Send + Sync {
+    /// Whether the buffer can shade a receiver of material `m` (hemispherical buffers cannot
+    /// shade Dirac lobes: such receivers get no indirect light from them).
+    fn shades(&self, m: &relume_base::types::Material) -> bool {
+        !relume_base::brdf::is_delta(m)
+    }
+    fn begin(&mut self, m: &relume_base::types::Material, wo: Vec3);
+    fn end(&mut self, m: &relume_base::types::Material, wo: Vec3) -> Vec3;
+    /// Fills the buffer (after `begin`) for a receiver of material `m` at `p` in `frame`:
+    /// a hemispherical buffer sees the outside of all glass (`PointTree::outer_root`).
+    #[allow(clippy::too_many_arguments)]
+    fn gather<R: NodeRadiance>(
+        &mut self,
+        t: &Traversal<R>,
+        m: &relume_base::types::Material,
+        p: Vec3,
+        frame: &Frame,
+        stack: &mut Vec<u32>,
+        counts: &mut GatherCounts,
+    ) {
+        let _ = m;
+        t.run(&[t.tree.outer_root()], p, frame, self, stack, counts, |_, _| false);
+    }
+}
+
+impl GatherBuffer for Microbuffer {
+    fn begin(&mut self, _: &relume_base::types::Material, _: Vec3) {
+        self.clear();
+    }
+    fn end(&mut self, m: &relume_base::types::Material, wo: Vec3) -> Vec3 {
+        self.convolve(m, wo)
+    }
+}
+
+/// Settings of one traversal; `R` says what the nodes send (the tree's own SH radiance by
+/// default).
+pub struct Traversal<'a, R: NodeRadiance = PointTree> {
+    pub tree: &'a PointTree,
+    pub source: &'a R,
+    /// Largest solid angle of a rasterised node, in microbuffer pixels.
+    pub threshold: f32,
+    /// Self-intersection guard for exactly ray-cast near leaves, and the height above a
+    /// receiver's horizon under which a node is culled.
+    pub eps: f32,
+    hot: Vec<HotNode>,
+}
+
+impl<'a> Traversal<'a> {
+    pub fn new(tree: &'a PointTree, threshold: f32, eps: f32) -> Self {
+        Traversal::with_source(tree, tree, threshold, eps)
+    }
+}
+
+impl<'a, R: NodeRadiance> Traversal<'a, R> {
+    /// A traversal of `tree` whose nodes send what `source` says.
+    pub fn with_source(tree: &'a PointTree, source: &'a R, threshold: f32, eps: f32) -> Self {
+        let hot = tree
+            .nodes
+            .iter()
+            .enumerate()
+            .map(|(i, n)| {
+                if let Some([l, _]) = n.children {
+                    debug_assert_eq!(l as usize, i + 1, "depth-first layout");
+                }
+                HotNode {
+                    center: n.center,
+                    bound: n.bound,
+                    axis: n.cone_axis,
+                    area: n.area,
+                    slab: n.slab,
+                    right: n.children.map_or(u32::MAX, |[_, r]| r),
+                }
+            })
+            .collect();
+        Traversal { tree, source, threshold, eps, hot }
+    }
+
+    /// Traverses from `roots` for a receiver at `p` with microbuffer frame `frame`, writing
+    /// into `mb`. `leave(i, d)` may set node i (at distance d) aside instead of rasterising or
+    /// opening it: the factorised gather leaves nodes near a cluster to its receivers.
+    #[allow(clippy::too_many_arguments)]
+    pub fn run(
+        &self,
+        roots: &[u32],
+        p: Vec3,
+        frame: &Frame,
+        mb: &mut impl Raster,
+        stack: &mut Vec<u32>,
+        counts: &mut GatherCounts,
+        mut leave: impl FnMut(u32, f32) -> bool,
+    ) {
+        stack.clear();
+        stack.extend_from_slice(roots);
+        while let Some(i) = stack.pop() {
+            counts.visited += 1;
+            let v = self.hot[i as usize].center - p;
+            let d = v.length();
+            if leave(i, d) {
+                continue;
+            }
+            self.visit(i, v, d, frame, mb, stack, counts);
+        }
+    }
+
+    /// One node of a traversal: skip it when it lies wholly under the receiver's horizon, open
+    /// it, ray-cast it (near leaf) or rasterise it.
+    #[allow(clippy::too_many_arguments)]
+    fn visit(&self, i: u32, v: Vec3, d: f32, frame: &Frame, mb: &mut impl Raster, stack: &mut Vec<u32>, counts: &mut GatherCounts) {
+        let node = &self.hot[i as usize];
+        if mb.culls_horizon() && top_above_horizon(node, v, frame.n) <= self.eps {
+            return;
+        }
+        let inside = d <= node.bound;
+        let omega = node.area / (d * d).max(f32::MIN_POSITIVE);
+        if inside || omega > self.threshold * mb.pixel_solid_angle(frame.to_local(v / d)) {
+            if node.right != u32::MAX {
+                stack.push(i + 1);
+                stack.push(node.right);
+            } else {
+                counts.near_leaves += 1;
+                let c = frame.to_local(v);
+                let toward = -v / d.max(f32::MIN_POSITIVE);
+                mb.disk(i, c, frame.to_local(node.axis), node.bound, self.source.radiance_toward(i, toward), self.eps);
+            }
+            return;
+        }
+        let toward = -v / d;
+        let (a, l) = self.source.area_and_radiance(i, toward);
+        if a <= 0.0 {
+            return;
+        }
+        counts.rasterised += 1;
+        Raster::splat(mb, i, frame.to_local(v / d), d, a / (d * d), l, stack);
+    }
+}
+
+/// An upper bound on the height of a node's disks above the plane through the receiver with
+/// normal `n` (`v`: node centre − receiver): the least of the sphere's top and the slab's,
+/// the slab bounding the disks along the cone axis and the sphere across it.
+fn top_above_horizon(node: &HotNode, v: Vec3, n: Vec3) -> f32 {
+    height_above_plane(node.axis, node.slab, node.bound, v, n)
+}
+
+/// `top_above_horizon` for a node given by its cone axis, slab and bound (`TreeNode`'s).
+pub fn height_above_plane(axis: Vec3, slab: [f32; 2], bound: f32, v: Vec3, n: Vec3) -> f32 {
+    let vn = v.dot(n);
+    let along = axis.dot(n);
+    let across = (1.0 - along * along).max(0.0).sqrt();
+    let slab = (along * slab[0]).max(along * slab[1]) + across * bound;
+    vn + slab.min(bound)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use relume_base::types::{Material, SurfacePoints};
+
+    #[test]
+    fn a_receiver_culls_the_flat_group_it_lies_in_and_what_lies_below_its_horizon() {
+        // 400 disks on the plane z = 1 (normal +z) and 400 more on z = 0 facing up.
+        let grid = |z: f32| (0..400).map(move |k| Vec3::new((k % 20) as f32 * 0.1 - 1.0, (k / 20) as f32 * 0.1 - 1.0, z));
+        let position: Vec<Vec3> = grid(1.0).chain(grid(0.0)).collect();
+        let n = position.len();
+        let pts = SurfacePoints {
+            position,
+            normal: vec![Vec3::Z; n],
+            radius: vec![0.05; n],
+            object: vec![0; n],
+            material: vec![Material::Lambert { albedo: Vec3::ONE }; n],
+        };
+        let tree = PointTree::build(&pts, &vec![Vec3::ONE; n]);
+        let t = Traversal::new(&tree, 1.0, 1e-5 * 4.0);
+        let (mut mb, mut stack) = (Microbuffer::new(8), Vec::new());
+        let run = |p: Vec3, nrm: Vec3, mb: &mut Microbuffer, stack: &mut Vec<u32>| {
+            let mut counts = GatherCounts::default();
+            mb.clear();
+            t.run(&[tree.root], p, &Frame::from_normal(nrm), mb, stack, &mut counts, |_, _| false);
+            counts
+        };
+        // In the upper plane, facing up: both planes lie at or under its horizon.
+        let c = run(Vec3::new(0.03, 0.02, 1.0), Vec3::Z, &mut mb, &mut stack);
+        assert_eq!((c.rasterised, c.near_leaves), (0, 0), "{c:?}");
+        assert!(c.visited <= 3, "the subtrees of both planes are culled at once: {c:?}");
+        assert!(mb.radiance.iter().all(|l| *l == Vec3::ZERO));
+        // Facing down from the same spot, the lower plane is seen; the upper one is still culled.
+        let c = run(Vec3::new(0.03, 0.02, 1.0), -Vec3::Z, &mut mb, &mut stack);
+        assert!(c.rasterised + c.near_leaves > 0 && c.visited < 2 * 400, "{c:?}");
+        assert!(mb.radiance.iter().any(|l| *l != Vec3::ZERO));
+    }
+}

@@ -1,0 +1,134 @@
+//! `Receivers`: the camera's primary hits (PBGI gathers indirect light at each), and
+//! `PointRadiance`: outgoing radiance per surface point.
+
+use glam::Vec3;
+use relume_base::types::Material;
+use relume_core::codec::pod_vec;
+use relume_core::{codec, PortValue};
+use serde::{Deserialize, Serialize};
+
+/// One receiver per pixel whose primary ray hit a surface.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct Receivers {
+    pub width: usize,
+    pub height: usize,
+    /// Pixel index (y · width + x) of each receiver.
+    #[serde(with = "pod_vec")]
+    pub pixel: Vec<u32>,
+    #[serde(with = "pod_vec")]
+    pub position: Vec<Vec3>,
+    /// Shading normal, facing the camera's side.
+    #[serde(with = "pod_vec")]
+    pub normal: Vec<Vec3>,
+    /// Unit direction from the receiver toward the camera.
+    #[serde(with = "pod_vec")]
+    pub wo: Vec<Vec3>,
+    #[serde(with = "pod_vec")]
+    pub object: Vec<u32>,
+    pub material: Vec<Material>,
+}
+
+impl Receivers {
+    /// Memory per receiver: pixel index, position, normal, outgoing direction, object, material.
+    pub const BYTES_PER_RECEIVER: usize = 4 + 36 + 4 + std::mem::size_of::<Material>();
+
+    pub fn len(&self) -> usize {
+        self.pixel.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.pixel.is_empty()
+    }
+}
+
+/// Disk encoding: serde through postcard, the per-receiver numbers as little-endian byte
+/// strings; decoding checks that every array has one entry per receiver and that every
+/// pixel index lies inside the image.
+impl PortValue for Receivers {
+    const NAME: &'static str = "Receivers";
+    const COLOR: [u8; 3] = [230, 140, 80];
+    const DOC: &'static str = "camera primary hits: pixel, position, normal, view direction, material";
+    fn encode(&self) -> Vec<u8> {
+        codec::to_bytes(self)
+    }
+    fn decode(bytes: &[u8]) -> Option<Self> {
+        let r = codec::from_bytes::<Receivers>(bytes)?;
+        let n = r.len();
+        let pixels = r.width.checked_mul(r.height)?;
+        let lengths = [r.position.len(), r.normal.len(), r.wo.len(), r.object.len(), r.material.len()].iter().all(|&l| l == n);
+        (lengths && r.pixel.iter().all(|&p| (p as usize) < pixels)).then_some(r)
+    }
+    fn byte_size(&self) -> usize {
+        self.len() * Self::BYTES_PER_RECEIVER
+    }
+    /// Bytes, and the image the receivers are pixels of.
+    fn size(&self) -> relume_core::PortSize {
+        relume_core::PortSize { bytes: self.byte_size() as u64, dims: Some([self.width, self.height]) }
+    }
+}
+
+/// Outgoing (diffuse) radiance of each point of a `SurfacePoints`, in the same order.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PointRadiance(#[serde(with = "pod_vec")] pub Vec<Vec3>);
+
+/// Disk encoding: serde through postcard, the radiance as one little-endian byte string.
+impl PortValue for PointRadiance {
+    const NAME: &'static str = "PointRadiance";
+    const COLOR: [u8; 3] = [250, 210, 90];
+    const DOC: &'static str = "outgoing radiance per surface point";
+    relume_core::serde_codec!();
+    fn byte_size(&self) -> usize {
+        self.0.len() * 12
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn receivers() -> Receivers {
+        let n = 3;
+        Receivers {
+            width: 4,
+            height: 2,
+            pixel: vec![0, 5, 7],
+            position: (0..n).map(|i| Vec3::new(i as f32, 0.5, -2.0)).collect(),
+            normal: vec![Vec3::Z; n],
+            wo: vec![Vec3::new(0.0, 0.6, 0.8); n],
+            object: vec![0, 1, 1],
+            material: vec![Material::Lambert { albedo: Vec3::splat(0.5) }; n],
+        }
+    }
+
+    #[test]
+    fn receivers_encode_and_decode_to_the_same_fingerprint() {
+        for r in [Receivers::default(), receivers()] {
+            let b = r.encode();
+            let back = Receivers::decode(&b).unwrap();
+            assert_eq!(back.fingerprint(), r.fingerprint());
+            assert_eq!((back.width, back.height, &back.pixel, &back.wo, &back.material), (r.width, r.height, &r.pixel, &r.wo, &r.material));
+            assert!(Receivers::decode(&b[..b.len() - 1]).is_none(), "truncated");
+        }
+        let mut r = receivers();
+        r.pixel[2] = 8;
+        assert!(Receivers::decode(&r.encode()).is_none(), "a pixel outside the image");
+        let mut r = receivers();
+        r.wo.pop();
+        assert!(Receivers::decode(&r.encode()).is_none(), "arrays of different lengths");
+        let mut r = receivers();
+        r.width = 8;
+        assert_ne!(r.fingerprint(), receivers().fingerprint());
+    }
+
+    #[test]
+    fn point_radiance_encodes_and_decodes_to_the_same_fingerprint() {
+        let p = PointRadiance(vec![Vec3::new(0.1, 2.0, f32::INFINITY), Vec3::ZERO]);
+        let b = p.encode();
+        assert_eq!(b.len(), 1 + 24, "a length and the floats");
+        let back = PointRadiance::decode(&b).unwrap();
+        assert_eq!(back, p);
+        assert_eq!(back.fingerprint(), p.fingerprint());
+        assert!(PointRadiance::decode(&b[..b.len() - 1]).is_none(), "truncated");
+        assert!(PointRadiance::decode(&b[..b.len() - 4]).is_none(), "truncated to whole floats");
+        assert_ne!(PointRadiance(vec![Vec3::ZERO]).fingerprint(), PointRadiance(vec![]).fingerprint());
+    }
+}

@@ -1,0 +1,293 @@
+//! PttBounceLight node and its port type.
+
+use super::bounce::SH;
+use super::transfer_t1::BounceTransfer;
+use super::transfer_t2::TwoBounce;
+use super::types::EnvLight;
+use glam::Vec3;
+use relume_base::math::cubemap::CubeView;
+use relume_core::codec::pod_vec;
+use relume_core::memory::fmt_bytes;
+use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx};
+use serde::{Deserialize, Serialize};
+
+/// One cluster's one-bounce core under the current environment: per vertex factor a, per
+/// reflector slot r and SH coefficient q, RGB at `core[(a · slots + r) · 16 + q]`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LitCore {
+    pub rank_v: u32,
+    #[serde(with = "pod_vec")]
+    pub core: Vec<Vec3>,
+}
+
+/// The bounced light of every vertex under the current environment, with the reflectors'
+/// materials still open ([S] 5-5, 5-6): what `PttIncident` weighs by the materials. Reflector
+/// slots: slot 0 the fixed objects together (their own reflectance folded in), slot 1 + j the
+/// j-th dynamic channel (group by group, `bases` each), weighted by its basis coefficient.
+/// `cores`: per cluster of `TransferT1`, the lighting-contracted core (`LitCore`); `pairs`:
+/// per vertex, the two-bounce light per reflector pair (r₁, r₂), RGB at
+/// `pairs[(v · slots + r₁) · slots + r₂]`, to be weighted by both slots' coefficients.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BounceLight {
+    pub bounces: u32,
+    pub groups: Vec<String>,
+    pub bases: u32,
+    pub cores: Vec<LitCore>,
+    #[serde(with = "pod_vec")]
+    pub pairs: Vec<Vec3>,
+}
+
+impl BounceLight {
+    /// Reflector slots: the fixed objects, then every dynamic channel.
+    pub fn slots(&self) -> usize {
+        1 + self.groups.len() * self.bases as usize
+    }
+
+    /// Vertex `v`'s pairs (slots² RGB values).
+    pub fn pairs_of(&self, v: usize) -> &[Vec3] {
+        let s2 = self.slots() * self.slots();
+        &self.pairs[v * s2..(v + 1) * s2]
+    }
+
+    /// Bytes for `vertices` with one-bounce cores of `core_rows` vertex factors in all, at
+    /// `slots` reflector slots and `bounces`.
+    pub fn bytes_for(vertices: u64, core_rows: u64, slots: u64, bounces: u32) -> u64 {
+        let cores = if bounces >= 1 { core_rows.saturating_mul(slots).saturating_mul(SH as u64) } else { 0 };
+        let pairs = if bounces == 2 { vertices.saturating_mul(slots * slots) } else { 0 };
+        cores.saturating_add(pairs).saturating_mul(12).saturating_add(64)
+    }
+
+    fn is_consistent(&self) -> bool {
+        let s = self.slots();
+        self.bounces <= 2
+            && self.pairs.len().is_multiple_of(s * s)
+            && self.cores.iter().all(|c| c.core.len() == c.rank_v as usize * s * SH && c.core.iter().all(|v| v.is_finite()))
+            && self.pairs.iter().all(|v| v.is_finite())
+    }
+}
+
+impl PortValue for BounceLight {
+    const NAME: &'static str = "BounceLight";
+    const COLOR: [u8; 3] = [240, 170, 110];
+    const DOC: &'static str = "the bounced light under the current environment, per reflector slot, before the materials weigh it";
+    fn byte_size(&self) -> usize {
+        (self.cores.iter().map(|c| c.core.len()).sum::<usize>() + self.pairs.len()) * 12 + 64
+    }
+    relume_core::serde_codec!(check BounceLight::is_consistent);
+}
+
+/// The environment at side `m` as box-basis weights per colour (`CubeMap::box_downsample`).
+fn box_light(env: &EnvLight, m: usize) -> Result<Vec<Vec3>, NodeError> {
+    if m == 0 || !(env.n as usize).is_multiple_of(m) {
+        return Err(NodeError::input("env", format!("a cube map of side {} cannot be box-filtered to the transfer's side {m}", env.n)));
+    }
+    Ok(CubeView { n: env.n as usize, texels: &env.map }.box_downsample(m).texels)
+}
+
+/// The reflector slot of each transfer channel and the weight it enters that slot with: the
+/// fixed channels into slot 0 with their colour (one grey channel: all colours; three: one
+/// each), the dynamic ones into a slot of their own, weight one.
+fn slot_of_channels(t: &BounceTransfer) -> Vec<(usize, Vec3)> {
+    let fixed: Vec<(usize, Vec3)> = match t.fixed {
+        0 => vec![],
+        1 => vec![(0, Vec3::ONE)],
+        _ => vec![(0, Vec3::X), (0, Vec3::Y), (0, Vec3::Z)],
+    };
+    fixed.into_iter().chain((0..t.channels() - t.fixed as usize).map(|j| (1 + j, Vec3::ONE))).collect()
+}
+
+/// Vertices per task of the two-bounce contraction.
+const CHUNK: usize = 1024;
+
+/// The bounced light under the current environment ([S] 5-5, 5-6; the lighting half of the
+/// bounces, which a material edit does not re-run): the environment box-averaged to
+/// `TransferT1`'s lighting bases (`CubeMap::box_downsample`) contracted with each cluster's
+/// compressed transfer (its lighting factor, then its core), and, with `bounces` = 2, box-averaged to
+/// `TransferT2`'s bases and contracted with every vertex's two-bounce transfer. The fixed
+/// objects' channels are folded into one reflector slot on the way (their reflectance is
+/// known); the dynamic objects' channels stay apart for `PttIncident` to weigh by the
+/// materials' basis coefficients. With `bounces` 0 it holds nothing, with 1 no pairs: what
+/// is not asked for is not computed.
+///
+/// Metrics: bounces, clusters, reflector slots, bytes.
+#[derive(Params)]
+pub struct PttBounceLight {
+    /// reflections carried: 0 direct only, 1 one bounce, 2 two bounces ([S] 5-5)
+    #[param(default = 2, range = 0..=2)]
+    pub bounces: usize,
+}
+
+inputs!(pub PttBounceLightIn { env: EnvLight, bounce: BounceTransfer, two: TwoBounce });
+outputs!(pub PttBounceLightOut { light: BounceLight });
+
+#[node(category = "ptt", caching = Keyed)]
+impl PttBounceLight {
+    fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
+        MemoryEstimate { outputs: vec![None], working: 0 }
+    }
+
+    fn run(&self, i: PttBounceLightIn, cx: &RunCtx) -> Result<PttBounceLightOut, NodeError> {
+        let t = i.bounce;
+        let n = t.plan.vertices();
+        let ch = t.channels();
+        if i.two.channels as usize != ch {
+            return Err(NodeError::input(
+                "two",
+                format!("has {} channels, the one-bounce transfer {ch}: they must come from the same scene and basis", i.two.channels),
+            ));
+        }
+        if self.bounces == 2 && i.two.values.len() / i.two.stride().max(1) != n {
+            return Err(NodeError::input(
+                "two",
+                format!(
+                    "holds {} vertices, the one-bounce transfer {n}: they must come from the same scene",
+                    i.two.values.len() / i.two.stride().max(1)
+                ),
+            ));
+        }
+        let slot = slot_of_channels(t);
+        let slots = 1 + ch - t.fixed as usize;
+        let rows: u64 = t.clusters.iter().map(|c| c.rank_v as u64).sum();
+        let bytes = BounceLight::bytes_for(n as u64, rows, slots as u64, self.bounces as u32);
+        if bytes > cx.memory_budget() {
+            return Err(NodeError::over_limit(format!(
+                "the bounced light of {n} vertices would hold {}, over the {} budget",
+                fmt_bytes(bytes),
+                fmt_bytes(cx.memory_budget())
+            )));
+        }
+        let mut out = BounceLight { bounces: self.bounces as u32, groups: t.groups.clone(), bases: t.bases, cores: vec![], pairs: vec![] };
+        if self.bounces >= 1 {
+            let light = box_light(i.env, t.coarse as usize)?;
+            out.cores = cx.par_map(t.clusters.len(), |c| {
+                let k = &t.clusters[c];
+                let (l, s, rv, rl) = (k.lights as usize, k.columns as usize, k.rank_v as usize, k.rank_l as usize);
+                // The lighting factor against the light: one RGB weight per lighting rank.
+                let w: Vec<Vec3> = (0..rl).map(|b| k.b[b * l..(b + 1) * l].iter().zip(&light).map(|(x, y)| *y * *x).sum()).collect();
+                let mut core = vec![Vec3::ZERO; rv * slots * SH];
+                let mut lit = vec![Vec3::ZERO; s];
+                for a in 0..rv {
+                    lit.fill(Vec3::ZERO);
+                    for (b, wb) in w.iter().enumerate() {
+                        let g = &k.core[(a * rl + b) * s..(a * rl + b + 1) * s];
+                        lit.iter_mut().zip(g).for_each(|(o, x)| *o += *wb * *x);
+                    }
+                    for (c, &(r, wc)) in slot.iter().enumerate() {
+                        let dst = &mut core[(a * slots + r) * SH..(a * slots + r + 1) * SH];
+                        dst.iter_mut().zip(&lit[c * SH..(c + 1) * SH]).for_each(|(o, x)| *o += wc * *x);
+                    }
+                }
+                LitCore { rank_v: rv as u32, core }
+            })?;
+        }
+        if self.bounces == 2 {
+            let light = box_light(i.env, i.two.side as usize)?;
+            // Each channel pair's slot pair and colour weight.
+            let pair: Vec<(usize, Vec3)> =
+                slot.iter().flat_map(|&(r1, w1)| slot.iter().map(move |&(r2, w2)| (r1 * slots + r2, w1 * w2))).collect();
+            out.pairs = vec![Vec3::ZERO; n * slots * slots];
+            cx.par_chunks_mut(&mut out.pairs, CHUNK * slots * slots, |k, pairs| {
+                // Per colour, Σ_l light_l T²(l, ·): contiguous rows, so that it vectorises.
+                let mut acc = [vec![0.0f32; ch * ch], vec![0.0f32; ch * ch], vec![0.0f32; ch * ch]];
+                for (v, dst) in (k * CHUNK..).zip(pairs.chunks_mut(slots * slots)) {
+                    acc.iter_mut().for_each(|a| a.fill(0.0));
+                    for (row, li) in i.two.of(v).chunks_exact(ch * ch).zip(&light) {
+                        for (a, lc) in acc.iter_mut().zip(li.to_array()) {
+                            a.iter_mut().zip(row).for_each(|(a, x)| *a += lc * x);
+                        }
+                    }
+                    for (c, &(d, w)) in pair.iter().enumerate() {
+                        dst[d] += w * Vec3::new(acc[0][c], acc[1][c], acc[2][c]);
+                    }
+                }
+            })?;
+        }
+        cx.metric("bounces", self.bounces as f64);
+        cx.metric("clusters", out.cores.len() as f64);
+        cx.metric("slots", slots as f64);
+        cx.metric("bytes", out.byte_size() as f64);
+        Ok(PttBounceLightOut { light: out })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_support::{plane, Chain};
+    use crate::vertex_visibility::tests::floor_and_tiled_roof;
+    use relume_base::testing::{first, i, run_on};
+    use relume_base::types::{Environment, Material};
+    use relume_core::Value;
+
+    fn light(c: &Chain, bounces: i64) -> BounceLight {
+        first(&run_on::<PttBounceLight>(&[("bounces", i(bounces))], c.bounce_light_inputs(&c.env)).expect("runs"))
+    }
+
+    #[test]
+    fn holds_only_what_the_bounce_count_asks_for() {
+        let c = Chain::new(floor_and_tiled_roof(0.5));
+        let (l0, l1, l2) = (light(&c, 0), light(&c, 1), light(&c, 2));
+        assert!(l0.cores.is_empty() && l0.pairs.is_empty());
+        assert!(!l1.cores.is_empty() && l1.pairs.is_empty());
+        assert_eq!(l1.cores, l2.cores);
+        assert_eq!(l2.pairs.len(), c.scene.positions.len() * l2.slots() * l2.slots());
+        assert!(l2.pairs.iter().any(|p| p.x > 0.0), "the roofed floor gets two-bounce light");
+        assert_eq!(BounceLight::decode(&l2.encode()), Some(l2.clone()));
+        // Linear in the environment: twice the sky, twice the light.
+        let bright = EnvLight { map: c.env.map.iter().map(|t| *t * 2.0).collect(), ..c.env.clone() };
+        let lb: BounceLight = first(&run_on::<PttBounceLight>(&[], c.bounce_light_inputs(&bright)).expect("runs"));
+        for (a, b) in lb.pairs.iter().zip(&l2.pairs) {
+            assert!((*a - *b * 2.0).abs().max_element() <= 1e-5 * b.abs().max_element().max(1e-3), "{a} {b}");
+        }
+    }
+
+    #[test]
+    fn a_zero_sky_gives_no_light_and_a_sun_ten_thousand_times_the_sky_stays_finite_and_linear() {
+        // docs/QUALITY.md "lighting": a zero environment, and one texel 10⁴ times the rest.
+        let c = Chain::new(floor_and_tiled_roof(0.5));
+        let zero = EnvLight { map: vec![Vec3::ZERO; c.env.map.len()], ..c.env.clone() };
+        let l: BounceLight = first(&run_on::<PttBounceLight>(&[], c.bounce_light_inputs(&zero)).expect("runs"));
+        assert!(l.cores.iter().all(|k| k.core.iter().all(|v| *v == Vec3::ZERO)) && l.pairs.iter().all(|v| *v == Vec3::ZERO));
+        let sun_only = |scale: f32| {
+            let mut map = vec![Vec3::ZERO; c.env.map.len()];
+            map[c.env.map.len() / 3 + 7] = Vec3::splat(1.0e4 * scale);
+            EnvLight { map, ..c.env.clone() }
+        };
+        let sky = EnvLight { map: c.env.map.iter().zip(&sun_only(1.0).map).map(|(a, b)| *a + *b).collect(), ..c.env.clone() };
+        let (with_sun, sun): (BounceLight, BounceLight) = (
+            first(&run_on::<PttBounceLight>(&[], c.bounce_light_inputs(&sky)).expect("runs")),
+            first(&run_on::<PttBounceLight>(&[], c.bounce_light_inputs(&sun_only(1.0))).expect("runs")),
+        );
+        let base = light(&c, 2);
+        assert!(sun.pairs.iter().any(|v| v.max_element() > 0.0), "the sun reaches the two-bounce light");
+        assert!(with_sun.pairs.iter().chain(with_sun.cores.iter().flat_map(|k| &k.core)).all(|v| v.is_finite()));
+        // The sky plus the sun is the light of each, within f32 rounding at the sun's scale.
+        for ((w, s), b) in with_sun.pairs.iter().zip(&sun.pairs).zip(&base.pairs) {
+            let tol = 1e-5 * (s.abs().max_element() + b.abs().max_element()).max(1e-6);
+            assert!((*w - (*s + *b)).abs().max_element() <= tol, "{w} vs {s} + {b}");
+        }
+    }
+
+    #[test]
+    fn the_bytes_do_not_depend_on_threads() {
+        let c = Chain::new(floor_and_tiled_roof(0.5));
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool").install(|| light(&c, 2));
+        assert_eq!(one, light(&c, 2));
+    }
+
+    #[test]
+    fn a_grey_fixed_scene_has_one_slot_and_other_sides_or_scenes_are_refused() {
+        let c = Chain::new(plane(Material::Lambert { albedo: Vec3::splat(0.6) }, false, Environment::Constant(Vec3::ONE)));
+        let l = light(&c, 2);
+        assert_eq!((l.slots(), l.groups.len()), (1, 0));
+        let mut inputs = c.bounce_light_inputs(&c.env);
+        inputs[0] = Value::new(EnvLight { n: 3, map: vec![Vec3::ONE; 54], haar: vec![Vec3::ZERO; 54], ..c.env.clone() });
+        let e = run_on::<PttBounceLight>(&[], inputs).expect_err("other side");
+        assert!(e.to_string().contains("side"), "{e}");
+        let other = Chain::new(floor_and_tiled_roof(0.5));
+        let mut inputs = c.bounce_light_inputs(&c.env);
+        inputs[2] = other.get("two");
+        let e = run_on::<PttBounceLight>(&[], inputs).expect_err("other scene");
+        assert!(e.to_string().contains("same scene"), "{e}");
+    }
+}

@@ -1,0 +1,42 @@
+//! Pipeline 3, dynamic refractive and scattering objects ([S] chapter 6; docs/PIPELINES.md
+//! "Pipeline 3"): the shared volume code — the min/max pyramid the octree reads
+//! (`pyramid`), the separable 3-D Gaussian blur (`blur`), inside fractions of closed meshes
+//! by scanlines (`scanline`) — with the `Volume` port type in
+//! `types::volume`. The optics photon marching and
+//! rendering share are in `optics`. The stage nodes, one file each: `Voxelize`,
+//! `VolumeSource`, `VolumePaint`, `Octree`, `EmitPhotons`, `MarchPhotons`, `EikonalPaths`,
+//! `EikonalRender`,
+//! and `VolumeSlice` to look inside a volume.
+
+pub mod blur;
+pub mod eikonal_paths;
+pub mod eikonal_render;
+pub mod emit_photons;
+pub mod march_photons;
+pub mod octree;
+pub mod octree_layout;
+pub mod optics;
+pub mod pyramid;
+pub mod scanline;
+#[cfg(test)]
+pub(crate) mod test_support;
+pub mod types;
+pub mod volume_paint;
+pub mod volume_slice;
+pub mod volume_source;
+pub mod voxelize;
+
+use relume_core::Registry;
+
+/// Registers the volume nodes.
+pub fn register(reg: &mut Registry) {
+    reg.add::<voxelize::Voxelize>();
+    reg.add::<volume_slice::VolumeSlice>();
+    reg.add::<octree::Octree>();
+    reg.add::<volume_source::VolumeSource>();
+    reg.add::<volume_paint::VolumePaint>();
+    reg.add::<emit_photons::EmitPhotons>();
+    reg.add::<march_photons::MarchPhotons>();
+    reg.add::<eikonal_paths::EikonalPaths>();
+    reg.add::<eikonal_render::EikonalRender>();
+}

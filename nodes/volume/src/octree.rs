@@ -1,0 +1,293 @@
+use super::octree_layout::{CHANNELS, CLEARANCE, CLEARANCE_CAP, GRADIENT};
+use super::pyramid::MinMaxPyramid;
+use crate::types::Volume;
+use glam::Vec3;
+use rayon::prelude::*;
+use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+
+/// The adaptive step of photon marching ([S] 6.3.2, 6.4.3, figure 6-4), per voxel of the
+/// refractive index (channel 0 of `medium`): from the min/max pyramid (a cell spans its
+/// voxels and their upper neighbours, what trilinear sampling blends), the voxel's leaf is the
+/// largest aligned cell whose index range is below ε′ (`flat`, 0.02); the largest step
+/// Δs_max is unbounded where the leaf's range is below ε (`uniform`, 0.005), `step` voxels (8)
+/// where it is between, and 0 — the marcher's minimum step — where even the voxel's own cell
+/// spans ε′ or more. This is the reading docs/PIPELINES.md gives: read literally (leaves built with
+/// ε, then "8 voxels below ε′") the ε′ rule never fires. Extinction does not shape the leaves ([S] 6.3.2 found it mattered little: the
+/// marcher integrates it exactly voxel by voxel); instead each voxel records whether its
+/// leaf is clear (κ = 0 all through it), where the eikonal render may take the leaf's steps
+/// too, having nothing to gather there. Output, 8 channels on the same grid: the leaf level
+/// (cell side 2^level voxels, aligned to multiples of it), Δs_max in voxels (+∞ for
+/// unbounded), clear (1 or 0), the clearance (0 where the voxel or a neighbour has
+/// |∇n| × voxel > 10⁻⁶: where a ray's trilinear gradient can be non-zero, "bends"; elsewhere
+/// the L∞ distance in voxels to the nearest such voxel, at most 16), then n (the
+/// medium's own) and ∇n (central differences one voxel apart, replicated at the faces:
+/// trilinear sampling of these is the central difference of the trilinear index, what
+/// `Volume::gradient` computes) side by side, so that a ray step reads both in one lookup. A
+/// straight line that crosses no voxel that bends is a ray the medium leaves exactly straight:
+/// the photons and the render's shadow rays split the light by it, and a ray in a voxel of
+/// clearance c may fly c − 1 voxels (along the axis it moves fastest along) straight on
+/// without a lookup (`optics::straight_run`).
+#[derive(Params)]
+pub struct Octree {
+    /// ε: an index range below this is uniform (unbounded steps)
+    #[param(default = 0.005, range = 0.0..=1.0)]
+    pub uniform: f32,
+    /// ε′: an index range below this is flat enough for a leaf
+    #[param(default = 0.02, range = 0.0..=1.0)]
+    pub flat: f32,
+    /// Δs_max inside leaves that are flat but not uniform
+    #[param(default = 8.0, range = 1.0..=1024.0, unit = "voxels")]
+    pub step: f32,
+}
+
+inputs!(pub OctreeIn { medium: Volume });
+outputs!(pub OctreeOut { octree: Volume });
+
+/// The octree of channel 0 of `v` (see the node's doc) and the voxel counts per step class
+/// [unbounded, `step`, minimum].
+pub fn build(v: &Volume, o: &Octree, budget: u64) -> Result<(Volume, [u64; 3]), NodeError> {
+    if o.uniform.partial_cmp(&o.flat) == Some(std::cmp::Ordering::Greater) || o.uniform.is_nan() || o.flat.is_nan() {
+        return Err(NodeError::param("uniform", format!("ε = {} must not exceed ε′ = {}", o.uniform, o.flat)));
+    }
+    let mut out = Volume::try_new(v.dims, CHANNELS, v.min, v.max, 0.0, budget)?;
+    let p = MinMaxPyramid::build(v, 0);
+    // Where nothing absorbs anywhere every leaf is clear: no pyramid of κ needed.
+    let absorbs = v.channels > 1 && v.data.iter().skip(1).step_by(v.channels as usize).any(|&k| k > 0.0);
+    let kappa = absorbs.then(|| MinMaxPyramid::build(v, 1));
+    let h = v.voxel();
+    let d = v.dims.map(|x| x as usize);
+    let ch = CHANNELS as usize;
+    let slab = d[0] * d[1] * ch;
+    // One z slab a task; each voxel is computed alone, so any thread count gives the same bytes.
+    let counts = out
+        .data
+        .par_chunks_mut(slab)
+        .enumerate()
+        .map(|(z, slab)| {
+            let mut counts = [0u64; 3];
+            for y in 0..d[1] {
+                for x in 0..d[0] {
+                    let span = |k: usize| {
+                        let (lo, hi) = p.range_at(k, x, y, z);
+                        hi - lo
+                    };
+                    let at = |dx: isize, dy: isize, dz: isize| {
+                        let c = |q: usize, d: isize, n: usize| (q as isize + d).clamp(0, n as isize - 1) as usize;
+                        v.get(c(x, dx, d[0]), c(y, dy, d[1]), c(z, dz, d[2]), 0)
+                    };
+                    let g = [
+                        (at(1, 0, 0) - at(-1, 0, 0)) / (2.0 * h.x),
+                        (at(0, 1, 0) - at(0, -1, 0)) / (2.0 * h.y),
+                        (at(0, 0, 1) - at(0, 0, -1)) / (2.0 * h.z),
+                    ];
+                    let clear = |k: usize| kappa.as_ref().is_none_or(|kp| kp.range_at(k, x, y, z).1 <= 0.0);
+                    let (level, step, class) = if span(0).partial_cmp(&o.flat) != Some(std::cmp::Ordering::Less) {
+                        (0, 0.0, 2)
+                    } else {
+                        // Ranges only grow with the level: the largest level still below ε′.
+                        let level = (0..p.levels.len()).take_while(|&k| span(k) < o.flat).last().unwrap_or(0);
+                        if span(level) < o.uniform {
+                            (level, f32::INFINITY, 0)
+                        } else {
+                            (level, o.step, 1)
+                        }
+                    };
+                    let i = (y * d[0] + x) * ch;
+                    slab[i..i + ch].copy_from_slice(&[level as f32, step, clear(level) as u8 as f32, 0.0, at(0, 0, 0), g[0], g[1], g[2]]);
+                    counts[class] += 1;
+                }
+            }
+            counts
+        })
+        .reduce(|| [0u64; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]);
+    mark_clearance(&mut out);
+    Ok((out, counts))
+}
+
+/// Sets `CLEARANCE`: the L∞ distance in voxels to the nearest voxel whose own or a neighbour's
+/// gradient is measurable (0 there: a ray may bend), at most `CLEARANCE_CAP`. The distance to
+/// the measurable voxels themselves, one less: separable, exact along x by two sweeps, then
+/// along y and z as min over k of max(|k|, d(i + k)) (what the L∞ norm makes of the
+/// minimum over the plane's distances). Each voxel alone: the same bytes on any thread count.
+fn mark_clearance(o: &mut Volume) {
+    let d = o.dims.map(|x| x as usize);
+    let h = o.voxel();
+    let ch = CHANNELS as usize;
+    let far = CLEARANCE_CAP + 1;
+    let mut dist: Vec<u8> = o
+        .data
+        .chunks(ch)
+        .map(|c| if (Vec3::new(c[GRADIENT], c[GRADIENT + 1], c[GRADIENT + 2]) * h).abs().max_element() > 1e-6 { 0 } else { far })
+        .collect();
+    dist.par_chunks_mut(d[0]).for_each(|row| {
+        for x in 1..row.len() {
+            row[x] = row[x].min(row[x - 1].saturating_add(1));
+        }
+        for x in (0..row.len() - 1).rev() {
+            row[x] = row[x].min(row[x + 1].saturating_add(1));
+        }
+    });
+    // Along axis `stride` (y: d[0], z: d[0] d[1]) of length `n`, a row of x at a time (the
+    // rows k apart, min of max, vectorise).
+    let along = |src: &[u8], stride: usize, n: usize| -> Vec<u8> {
+        let mut out = src.to_vec();
+        out.par_chunks_mut(d[0]).enumerate().for_each(|(r, row)| {
+            let i = r * d[0];
+            let pos = (i / stride) % n;
+            for k in 1..far as usize {
+                let kk = k as u8;
+                let mut fold = |from: usize| {
+                    for (a, &b) in row.iter_mut().zip(&src[from..from + d[0]]) {
+                        *a = (*a).min(b.max(kk));
+                    }
+                };
+                if pos >= k {
+                    fold(i - k * stride);
+                }
+                if pos + k < n {
+                    fold(i + k * stride);
+                }
+            }
+        });
+        out
+    };
+    let dist = along(&dist, d[0], d[1]);
+    let dist = along(&dist, d[0] * d[1], d[2]);
+    o.data.par_chunks_mut(ch).zip(dist.par_iter()).for_each(|(c, &x)| c[CLEARANCE] = x.saturating_sub(1).min(CLEARANCE_CAP) as f32);
+}
+
+#[node(category = "volume", version = 6)]
+impl Octree {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        // Eight channels per voxel where the medium has three (its usual layout), and two pyramids (8 bytes a
+        // voxel at level 0, an eighth more above).
+        let out = inputs[0].map(|s| relume_core::PortSize::bytes(s.bytes / 3 * 8));
+        relume_core::MemoryEstimate { outputs: vec![out], working: inputs[0].map_or(0, |s| s.bytes / 3 * 6) }
+    }
+
+    fn run(&self, i: OctreeIn, cx: &RunCtx) -> Result<OctreeOut, NodeError> {
+        let (octree, [unbounded, stepped, minimum]) = build(i.medium, self, cx.memory_budget())?;
+        let n = octree.voxels() as f64;
+        cx.metric("unbounded_pct", 100.0 * unbounded as f64 / n);
+        cx.metric("stepped_pct", 100.0 * stepped as f64 / n);
+        cx.metric("minimum_step_pct", 100.0 * minimum as f64 / n);
+        Ok(OctreeOut { octree })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::octree_layout::{CLEAR, INDEX, LEVEL, MAX_STEP};
+    use glam::Vec3;
+
+    fn field(d: u32, f: impl Fn(usize, usize, usize) -> f32) -> Volume {
+        let mut v = Volume::try_new([d; 3], 3, Vec3::ZERO, Vec3::ONE, 0.0, u64::MAX).unwrap();
+        for z in 0..d as usize {
+            for y in 0..d as usize {
+                for x in 0..d as usize {
+                    let i = v.index(x, y, z);
+                    v.data[i] = f(x, y, z);
+                }
+            }
+        }
+        v
+    }
+
+    fn defaults() -> Octree {
+        Octree { uniform: 0.005, flat: 0.02, step: 8.0 }
+    }
+
+    #[test]
+    fn a_constant_index_is_one_leaf_with_unbounded_steps() {
+        let (o, c) = build(&field(16, |_, _, _| 1.5), &defaults(), u64::MAX).unwrap();
+        assert_eq!(c, [4096, 0, 0]);
+        assert!(
+            o.data.chunks(8).all(|v| v == [4.0, f32::INFINITY, 1.0, CLEARANCE_CAP as f32, 1.5, 0.0, 0.0, 0.0]),
+            "the 16³ cell is level 4, clear, flat, straight everywhere"
+        );
+    }
+
+    #[test]
+    fn a_jump_from_one_to_two_point_four_takes_the_minimum_step_only_at_the_interface() {
+        // x < 8: n = 1; x ≥ 8: n = 2.4 (one voxel apart).
+        let (o, c) = build(&field(16, |x, _, _| if x < 8 { 1.0 } else { 2.4 }), &defaults(), u64::MAX).unwrap();
+        let at = |x: usize| [o.get(x, 3, 3, 0), o.get(x, 3, 3, 1)];
+        assert_eq!(at(7), [0.0, 0.0], "the voxels whose trilinear index blends across the jump");
+        assert_eq!(at(8), [0.0, 0.0]);
+        // Rays bend in voxels 7 and 8 (their central differences span the jump) and may in
+        // their neighbours 6 and 9 (trilinear sampling reaches them); not beyond, where the
+        // clearance counts the voxels to them.
+        let clearance: Vec<f32> = (0..16).map(|x| o.get(x, 3, 3, CLEARANCE)).collect();
+        assert_eq!(clearance, [6., 5., 4., 3., 2., 1., 0., 0., 0., 0., 1., 2., 3., 4., 5., 6.]);
+        assert_eq!(c[2], 2 * 256, "two slabs of voxels");
+        // Away from it, leaves as large as the aligned cells that stay clear of voxels 7 and 8:
+        // shrinking toward them on both sides (4, 2, 1 voxels).
+        assert_eq!(at(12), [2.0, f32::INFINITY]);
+        assert_eq!(at(10), [1.0, f32::INFINITY]);
+        assert_eq!(at(9), [0.0, f32::INFINITY]);
+        assert_eq!(at(2), [2.0, f32::INFINITY]);
+        assert_eq!(at(5), [1.0, f32::INFINITY]);
+        assert_eq!(at(6), [0.0, f32::INFINITY]);
+    }
+
+    #[test]
+    fn a_gentle_gradient_gets_the_bounded_step_and_leaves_grow_as_it_flattens() {
+        // 0.002 per voxel: a voxel's cell spans 0.002 (< ε), cells of 4 span 0.008 (ε … ε′),
+        // cells of 8 span 0.016, of 16 span 0.03 (> ε′).
+        let (o, c) = build(&field(32, |x, _, _| 1.0 + 0.002 * x as f32), &defaults(), u64::MAX).unwrap();
+        assert_eq!(c[2], 0);
+        assert!(o.data.chunks(8).all(|v| v[LEVEL] == 3.0 && v[MAX_STEP] == 8.0 && v[CLEARANCE] == 0.0), "{:?}", &o.data[..8]);
+        assert_eq!(o.get(10, 5, 5, INDEX), 1.0 + 0.002 * 10.0, "the medium's own index, copied beside its gradient");
+        // The gradient: 0.002 per voxel of 1/32 (central differences; one-sided halves at the faces).
+        let g = o.get(10, 5, 5, GRADIENT);
+        assert!((g - 0.064).abs() < 1e-4, "{g}");
+        assert!((o.get(0, 5, 5, GRADIENT) - 0.032).abs() < 1e-4);
+        let (_, c) = build(&field(32, |x, _, _| 1.0 + 0.0001 * x as f32), &defaults(), u64::MAX).unwrap();
+        assert_eq!(c, [32768, 0, 0], "a total range of 0.0032 < ε everywhere");
+    }
+
+    #[test]
+    fn leaves_are_clear_only_where_nothing_absorbs_all_through_them() {
+        let mut v = field(16, |_, _, _| 1.0);
+        for z in 0..16 {
+            for y in 0..16 {
+                let i = v.index(12, y, z);
+                v.data[i + 1] = 0.5;
+            }
+        }
+        let (o, _) = build(&v, &defaults(), u64::MAX).unwrap();
+        assert_eq!(o.get(1, 1, 1, 0), 4.0, "κ does not shape the leaves");
+        assert_eq!(o.get(1, 1, 1, CLEAR), 0.0, "but the 16³ leaf holds absorbing voxels");
+        let (o, _) = build(&field(16, |_, _, _| 1.0), &defaults(), u64::MAX).unwrap();
+        assert_eq!(o.get(1, 1, 1, CLEAR), 1.0);
+    }
+
+    #[test]
+    fn the_clearance_is_the_l_infinity_distance_to_where_rays_bend() {
+        // Three bumps of index: brute force over every pair of voxels.
+        let bumps = [(3usize, 4usize, 5usize), (17, 20, 2), (30, 30, 30)];
+        let v = field(32, |x, y, z| if bumps.contains(&(x, y, z)) { 1.2 } else { 1.0 });
+        let (o, _) = build(&v, &defaults(), u64::MAX).unwrap();
+        let steep: Vec<[usize; 3]> = (0..32usize.pow(3))
+            .filter(|&i| (0..3).any(|k| o.data[i * 8 + GRADIENT + k] != 0.0))
+            .map(|i| [i % 32, i / 32 % 32, i / 1024])
+            .collect();
+        assert_eq!(steep.len(), 3 * 6, "each bump's six neighbours along the axes");
+        for z in 0..32 {
+            for y in 0..32 {
+                for x in 0..32 {
+                    let dist = steep.iter().map(|s| (0..3).map(|k| s[k].abs_diff([x, y, z][k])).max().unwrap()).min().unwrap();
+                    let want = dist.saturating_sub(1).min(CLEARANCE_CAP as usize) as f32;
+                    assert_eq!(o.get(x, y, z, CLEARANCE), want, "({x}, {y}, {z})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn thresholds_out_of_order_are_a_parameter_error() {
+        let bad = Octree { uniform: 0.05, flat: 0.02, step: 8.0 };
+        assert!(build(&field(4, |_, _, _| 1.0), &bad, u64::MAX).unwrap_err().to_string().contains("must not exceed"));
+    }
+}
