@@ -12,6 +12,9 @@ their items depends on none of them); a module never depends on itself, and decl
 connected components of that graph with more than one module are the circles; each is printed
 with one path through it and the line that makes each step.
 
+It also holds the nodes' rule: a module that defines a node (`#[node(…)]`) depends on no other
+module that defines one. What two nodes share lives in a module that is not a node.
+
 usage: module_cycles.py [CRATE_DIR ...]   (default: every workspace member with a src/)
        module_cycles.py --self-test       (checks itself on small crates made in a temp folder)
 Exit 0 without circles, 1 with.
@@ -352,6 +355,13 @@ def check(crate_dirs, out=sys.stdout):
             comps = circles(edges)
             print(f'{name(crate, ())} ({root}): {len(modules)} modules, '
                   f'{sum(len(e) for e in edges.values())} dependencies, {len(comps)} circles', file=out)
+            nodes = {p for p, m in modules.items() if '#[node(' in m.text}
+            for a in sorted(nodes):
+                for b, (f, line) in sorted(edges[a].items()):
+                    if b in nodes:
+                        found += 1
+                        print(f'  node module {name(crate, a)} uses node module {name(crate, b)}   '
+                              f'({os.path.relpath(f)}:{line}): move what they share out of the node\'s file', file=out)
             for comp in comps:
                 found += 1
                 cyc = cycle_in(comp, edges)
@@ -404,6 +414,13 @@ def self_test():
         assert '3 dependencies' in log.getvalue(), log.getvalue()
         log = io.StringIO()
         assert check([good], log) == 0, log.getvalue()
+        nodes = crate('nodes', {
+            'lib.rs': 'pub mod a;\npub mod b;\n',
+            'a.rs': '#[node(category = "x")]\nimpl A {}\npub struct Shared;\n',
+            'b.rs': 'use crate::a::Shared;\n#[node(category = "x")]\nimpl B {}\n',
+        })
+        log = io.StringIO()
+        assert check([nodes], log) == 1 and 'node module nodes::b uses node module nodes::a' in log.getvalue(), log.getvalue()
     print('module_cycles.py self-test passed')
 
 
@@ -414,5 +431,5 @@ if __name__ == '__main__':
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     dirs = sys.argv[1:] or workspace_members(root)
     n = check(dirs)
-    print(f'{n} circles' if n else 'no circles between modules')
+    print(f'{n} circles or node-to-node imports' if n else 'no circles between modules, no node module importing another')
     sys.exit(1 if n else 0)

@@ -2,6 +2,7 @@
 
 pub mod adaptive_microbuffer;
 pub mod brdf_wavelets;
+pub mod build_point_tree;
 pub mod cluster_receivers;
 pub mod factorized_gather;
 pub mod gather;
@@ -9,7 +10,6 @@ pub mod gbuffer;
 pub mod incident;
 pub mod microbuffer;
 pub mod pbgi_gather;
-pub mod point_tree;
 pub mod preview_splat;
 pub mod shade_direct;
 pub mod spherical_microbuffer;
@@ -31,7 +31,7 @@ use relume_core::Registry;
 
 pub fn register(reg: &mut Registry) {
     reg.add::<shade_direct::ShadeDirect>();
-    reg.add::<point_tree::BuildPointTree>();
+    reg.add::<build_point_tree::BuildPointTree>();
     reg.add::<gbuffer::GBuffer>();
     reg.add::<pbgi_gather::PbgiGather>();
     reg.add::<cluster_receivers::ClusterReceivers>();

@@ -1,3 +1,4 @@
+use super::types::lobe_side;
 use super::types::{EnvLight, PrefilteredEnv};
 use glam::Vec3;
 use relume_base::math::cube_haar::CubeHaar;
@@ -40,16 +41,6 @@ pub struct EnvLighting {
 
 inputs!(pub EnvLightingIn { scene: Scene });
 outputs!(pub EnvLightingOut { light: EnvLight, metrics: Metrics });
-
-/// The side of a lobe's prefiltered map: the coarsest power of two (at most `side`) whose
-/// texels, 90°/m wide at a face's centre, are at most half of σ.
-pub fn lobe_side(sigma_deg: f64, side: usize) -> usize {
-    let mut m = 1;
-    while m < side && 90.0 / m as f64 > 0.5 * sigma_deg {
-        m *= 2;
-    }
-    m.min(side)
-}
 
 impl EnvLighting {
     fn bytes(&self) -> u64 {

@@ -2,84 +2,14 @@ use super::bounce::SH;
 use super::brdf::types::TuckerBrdf;
 use super::types::Visibility;
 use super::vertices::vertex_frame;
+use crate::types::{ShColumns, NO_OWNER, NO_SLOT};
 use glam::{Mat3, Vec3};
 use relume_base::math::cubemap::CubeMap;
 use relume_base::math::sh::sh_basis_into;
 use relume_base::math::sh_rotation::ShRotation;
 use relume_base::types::Scene;
-use relume_core::codec::pod_vec;
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx};
-use serde::{Deserialize, Serialize};
-
-/// No slot: the vertex is not shaded with the BRDF tensor.
-pub const NO_SLOT: u32 = u32::MAX;
-
-/// No owner: no triangle uses the vertex.
-pub const NO_OWNER: u32 = u32::MAX;
-
-/// Per vertex of a dynamic object (a "slot"), the projections P_k(s) = ∫ Y_s(ω) U^ωi(F⁻¹ω, k)
-/// (ω · n)⁺ dω of each column k of the BRDF tensor's incoming factor, times the cosine, in
-/// the vertex frame F, on 4-band real SH in world axes: against incident light given in
-/// world SH (the one-bounce transfer's), U^I_k = Σ_s c_s P_k(s). `slot[v]` is the vertex's
-/// slot or `NO_SLOT` (vertices of fixed objects, shaded diffuse only); slot t's values at
-/// `values[t · columns · 16 ..]`, laid out (column, s). `normals` are every vertex's, and
-/// `owner[v]` the scene object of v's first triangle (`NO_OWNER` for a vertex no triangle
-/// uses), kept here so that the per-edit nodes need not walk the triangles again.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct ShColumns {
-    pub columns: u32,
-    pub slot: Vec<u32>,
-    pub owner: Vec<u32>,
-    #[serde(with = "pod_vec")]
-    pub normals: Vec<Vec3>,
-    #[serde(with = "pod_vec")]
-    pub values: Vec<f32>,
-}
-
-impl ShColumns {
-    /// Slots (vertices shaded with the tensor).
-    pub fn slots(&self) -> usize {
-        self.values.len() / (self.columns as usize * SH).max(1)
-    }
-
-    /// Slot `t`'s projections, `columns` × 16.
-    pub fn of(&self, t: usize) -> &[f32] {
-        let w = self.columns as usize * SH;
-        &self.values[t * w..(t + 1) * w]
-    }
-
-    /// Vertex `v`'s scene object, if a triangle uses it.
-    pub fn owner_of(&self, v: usize) -> Option<u32> {
-        Some(self.owner[v]).filter(|&o| o != NO_OWNER)
-    }
-
-    /// Bytes held for `vertices` with `slots` of them shaded by `columns` columns.
-    pub fn bytes_for(vertices: u64, slots: u64, columns: u64) -> u64 {
-        vertices.saturating_mul(20).saturating_add(slots.saturating_mul(columns).saturating_mul(SH as u64 * 4)).saturating_add(32)
-    }
-
-    fn is_consistent(&self) -> bool {
-        let w = self.columns as usize * SH;
-        let slots = self.values.len().checked_div(w).unwrap_or(0);
-        self.slot.len() == self.normals.len()
-            && self.owner.len() == self.normals.len()
-            && (w == 0 || self.values.len().is_multiple_of(w))
-            && self.slot.iter().all(|&t| t == NO_SLOT || (t as usize) < slots)
-            && self.values.iter().all(|x| x.is_finite())
-            && self.normals.iter().all(|n| n.is_finite())
-    }
-}
-
-impl PortValue for ShColumns {
-    const NAME: &'static str = "ShColumns";
-    const COLOR: [u8; 3] = [200, 170, 90];
-    const DOC: &'static str = "per shaded vertex, the world-SH projection of the BRDF's incoming factor times the cosine";
-    fn byte_size(&self) -> usize {
-        self.values.len() * 4 + (self.slot.len() + self.owner.len()) * 4 + self.normals.len() * 12 + 16
-    }
-    relume_core::serde_codec!(check ShColumns::is_consistent);
-}
+use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
 /// Per scene vertex, the object it belongs to (the first triangle that uses it), if any.
 pub fn vertex_objects(scene: &Scene) -> Vec<Option<u32>> {
@@ -192,6 +122,7 @@ pub(crate) mod tests {
     use relume_base::math::rng::uniform;
     use relume_base::math::sh::sh_eval;
     use relume_base::testing::{first, i, run_on};
+    use relume_core::PortValue;
     use relume_core::Value;
 
     /// ∫ I U^ωi(F⁻¹ω, k) (ω·n)⁺ dω by a fine quadrature in world axes, I = Σ c_s Y_s.

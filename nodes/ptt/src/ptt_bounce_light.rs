@@ -1,80 +1,14 @@
 //! PttBounceLight node and its port type.
 
 use super::bounce::SH;
-use super::transfer_t1::BounceTransfer;
-use super::transfer_t2::TwoBounce;
+use super::types::BounceTransfer;
 use super::types::EnvLight;
+use super::types::TwoBounce;
+use crate::types::{BounceLight, LitCore};
 use glam::Vec3;
 use relume_base::math::cubemap::CubeView;
-use relume_core::codec::pod_vec;
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx};
-use serde::{Deserialize, Serialize};
-
-/// One cluster's one-bounce core under the current environment: per vertex factor a, per
-/// reflector slot r and SH coefficient q, RGB at `core[(a · slots + r) · 16 + q]`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct LitCore {
-    pub rank_v: u32,
-    #[serde(with = "pod_vec")]
-    pub core: Vec<Vec3>,
-}
-
-/// The bounced light of every vertex under the current environment, with the reflectors'
-/// materials still open ([S] 5-5, 5-6): what `PttIncident` weighs by the materials. Reflector
-/// slots: slot 0 the fixed objects together (their own reflectance folded in), slot 1 + j the
-/// j-th dynamic channel (group by group, `bases` each), weighted by its basis coefficient.
-/// `cores`: per cluster of `TransferT1`, the lighting-contracted core (`LitCore`); `pairs`:
-/// per vertex, the two-bounce light per reflector pair (r₁, r₂), RGB at
-/// `pairs[(v · slots + r₁) · slots + r₂]`, to be weighted by both slots' coefficients.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct BounceLight {
-    pub bounces: u32,
-    pub groups: Vec<String>,
-    pub bases: u32,
-    pub cores: Vec<LitCore>,
-    #[serde(with = "pod_vec")]
-    pub pairs: Vec<Vec3>,
-}
-
-impl BounceLight {
-    /// Reflector slots: the fixed objects, then every dynamic channel.
-    pub fn slots(&self) -> usize {
-        1 + self.groups.len() * self.bases as usize
-    }
-
-    /// Vertex `v`'s pairs (slots² RGB values).
-    pub fn pairs_of(&self, v: usize) -> &[Vec3] {
-        let s2 = self.slots() * self.slots();
-        &self.pairs[v * s2..(v + 1) * s2]
-    }
-
-    /// Bytes for `vertices` with one-bounce cores of `core_rows` vertex factors in all, at
-    /// `slots` reflector slots and `bounces`.
-    pub fn bytes_for(vertices: u64, core_rows: u64, slots: u64, bounces: u32) -> u64 {
-        let cores = if bounces >= 1 { core_rows.saturating_mul(slots).saturating_mul(SH as u64) } else { 0 };
-        let pairs = if bounces == 2 { vertices.saturating_mul(slots * slots) } else { 0 };
-        cores.saturating_add(pairs).saturating_mul(12).saturating_add(64)
-    }
-
-    fn is_consistent(&self) -> bool {
-        let s = self.slots();
-        self.bounces <= 2
-            && self.pairs.len().is_multiple_of(s * s)
-            && self.cores.iter().all(|c| c.core.len() == c.rank_v as usize * s * SH && c.core.iter().all(|v| v.is_finite()))
-            && self.pairs.iter().all(|v| v.is_finite())
-    }
-}
-
-impl PortValue for BounceLight {
-    const NAME: &'static str = "BounceLight";
-    const COLOR: [u8; 3] = [240, 170, 110];
-    const DOC: &'static str = "the bounced light under the current environment, per reflector slot, before the materials weigh it";
-    fn byte_size(&self) -> usize {
-        (self.cores.iter().map(|c| c.core.len()).sum::<usize>() + self.pairs.len()) * 12 + 64
-    }
-    relume_core::serde_codec!(check BounceLight::is_consistent);
-}
 
 /// The environment at side `m` as box-basis weights per colour (`CubeMap::box_downsample`).
 fn box_light(env: &EnvLight, m: usize) -> Result<Vec<Vec3>, NodeError> {

@@ -1,50 +1,11 @@
 //! PttDirect node and its port type.
 
-use super::incident_projection::{ShColumns, NO_SLOT};
-use super::transfer_t0::DirectTransfer;
 use super::types::EnvLight;
+use super::types::{ShColumns, NO_SLOT};
+use crate::types::{DirectLight, DirectTransfer};
 use glam::Vec3;
-use relume_core::codec::pod_vec;
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx};
-use serde::{Deserialize, Serialize};
-
-/// The environment's direct light at every vertex ([S] 5-7): `irradiance[v]` E⁰ (RGB) and,
-/// for the vertices shaded with the BRDF tensor (slots of `ShColumns`), `tensor` the direct
-/// light against each column of the tensor's incoming factor, U^{I0} (slot t's `columns`
-/// values at `tensor[t · columns ..]`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct DirectLight {
-    pub columns: u32,
-    #[serde(with = "pod_vec")]
-    pub irradiance: Vec<Vec3>,
-    #[serde(with = "pod_vec")]
-    pub tensor: Vec<Vec3>,
-}
-
-impl DirectLight {
-    /// Bytes held for `vertices` with `slots` shaded by `columns` columns.
-    pub fn bytes_for(vertices: u64, slots: u64, columns: u64) -> u64 {
-        vertices.saturating_add(slots.saturating_mul(columns)).saturating_mul(12).saturating_add(16)
-    }
-
-    fn is_consistent(&self) -> bool {
-        self.columns > 0
-            && self.tensor.len().is_multiple_of(self.columns as usize)
-            && self.irradiance.iter().chain(&self.tensor).all(|v| v.is_finite())
-    }
-}
-
-impl PortValue for DirectLight {
-    const NAME: &'static str = "DirectLight";
-    const COLOR: [u8; 3] = [250, 220, 100];
-    const DOC: &'static str = "per vertex, the environment's direct light: irradiance and the BRDF tensor's incoming columns";
-    fn byte_size(&self) -> usize {
-        Self::bytes_for(self.irradiance.len() as u64, (self.tensor.len() / self.columns.max(1) as usize) as u64, self.columns as u64)
-            as usize
-    }
-    relume_core::serde_codec!(check DirectLight::is_consistent);
-}
 
 /// The direct light at every vertex under the current environment ([S] 5-7; the part of the
 /// incident light that the dynamic objects' materials do not reach): per vertex, the

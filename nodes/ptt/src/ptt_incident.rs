@@ -1,65 +1,18 @@
 use super::bounce::SH;
-use super::incident_projection::{ShColumns, NO_SLOT};
-use super::ptt_bounce_light::BounceLight;
-use super::ptt_direct::DirectLight;
-use super::transfer_t1::BounceTransfer;
+use super::types::BounceLight;
+use super::types::BounceTransfer;
+use super::types::DirectLight;
+use super::types::{ShColumns, NO_SLOT};
+use crate::types::VertexIncident;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 use glam::Vec3;
 use rayon::prelude::*;
 use relume_base::math::sh::{clamped_cosine_zonal, sh_basis_into, Y00};
 use relume_base::types::ObjectMaterials;
-use relume_core::codec::pod_vec;
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx};
-use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;
-
-/// The light arriving at every vertex, view-independent ([S] 5-5, 5-6): `irradiance[v]` the
-/// diffuse part's E = E⁰ + E¹ + E² (∫ incident radiance × (ω · n)⁺, RGB); for the vertices
-/// shaded with the BRDF tensor (slots of `ShColumns`, same numbering), `tensor` the incident
-/// light against each column of its incoming factor, U^I_k = U^{I0}_k + U^{I1}_k + U^{I2}_k
-/// (slot t's n_ωi values at `tensor[t · columns ..]`), and `bounce` the one-bounce light's
-/// 4-band SH in world axes (slot t's 16 at `bounce[t · 16 ..]`) that the specular lobes
-/// filter (two-bounce light gets no lobe, [S] 5.3.3.5).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct VertexIncident {
-    pub columns: u32,
-    pub bounces: u32,
-    #[serde(with = "pod_vec")]
-    pub irradiance: Vec<Vec3>,
-    #[serde(with = "pod_vec")]
-    pub tensor: Vec<Vec3>,
-    #[serde(with = "pod_vec")]
-    pub bounce: Vec<Vec3>,
-}
-
-impl VertexIncident {
-    /// Bytes held for `vertices` with `slots` shaded by `columns` columns.
-    pub fn bytes_for(vertices: u64, slots: u64, columns: u64) -> u64 {
-        vertices.saturating_mul(12).saturating_add(slots.saturating_mul(columns + SH as u64).saturating_mul(12)).saturating_add(32)
-    }
-
-    fn is_consistent(&self) -> bool {
-        let c = self.columns as usize;
-        let slots = self.bounce.len() / SH;
-        self.bounce.len().is_multiple_of(SH)
-            && self.tensor.len() == slots * c
-            && self.bounces <= 2
-            && self.irradiance.iter().chain(&self.tensor).chain(&self.bounce).all(|v| v.is_finite())
-    }
-}
-
-impl PortValue for VertexIncident {
-    const NAME: &'static str = "VertexIncident";
-    const COLOR: [u8; 3] = [250, 200, 120];
-    const DOC: &'static str =
-        "per vertex, the incident light: diffuse irradiance, the BRDF tensor's incoming columns and the one-bounce SH";
-    fn byte_size(&self) -> usize {
-        (self.irradiance.len() + self.tensor.len() + self.bounce.len()) * 12 + 16
-    }
-    relume_core::serde_codec!(check VertexIncident::is_consistent);
-}
 
 /// The light arriving at every vertex under the current environment and materials ([S] 5-5,
 /// 5-6; the view-independent half of the relighting, and the only part of it a material edit

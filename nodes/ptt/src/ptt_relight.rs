@@ -1,10 +1,10 @@
 use super::bounce::SH;
 use super::brdf::types::{Blend, BrdfFamily, MaterialParam, SpecularLobes, TuckerBrdf, MAX_LOBES};
-use super::incident_projection::{ShColumns, NO_OWNER, NO_SLOT};
-use super::ptt_incident::VertexIncident;
 use super::screen_hits::ScreenHits;
-use super::transfer_t0::LobeVisibility;
+use super::types::LobeVisibility;
+use super::types::VertexIncident;
 use super::types::{EnvLight, VertexColors, Visibility};
+use super::types::{ShColumns, NO_OWNER, NO_SLOT};
 use super::vertices::vertex_frame;
 use glam::Vec3;
 use relume_base::math::cubemap::{CubeAt, CubeView, Taps};

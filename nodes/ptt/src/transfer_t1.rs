@@ -1,6 +1,7 @@
 use super::bounce::{Bounce, SH};
 use super::channels::Channels;
 use super::types::{CtaPlan, Visibility};
+use crate::types::BounceTransfer;
 use relume_base::math::cta::{compress, ClusterTensor};
 use relume_base::types::{Accel, BrdfBasis, Scene};
 use relume_core::memory::fmt_bytes;
@@ -47,50 +48,6 @@ impl PortValue for ClusterPart {
         self.tensor.floats() * 4 + 64
     }
     relume_core::serde_codec!();
-}
-
-/// The compressed one-bounce transfer of every vertex: per cluster of `plan`, its tensor
-/// approximation over (member, lighting basis, channel × 16 SH); `fixed`, `groups` and
-/// `bases` give the channel layout (`ptt::channels`), `coarse` the lighting cube's side.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct BounceTransfer {
-    pub coarse: u32,
-    pub fixed: u32,
-    pub groups: Vec<String>,
-    pub bases: u32,
-    pub plan: CtaPlan,
-    pub clusters: Vec<ClusterTensor>,
-}
-
-impl BounceTransfer {
-    /// Channels in all.
-    pub fn channels(&self) -> usize {
-        self.fixed as usize + self.groups.len() * self.bases as usize
-    }
-    fn is_consistent(&self) -> bool {
-        let (l, s) = (6 * (self.coarse as usize).pow(2), self.channels() * SH);
-        self.clusters.len() == self.plan.members.len()
-            && self.clusters.iter().zip(&self.plan.members).all(|(t, m)| {
-                let (rv, rl) = (t.rank_v as usize, t.rank_l as usize);
-                t.vertices as usize == m.len()
-                    && t.lights as usize == l
-                    && t.columns as usize == s
-                    && t.a.len() == m.len() * rv
-                    && t.b.len() == rl * l
-                    && t.core.len() == rv * rl * s
-                    && t.a.iter().chain(&t.b).chain(&t.core).all(|x| x.is_finite())
-            })
-    }
-}
-
-impl PortValue for BounceTransfer {
-    const NAME: &'static str = "BounceTransfer";
-    const COLOR: [u8; 3] = [170, 140, 230];
-    const DOC: &'static str = "the one-bounce transfer tensors of every vertex, compressed per cluster";
-    fn byte_size(&self) -> usize {
-        self.clusters.iter().map(|t| t.floats() * 4 + 64).sum::<usize>() + self.plan.byte_size()
-    }
-    relume_core::serde_codec!(check BounceTransfer::is_consistent);
 }
 
 impl TransferT1 {

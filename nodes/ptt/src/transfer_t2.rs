@@ -1,16 +1,15 @@
 use super::bounce::SH;
 use super::channels::Channels;
-use super::transfer_t1::BounceTransfer;
+use super::types::BounceTransfer;
 use super::types::Visibility;
 use super::vertices::ray_offset;
+use crate::types::TwoBounce;
 use glam::Vec3;
 use relume_base::math::cubemap::CubeMap;
 use relume_base::math::sh::{sh_basis_into, sh_clamped_cosine};
 use relume_base::types::{Accel, BrdfBasis, BrdfGrid, Material, Scene};
-use relume_core::codec::pod_vec;
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx, ShardSpec};
-use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;
 use std::ops::Range;
 
@@ -41,39 +40,6 @@ pub struct TransferT2 {
 
 inputs!(pub TransferT2In { scene: Scene, accel: Accel, visibility: Visibility, basis: BrdfBasis, bounce: BounceTransfer });
 outputs!(pub TransferT2Out { transfer: TwoBounce });
-
-/// Per vertex, T²(l, c₁, c₂) at `values[v · stride ..]`, laid out (l, c₁, c₂); `stride` =
-/// 6 side² × channels².
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct TwoBounce {
-    pub side: u32,
-    pub channels: u32,
-    #[serde(with = "pod_vec")]
-    pub values: Vec<f32>,
-}
-
-impl TwoBounce {
-    pub fn stride(&self) -> usize {
-        6 * (self.side as usize).pow(2) * (self.channels as usize).pow(2)
-    }
-    pub fn of(&self, v: usize) -> &[f32] {
-        let s = self.stride();
-        &self.values[v * s..(v + 1) * s]
-    }
-    fn is_consistent(&self) -> bool {
-        self.side > 0 && self.values.len().is_multiple_of(self.stride().max(1)) && self.values.iter().all(|x| x.is_finite())
-    }
-}
-
-impl PortValue for TwoBounce {
-    const NAME: &'static str = "TwoBounce";
-    const COLOR: [u8; 3] = [150, 120, 210];
-    const DOC: &'static str = "the two-bounce transfer of every vertex (a scalar per lighting basis and reflector pair)";
-    fn byte_size(&self) -> usize {
-        self.values.len() * 4 + 16
-    }
-    relume_core::serde_codec!(check TwoBounce::is_consistent);
-}
 
 /// Vertices per chunk (each chunk rebuilds the coarse one-bounce transfer of every vertex).
 const CHUNK: u64 = 8192;

@@ -1,6 +1,12 @@
 //! Port types of the transfer-tensor pipeline: the environment as the renderer reads it
 //! (`EnvLight`) and the vertices' visibility of it (`Visibility`).
 
+mod incident;
+mod transfer;
+
+pub use incident::{BounceLight, DirectLight, LitCore, ShColumns, VertexIncident, NO_OWNER, NO_SLOT};
+pub use transfer::{BounceTransfer, DirectTransfer, LobeVisibility, TwoBounce};
+
 use glam::Vec3;
 use relume_base::math::cubemap::CubeMap;
 use relume_core::codec::pod_vec;
@@ -238,4 +244,14 @@ impl PortValue for CtaPlan {
         self.vertices() * 4 + self.members.len() * 8 + 16
     }
     relume_core::serde_codec!(check CtaPlan::is_consistent);
+}
+
+/// The side of a lobe's prefiltered map: the coarsest power of two (at most `side`) whose
+/// texels, 90°/m wide at a face's centre, are at most half of σ.
+pub fn lobe_side(sigma_deg: f64, side: usize) -> usize {
+    let mut m = 1;
+    while m < side && 90.0 / m as f64 > 0.5 * sigma_deg {
+        m *= 2;
+    }
+    m.min(side)
 }
