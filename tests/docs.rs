@@ -38,11 +38,11 @@ fn nothing_points_outside_the_repository() {
     let mut all = Vec::new();
     files(&root(), &mut all);
     assert!(all.len() > 100, "found {} files", all.len());
-    let outside = ["../shared", "shared/spec", "shared/seeds"];
+    // Built from parts, so that this file does not hold what it looks for.
+    let outside = [["..", "/shared"].concat(), ["shared", "/spec"].concat(), ["shared", "/seeds"].concat()];
     let bad: Vec<String> = all
         .iter()
-        .filter(|p| !p.ends_with("tests/docs.rs"))
-        .filter(|p| std::fs::read_to_string(p).is_ok_and(|t| outside.iter().any(|o| t.contains(o))))
+        .filter(|p| std::fs::read_to_string(p).is_ok_and(|t| outside.iter().any(|o| t.contains(o.as_str()))))
         .map(|p| p.strip_prefix(root()).unwrap_or(p).display().to_string())
         .collect();
     assert!(bad.is_empty(), "files that point outside the repository: {bad:?}");

@@ -154,7 +154,7 @@ fn cache_keys_of_the_filters_graph_are_pinned() {
     assert_eq!(got, PINNED, "cache keys changed");
 }
 
-// Updated on purpose with the node API v2 (issue 10): an image's fingerprint is now the hash
+// Updated on purpose with the node API v2: an image's fingerprint is now the hash
 // of its disk encoding (type name, then the length-prefixed encoded bytes), so the key of
 // every node fed an image changed; the two sources, whose keys depend on their parameters
 // only, kept theirs (parameter hashing did not change, only its normalisation).

@@ -61,7 +61,7 @@ pub struct PointTree {
     /// twins) were kept apart: the root's two children, [the other points' subtree, theirs].
     /// The light an inner twin sends travels inside the glass only, so what sees the
     /// outside traverses the first and a glass point's view inward the second; a tree that
-    /// mixed them carried the light sent into the glass to receivers outside it (issue 17).
+    /// mixed them carried the light sent into the glass to receivers outside it.
     /// `None` when there are no such points or nothing else.
     #[serde(default)]
     pub sides: Option<[u32; 2]>,
