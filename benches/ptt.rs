@@ -9,7 +9,6 @@
 
 use relume_benches::graphs_dir;
 use relume_core::{Engine, Graph, RunOptions};
-use relume_ptt::test_size as ptt_test_size;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;
 
@@ -19,7 +18,10 @@ fn main() {
 
 /// Whether divan runs each bench once (`--test`).
 fn test_mode() -> bool {
-    std::env::args().any(|a| a == "--test")
+    // As divan decides: `cargo bench` passes --bench, `cargo bench -- --test` adds --test,
+    // `cargo test` passes neither.
+    let args: Vec<String> = std::env::args().collect();
+    args.iter().any(|a| a == "--test") || !args.iter().any(|a| a == "--bench")
 }
 
 /// ptt_envlit.ron: full size with the workspace's disk cache, or test size.
@@ -31,13 +33,9 @@ fn graph_and_engine() -> (Graph, Engine) {
         e = e.with_memory_budget(mb << 20);
     }
     if test_mode() {
+        g.shrink_to_test_size(&reg).unwrap();
         g.set_param_text(&reg, "scene.width", "24").unwrap();
         g.set_param_text(&reg, "scene.height", "24").unwrap();
-        for n in g.nodes.clone() {
-            for (param, value) in ptt_test_size(&n.kind) {
-                g.set_param_text(&reg, &format!("{}.{param}", n.id), value).unwrap();
-            }
-        }
         (g, e)
     } else {
         (g, e.with_disk_cache(graphs_dir().join("../.relume-cache")))

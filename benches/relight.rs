@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use relume_base::types::ObjectMaterials;
 use relume_benches::{add_output, bench_graph};
 use relume_core::{Engine, RunOptions};
-use relume_relight::relight::relight;
+use relume_relight::relight_pixels::relight;
 use relume_relight::types::Transfer;
 use std::sync::OnceLock;
 

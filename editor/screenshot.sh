@@ -6,14 +6,20 @@
 #   editor/screenshot.sh [GRAPH.ron] [OUT.png] [EDITOR OPTIONS]   (defaults: graphs/pbgi_cornell.ron docs/editor.png)
 #   editor/screenshot.sh graphs/pbgi_cornell.ron docs/editor.png --select gather
 #
-# Needs Xvfb and Mesa: `apt-get install xvfb xauth libgl1-mesa-dri`.
+# Needs Xvfb and Mesa: `apt-get install xvfb xauth libgl1-mesa-dri`. With RELUME_EDITOR set to
+# an editor binary (CI passes the one `cargo test --workspace --release` built), that one runs
+# and nothing is built.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 graph="${1:-graphs/pbgi_cornell.ron}"
 out="${2:-docs/editor.png}"
 mkdir -p "$(dirname "$out")"
-cargo build --release -p relume-editor
+editor="${RELUME_EDITOR:-}"
+if [ -z "$editor" ]; then
+  cargo build --release -p relume-editor
+  editor=target/release/relume-editor
+fi
 # Software rendering: there is no GPU under Xvfb.
 export LIBGL_ALWAYS_SOFTWARE=1
 shift $(( $# > 2 ? 2 : $# ))
-xvfb-run -a -s "-screen 0 1400x900x24" target/release/relume-editor "$graph" --screenshot "$out" --timeout 900 "$@"
+xvfb-run -a -s "-screen 0 1400x900x24" "$editor" "$graph" --screenshot "$out" --timeout 900 "$@"

@@ -2,12 +2,12 @@
 //! with one thread and with two, every output compared byte for byte.
 
 use relume_core::{Engine, RunOptions};
-use relume_tests::{all_graphs, determinism_size};
+use relume_tests::{all_graphs, at_test_size};
 
 #[test]
 fn every_graph_gives_the_same_bytes_on_one_thread_and_on_two() {
     for path in all_graphs() {
-        let g = determinism_size(&path);
+        let g = at_test_size(&path);
         let run = |threads| {
             let e = Engine::new(relume_cli::registry()).with_threads(threads).with_parallelism(threads);
             e.run(&g, &RunOptions::default()).unwrap_or_else(|err| panic!("{}: {err}", path.display()))

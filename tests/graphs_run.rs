@@ -2,42 +2,14 @@
 
 use relume_base::types::{Image, Metrics};
 use relume_core::{Graph, RunOptions};
-use relume_tests::{all_graphs, engine, graphs_dir, ptt_test_size};
+use relume_tests::{all_graphs, at_test_size, engine, graphs_dir};
 
 #[test]
 fn every_graph_in_graphs_runs_and_its_outputs_are_finite() {
-    let reg = relume_cli::registry();
     let e = engine();
     for path in all_graphs() {
-        let mut g = Graph::load(&path, &reg).unwrap_or_else(|err| panic!("{err}"));
-        // Turn the expensive knobs down: every graph runs, at test size.
-        for n in g.nodes.clone() {
-            match n.kind.as_str() {
-                "LoadScene" => {
-                    g.set_param_text(&reg, &format!("{}.width", n.id), "24").unwrap();
-                    g.set_param_text(&reg, &format!("{}.height", n.id), "24").unwrap();
-                }
-                "PathTrace" => g.set_param_text(&reg, &format!("{}.spp", n.id), "4").unwrap(),
-                "TransferPrecompute" => {
-                    g.set_param_text(&reg, &format!("{}.spp", n.id), "2").unwrap();
-                    g.set_param_text(&reg, &format!("{}.bounce_rays", n.id), "2").unwrap();
-                }
-                "SvTransferPrecompute" => {
-                    g.set_param_text(&reg, &format!("{}.spp", n.id), "2").unwrap();
-                    g.set_param_text(&reg, &format!("{}.bounce_rays", n.id), "2").unwrap();
-                    g.set_param_text(&reg, &format!("{}.sub_regions", n.id), "4").unwrap();
-                }
-                "SampleSurface" => g.set_param_text(&reg, &format!("{}.count", n.id), "2000").unwrap(),
-                "Voxelize" | "VolumeSource" => g.set_param_text(&reg, &format!("{}.resolution", n.id), "32").unwrap(),
-                "SurfelWavelets" => g.set_param_text(&reg, &format!("{}.resolution", n.id), "16").unwrap(),
-                "EmitPhotons" => g.set_param_text(&reg, &format!("{}.resolution", n.id), "64").unwrap(),
-                kind => {
-                    for (param, value) in ptt_test_size(kind) {
-                        g.set_param_text(&reg, &format!("{}.{param}", n.id), value).unwrap();
-                    }
-                }
-            }
-        }
+        // The expensive knobs turned down to their declared test values: every graph runs.
+        let g = at_test_size(&path);
         let r = e.run(&g, &RunOptions::default()).unwrap_or_else(|err| panic!("{}: {err}", path.display()));
         assert_eq!(r.outputs.len(), g.outputs.len(), "{}", path.display());
         for (name, v) in &r.outputs {

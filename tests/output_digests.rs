@@ -5,14 +5,14 @@
 //! (`RELUME_DIGESTS=FILE` also writes the listing to FILE).
 
 use relume_core::{Engine, RunOptions};
-use relume_tests::{all_graphs, determinism_size};
+use relume_tests::{all_graphs, at_test_size};
 
 #[test]
 #[ignore = "a listing to compare by hand across a change; run with --ignored"]
 fn output_digests() {
     let mut listing = String::new();
     for path in all_graphs() {
-        let g = determinism_size(&path);
+        let g = at_test_size(&path);
         let e = Engine::new(relume_cli::registry()).with_threads(2).with_parallelism(2);
         let r = e.run(&g, &RunOptions::default()).unwrap_or_else(|err| panic!("{}: {err}", path.display()));
         let name = path.file_name().unwrap().to_string_lossy();

@@ -3,7 +3,7 @@
 //! entry of each type is a miss that is recomputed, never a crash.
 
 use relume_core::{DiskPolicy, Engine, Graph, Hash, RunOptions};
-use relume_tests::{add_output, files_under, load_graph, ptt_test_size};
+use relume_tests::{add_output, files_under, load_graph, load_test_graph};
 use std::collections::BTreeSet;
 
 /// `pbgi_vs_reference.ron` at test size with every output port of every node as an output:
@@ -77,12 +77,7 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
     ));
     let re = first.run(&e, &RunOptions::default()).unwrap();
     // The transfer tensors of pipeline 2 at test size, precompute to relit image.
-    let mut f = load_graph("ptt_envlit.ron", &[("reference.spp", "1"), ("scene.width", "8"), ("scene.height", "8")]);
-    for n in f.nodes.clone() {
-        for (param, value) in ptt_test_size(&n.kind) {
-            f.set_param_text(&reg, &format!("{}.{param}", n.id), value).unwrap();
-        }
-    }
+    let f = load_test_graph("ptt_envlit.ron", &[("reference.spp", "1"), ("scene.width", "8"), ("scene.height", "8")]);
     let f = every_port(f);
     let rf = first.run(&f, &RunOptions::default()).unwrap();
     // The wavelet PBGI's per-point wavelets and coded tree from the ring's graph.

@@ -3,12 +3,11 @@
 
 use relume_base::types::Image;
 use relume_core::{Engine, Graph, RunOptions};
-use relume_tests::{load_graph, ptt_test_size, ran};
+use relume_tests::{load_test_graph, ran};
 
 /// A pipeline-2 graph (`ptt_envlit.ron` or its Cook-Torrance variant) at test size.
 fn small_ptt(name: &str) -> Graph {
-    let reg = relume_cli::registry();
-    let mut g = load_graph(
+    load_test_graph(
         name,
         &[
             ("scene.width", "24"),
@@ -18,13 +17,7 @@ fn small_ptt(name: &str) -> Graph {
             ("vertex_reference.spp", "2"),
             ("ref_hits.spp", "2"),
         ],
-    );
-    for n in g.nodes.clone() {
-        for (param, value) in ptt_test_size(&n.kind) {
-            g.set_param_text(&reg, &format!("{}.{param}", n.id), value).unwrap();
-        }
-    }
-    g
+    )
 }
 
 /// Runs `name` at test size, then orbits, edits the bunny's material with `material` (a

@@ -249,27 +249,21 @@ pub fn small_cornell() -> relume_base::types::Scene {
     s
 }
 
-/// Test-size parameters of the transfer-tensor nodes (`relume_ptt::test_size`).
-pub use relume_ptt::test_size as ptt_test_size;
-
-/// A graph of `graphs/` at the small size the determinism and output-digest runs use.
-pub fn determinism_size(path: &std::path::Path) -> Graph {
+/// A graph of `graphs/` at test size: every parameter with a declared test value
+/// (`#[param(test = …)]`) turned to it.
+pub fn at_test_size(path: &std::path::Path) -> Graph {
     let reg = relume_cli::registry();
     let mut g = Graph::load(path, &reg).unwrap_or_else(|e| panic!("{e}"));
-    for n in g.nodes.clone() {
-        let set = |g: &mut Graph, p: &str, v: &str| g.set_param_text(&reg, &format!("{}.{p}", n.id), v).unwrap();
-        match n.kind.as_str() {
-            "LoadScene" => {
-                set(&mut g, "width", "24");
-                set(&mut g, "height", "20");
-            }
-            "PathTrace" => set(&mut g, "spp", "4"),
-            "SampleSurface" => set(&mut g, "count", "3000"),
-            "DirectLight" => set(&mut g, "pixel_samples", "4"),
-            "Voxelize" | "VolumeSource" => set(&mut g, "resolution", "32"),
-            "EmitPhotons" => set(&mut g, "resolution", "64"),
-            kind => relume_ptt::test_size(kind).iter().for_each(|(p, v)| set(&mut g, p, v)),
-        }
+    g.shrink_to_test_size(&reg).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    g
+}
+
+/// `name` from `graphs/` at test size, then `sets` applied over it (as `load_graph`).
+pub fn load_test_graph(name: &str, sets: &[(&str, &str)]) -> Graph {
+    let reg = relume_cli::registry();
+    let mut g = at_test_size(&graphs_dir().join(name));
+    for (k, v) in sets {
+        g.set_param_text(&reg, k, v).unwrap_or_else(|e| panic!("--set {k}={v}: {e}"));
     }
     g
 }

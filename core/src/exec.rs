@@ -497,6 +497,15 @@ impl Engine {
                     }
                 }
                 let (metrics, notes, deps) = cx.take();
+                // A metric the node does not declare could not be put on a sweep's axis, nor
+                // found in the catalogue: a defect of the node, refused so that tests catch it.
+                if let Some((name, _)) = metrics.iter().find(|(m, _)| !n.kind.metrics().contains(&m.as_str())) {
+                    return Err(NodeError::failed(format!(
+                        "{} recorded the metric `{name}`, which it does not declare (#[node(metrics = […])] lists: {})",
+                        n.kind.kind(),
+                        n.kind.metrics().join(", ")
+                    )));
+                }
                 Ok((CacheEntry { outputs, metrics, notes, deps, compute_ms: 0.0 }, shards))
             }
             Ok(Err(e)) => Err(e),

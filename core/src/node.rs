@@ -45,6 +45,10 @@ pub trait Node: Params + Documented + Send + Sync + 'static {
     /// Palette category in the editor (e.g. "image", "scene").
     const CATEGORY: &'static str;
     const CACHING: Caching;
+    /// The names of the metrics a run may record with `cx.metric` (what a sweep may put on
+    /// its error axis), declared with `#[node(metrics = […])]`; the executor refuses a run
+    /// that records a name not listed.
+    const METRICS: &'static [&'static str] = &[];
     type Inputs<'a>: InputPorts<'a>;
     type Outputs: OutputPorts;
     fn run(&self, inputs: Self::Inputs<'_>, cx: &RunCtx) -> Result<Self::Outputs, NodeError>;
@@ -83,6 +87,10 @@ pub trait DynNode: Send + Sync {
     fn ports(&self) -> &Ports;
     fn schema(&self) -> &Schema;
     fn caching(&self) -> Caching;
+    /// The metric names a run may record (`Node::METRICS`).
+    fn metrics(&self) -> &'static [&'static str] {
+        &[]
+    }
     /// Runs the node; outputs in declaration order.
     fn run(&self, params: &ParamValues, inputs: &[Value], cx: &RunCtx) -> Result<Vec<Value>, NodeError>;
     /// The node's memory estimate for these parameters and input sizes.
@@ -132,6 +140,9 @@ impl<N: Node> DynNode for NodeEntry<N> {
     }
     fn caching(&self) -> Caching {
         N::CACHING
+    }
+    fn metrics(&self) -> &'static [&'static str] {
+        N::METRICS
     }
     fn run(&self, params: &ParamValues, inputs: &[Value], cx: &RunCtx) -> Result<Vec<Value>, NodeError> {
         run_typed::<N>(params, inputs, cx)

@@ -67,6 +67,10 @@ pub struct ParamSpec {
     pub default: Option<ParamValue>,
     pub unit: &'static str,
     pub help: &'static str,
+    /// The value tests, CI and the benches' test mode run at (`#[param(test = …)]`): the
+    /// expensive knobs turned down so that every graph runs in seconds. `None`: the graph's own
+    /// value is cheap enough.
+    pub test: Option<ParamValue>,
 }
 
 /// A parameter value as written in a graph file.
@@ -213,7 +217,7 @@ impl Schema {
     }
     fn push(mut self, name: &'static str, kind: ParamKind, default: Option<ParamValue>) -> Self {
         debug_assert!(self.get(name).is_none(), "parameter {name} declared twice");
-        self.0.push(ParamSpec { name, kind, default, unit: "", help: "" });
+        self.0.push(ParamSpec { name, kind, default, unit: "", help: "", test: None });
         self
     }
     pub fn float(self, name: &'static str, default: f64, min: f64, max: f64) -> Self {

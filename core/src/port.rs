@@ -51,14 +51,19 @@ macro_rules! serde_codec {
     // Decoding keeps only values that pass `$check` (`fn(&Self) -> bool`): a loader that
     // never hands on an inconsistent value.
     (check $check:path) => {
+        $crate::serde_codec!(check $check, own fingerprint);
+        fn fingerprint(&self) -> $crate::Hash {
+            $crate::codec::fingerprint(Self::NAME, self)
+        }
+    };
+    // As `check`, for a type that computes its fingerprint its own way (faster than hashing
+    // the encoding, e.g. straight from a flat array); the impl block then writes it.
+    (check $check:path, own fingerprint) => {
         fn encode(&self) -> Vec<u8> {
             $crate::codec::to_bytes(self)
         }
         fn decode(bytes: &[u8]) -> Option<Self> {
             $crate::codec::from_bytes::<Self>(bytes).filter($check)
-        }
-        fn fingerprint(&self) -> $crate::Hash {
-            $crate::codec::fingerprint(Self::NAME, self)
         }
     };
 }
@@ -238,7 +243,8 @@ pub fn input_at<'a, T: PortValue>(values: &'a [Value], i: usize, name: &str) -> 
 /// image: Image });` gives `BlurIn<'a> { pub image: &'a Image }`.
 #[macro_export]
 macro_rules! inputs {
-    ($vis:vis $name:ident { $($(#[$m:meta])* $port:ident : $ty:ty),+ $(,)? }) => {
+    ($(#[$sm:meta])* $vis:vis $name:ident { $($(#[$m:meta])* $port:ident : $ty:ty),+ $(,)? }) => {
+        $(#[$sm])*
         $vis struct $name<'a> { $($(#[$m])* pub $port: &'a $ty,)+ }
         impl<'a> $crate::InputPorts<'a> for $name<'a> {
             fn decls() -> Vec<$crate::PortDecl> {
@@ -256,7 +262,8 @@ macro_rules! inputs {
 /// `outputs!(pub BlurOut { image: Image });`.
 #[macro_export]
 macro_rules! outputs {
-    ($vis:vis $name:ident { $($(#[$m:meta])* $port:ident : $ty:ty),+ $(,)? }) => {
+    ($(#[$sm:meta])* $vis:vis $name:ident { $($(#[$m:meta])* $port:ident : $ty:ty),+ $(,)? }) => {
+        $(#[$sm])*
         $vis struct $name { $($(#[$m])* pub $port: $ty,)+ }
         impl $crate::OutputPorts for $name {
             fn decls() -> Vec<$crate::PortDecl> {

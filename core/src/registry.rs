@@ -32,6 +32,10 @@ impl Registry {
             self.add_port_type(s.partial_decl().ty);
         }
         let kind = node.kind();
+        let names = &node.schema().0;
+        if let Some((i, p)) = names.iter().enumerate().find(|(i, p)| names[..*i].iter().any(|q| q.name == p.name)) {
+            panic!("node kind {kind} declares the parameter `{}` twice (the {i}th: a flattened group repeats it?)", p.name);
+        }
         assert!(self.nodes.insert(kind, node).is_none(), "node kind {kind} registered twice");
         self
     }

@@ -1,5 +1,6 @@
-//! The node API end to end: `derive(Params)`, `derive(ParamEnum)`, `inputs!`/`outputs!`,
-//! `#[node]`, and parameter values normalised once into one cache key.
+//! The node API end to end: `derive(Params)` (with test values and flattened groups),
+//! `derive(ParamEnum)`, ports from `run`'s signature or from `inputs!`/`outputs!`, `#[node]`
+//! with its declared metrics, and parameter values normalised once into one cache key.
 
 use relume_core::{
     inputs, node, outputs, Engine, Graph, NodeError, ParamEnum, ParamKind, ParamValue, Params, PortValue, Registry, RunCtx, RunOptions,
@@ -163,16 +164,23 @@ fn enum_variants_are_listed_once_and_unknown_names_are_refused() {
     assert!(err.contains("`Div` is not one of Add, Mul"), "{err}");
 }
 
-fn graph(apply_params: &str) -> Graph {
+/// Two sources, `a` with value `a`, `b` with its default 1, into node "x" of `kind` with
+/// `params`; the graph outputs are x's ports `outputs`.
+fn two_sources_into(a: f64, kind: &str, params: &str, outputs: [&str; 2]) -> Graph {
+    let [o1, o2] = outputs;
     Graph::parse(
         &format!(
-            r#"(version: 1, nodes: {{ "a": (kind: "Source", params: (value: 2)), "b": (kind: "Source", params: ()),
-               "x": (kind: "Apply", params: ({apply_params})) }},
-               edges: [("a.out", "x.a"), ("b.out", "x.b")], outputs: {{ "out": "x.out", "twice": "x.twice" }})"#
+            r#"(version: 1, nodes: {{ "a": (kind: "Source", params: (value: {a})), "b": (kind: "Source", params: ()),
+               "x": (kind: "{kind}", params: ({params})) }},
+               edges: [("a.out", "x.a"), ("b.out", "x.b")], outputs: {{ "{o1}": "x.{o1}", "{o2}": "x.{o2}" }})"#
         ),
         None,
     )
     .unwrap()
+}
+
+fn graph(apply_params: &str) -> Graph {
+    two_sources_into(2.0, "Apply", apply_params, ["out", "twice"])
 }
 
 fn key_of(g: &Graph) -> String {
@@ -239,4 +247,126 @@ fn a_rerun_that_reproduces_its_bytes_cuts_off_downstream_unless_its_node_is_keye
         let again = Engine::new(registry()).run(&floor_graph(kind, 2.75), &RunOptions::default()).unwrap();
         assert_eq!(fp(&again), fp(&second), "{kind}");
     }
+}
+
+/// A group of parameters two nodes share, declared once.
+#[derive(Clone, Copy, Debug, PartialEq, Params)]
+pub struct Counts {
+    /// samples
+    #[param(default = 16, range = 1..=1024, test = 2)]
+    pub spp: u32,
+    /// random seed
+    #[param(default = 0, range = 0..=99)]
+    pub seed: u64,
+}
+
+/// Splits a number into its whole and fractional parts, scaled (ports from the signature).
+#[derive(Params)]
+pub struct Split {
+    /// a scale
+    #[param(default = 1.0, range = 0.0..=10.0, test = 0.5)]
+    pub scale: f64,
+    /// the shared group
+    #[param(flatten)]
+    pub counts: Counts,
+}
+
+#[node(category = "test", metrics = ["whole"], outputs = [whole, frac])]
+impl Split {
+    fn run(&self, a: &Num, b: &Num, cx: &RunCtx) -> Result<(Num, Num), NodeError> {
+        let v = (a.0 + b.0) * self.scale + self.counts.spp as f64 * 0.0;
+        cx.metric("whole", v.floor());
+        Ok((Num(v.floor()), Num(v - v.floor())))
+    }
+}
+
+/// Records a metric it does not declare.
+#[derive(Params)]
+pub struct Undeclared {}
+
+#[node(category = "test", metrics = ["declared"], outputs = [out])]
+impl Undeclared {
+    fn run(&self, cx: &RunCtx) -> Result<Num, NodeError> {
+        cx.metric("declared", 1.0);
+        cx.metric("other", 2.0);
+        Ok(Num(0.0))
+    }
+}
+
+fn split_graph(params: &str) -> Graph {
+    two_sources_into(2.25, "Split", params, ["whole", "frac"])
+}
+
+#[test]
+fn ports_come_from_runs_signature_and_outputs_from_its_result() {
+    let mut reg = registry();
+    reg.add::<Split>();
+    let ports = reg.node("Split").unwrap().ports();
+    let names = |p: &[relume_core::PortDecl]| p.iter().map(|d| (d.name.to_string(), d.ty.name)).collect::<Vec<_>>();
+    assert_eq!(names(&ports.inputs), [("a".to_string(), "Num"), ("b".to_string(), "Num")]);
+    assert_eq!(names(&ports.outputs), [("whole".to_string(), "Num"), ("frac".to_string(), "Num")]);
+    let r = Engine::new(reg).run(&split_graph("scale: 2"), &RunOptions::default()).unwrap();
+    assert_eq!(r.output("whole").unwrap().get::<Num>(), Some(&Num(6.0)), "(2.25 + 1) × 2 = 6.5");
+    assert_eq!(r.output("frac").unwrap().get::<Num>(), Some(&Num(0.5)));
+    assert_eq!(r.report.node("x").unwrap().metrics["whole"], 6.0);
+    // The written function stays callable with plain references.
+    let s = Split { scale: 1.0, counts: Counts { spp: 1, seed: 0 } };
+    let cancel = relume_core::CancelToken::new();
+    let (w, f) = s.run_ports(&Num(1.5), &Num(1.0), &RunCtx::new("s", &cancel, None)).unwrap();
+    assert_eq!((w, f), (Num(2.0), Num(0.5)));
+}
+
+#[test]
+fn a_flattened_group_lists_its_parameters_as_the_nodes_own() {
+    let s = Split::schema();
+    let names: Vec<&str> = s.0.iter().map(|p| p.name).collect();
+    assert_eq!(names, ["scale", "spp", "seed"]);
+    let mut reg = registry();
+    reg.add::<Split>();
+    let mut g = split_graph("spp: 5, seed: 7");
+    g.validate(&reg).unwrap();
+    assert_eq!(g.node("x").unwrap().param("spp"), Some(&ParamValue::Int(5)));
+    let err = split_graph("spp: 0").validate(&reg).unwrap_err().to_string();
+    assert!(err.contains("spp") && err.contains("out of range [1, 1024]"), "{err}");
+    // Test values come from both the node's fields and the group's.
+    g.shrink_to_test_size(&reg).unwrap();
+    let s = g.node("x").unwrap();
+    assert_eq!(
+        (s.param("scale"), s.param("spp"), s.param("seed")),
+        (Some(&ParamValue::Float(0.5)), Some(&ParamValue::Int(2)), Some(&ParamValue::Int(7)))
+    );
+}
+
+#[test]
+#[should_panic(expected = "declares the parameter `spp` twice")]
+fn a_parameter_declared_twice_through_a_group_is_refused_at_registration() {
+    /// Repeats the group's `spp`.
+    #[derive(Params)]
+    #[allow(dead_code)]
+    pub struct Twice {
+        /// again
+        #[param(default = 1, range = 1..=2)]
+        pub spp: u32,
+        /// the group
+        #[param(flatten)]
+        pub counts: Counts,
+    }
+    #[node(category = "test", outputs = [out])]
+    impl Twice {
+        fn run(&self, _cx: &RunCtx) -> Result<Num, NodeError> {
+            Ok(Num(0.0))
+        }
+    }
+    Registry::new().add::<Twice>();
+}
+
+#[test]
+fn a_metric_the_node_does_not_declare_fails_the_run() {
+    let mut reg = Registry::new();
+    reg.add::<Undeclared>();
+    assert_eq!(reg.node("Undeclared").unwrap().metrics(), ["declared"]);
+    let g = Graph::parse(r#"(version: 1, nodes: { "u": (kind: "Undeclared", params: ()) }, edges: [], outputs: { "o": "u.out" })"#, None)
+        .unwrap();
+    let err = Engine::new(reg).run(&g, &RunOptions::default()).err().unwrap().to_string();
+    assert!(err.contains("recorded the metric `other`, which it does not declare") && err.contains("lists: declared"), "{err}");
 }

@@ -3,6 +3,7 @@
 
 The layers, from the ground up (docs/ARCHITECTURE.md draws them):
   relume-macros, relume-core       the node-graph engine; no rendering
+  relume-build                     a build-script helper: each node crate's registration
   relume-base                      math, BRDFs, shared port types, render library, shared nodes
   relume-pbgi, relume-relight,     one crate per pipeline family: each depends on core and base
   relume-ptt, relume-volume        only, never on another pipeline
@@ -21,6 +22,7 @@ PIPELINES = {'relume-pbgi', 'relume-relight', 'relume-ptt', 'relume-volume'}
 APPS = {'relume-cli', 'relume-editor', 'relume-tests', 'relume-benches'}
 ALLOWED = {
     'relume-macros': set(),
+    'relume-build': set(),
     'relume-core': {'relume-macros'},
     'relume-base': {'relume-core'},
     **{p: {'relume-core', 'relume-base'} for p in PIPELINES},

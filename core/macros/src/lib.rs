@@ -1,12 +1,14 @@
 //! Procedural macros behind relume's node API, re-exported by relume-core:
 //!
 //! - `#[derive(Params)]` on a node struct: each field is a parameter (its doc comment is the
-//!   help text; `#[param(default = …, range = a..=b, unit = "…", rgb, output)]` the rest), the
+//!   help text; `#[param(default = …, test = …, range = a..=b, unit = "…", rgb, output)]` the
+//!   rest; `#[param(flatten)]` takes in a group of parameters that derives `Params` itself), the
 //!   struct's doc comment is the node's doc (the editor tooltip).
 //! - `#[derive(ParamEnum)]` on an enum of unit variants: a choice parameter whose variants are
 //!   listed once; an unknown name is a load error, never a fallback.
-//! - `#[node(category = "…", version = N, caching = Never | Keyed, kind = "…")]` on `impl X { fn run … }`:
-//!   turns the block into `impl Node for X`, taking the port types from `run`'s signature.
+//! - `#[node(category = "…", outputs = [name, …], metrics = ["…", …], version = N,
+//!   caching = Never | Keyed, kind = "…")]` on `impl X { fn run … }`: turns the block into
+//!   `impl Node for X`, taking the ports from `run`'s signature.
 
 use proc_macro::TokenStream;
 use proc_macro2::{Span, TokenStream as Tokens};
@@ -75,10 +77,12 @@ fn shape_of(ty: &Type) -> Shape {
 #[derive(Default)]
 struct FieldAttrs {
     default: Option<Expr>,
+    test: Option<Expr>,
     range: Option<(Expr, Expr)>,
     unit: Option<String>,
     rgb: bool,
     output: bool,
+    flatten: bool,
 }
 
 fn field_attrs(f: &syn::Field) -> syn::Result<FieldAttrs> {
@@ -87,6 +91,8 @@ fn field_attrs(f: &syn::Field) -> syn::Result<FieldAttrs> {
         a.parse_nested_meta(|meta| {
             if meta.path.is_ident("default") {
                 out.default = Some(meta.value()?.parse()?);
+            } else if meta.path.is_ident("test") {
+                out.test = Some(meta.value()?.parse()?);
             } else if meta.path.is_ident("range") {
                 let e: Expr = meta.value()?.parse()?;
                 match e {
@@ -102,8 +108,10 @@ fn field_attrs(f: &syn::Field) -> syn::Result<FieldAttrs> {
                 out.rgb = true;
             } else if meta.path.is_ident("output") {
                 out.output = true;
+            } else if meta.path.is_ident("flatten") {
+                out.flatten = true;
             } else {
-                return Err(meta.error("unknown #[param] key (default, range, unit, rgb, output)"));
+                return Err(meta.error("unknown #[param] key (default, test, range, unit, rgb, output, flatten)"));
             }
             Ok(())
         })?;
@@ -141,6 +149,13 @@ fn params_impl(input: &DeriveInput) -> syn::Result<Tokens> {
         let pname = ident.to_string();
         let ty = &f.ty;
         let a = field_attrs(f)?;
+        if a.flatten {
+            // A group of parameters declared once (its own `derive(Params)`), listed as the
+            // node's own: same names, no prefix.
+            specs.push(quote!(specs.extend(<#ty as #c::Params>::schema().0);));
+            inits.push(quote!(#ident: <#ty as #c::Params>::from_values(v)?));
+            continue;
+        }
         let help = doc_lines(&f.attrs).iter().map(|l| l.trim()).collect::<Vec<_>>().join(" ");
         let unit = a.unit.clone().unwrap_or_default();
         let range = |kind: &str| -> syn::Result<(Expr, Expr)> {
@@ -148,35 +163,31 @@ fn params_impl(input: &DeriveInput) -> syn::Result<Tokens> {
                 .clone()
                 .ok_or_else(|| syn::Error::new(f.span(), format!("{kind} parameter `{pname}` needs #[param(range = min..=max)]")))
         };
-        let (kind, default, init) = match shape_of(ty) {
+        // The kind, how a value written in `#[param(default = …, test = …)]` becomes a
+        // `ParamValue`, and how the field is read from checked values.
+        type ValueOf<'x> = Box<dyn Fn(&Expr) -> syn::Result<Tokens> + 'x>;
+        let (kind, value_of, init): (Tokens, ValueOf, Tokens) = match shape_of(ty) {
             Shape::Float => {
                 let (lo, hi) = range("float")?;
-                let d = a.default.as_ref().map(|e| quote!(#c::ParamValue::Float((#e) as f64)));
-                (quote!(#c::ParamKind::Float { min: (#lo) as f64, max: (#hi) as f64 }), d, quote!(v.float(#pname) as #ty))
+                let v = Box::new(|e: &Expr| Ok(quote!(#c::ParamValue::Float((#e) as f64))));
+                (quote!(#c::ParamKind::Float { min: (#lo) as f64, max: (#hi) as f64 }), v, quote!(v.float(#pname) as #ty))
             }
             Shape::Int => {
                 let (lo, hi) = range("integer")?;
-                let d = a.default.as_ref().map(|e| quote!(#c::ParamValue::Int((#e) as i64)));
+                let v = Box::new(|e: &Expr| Ok(quote!(#c::ParamValue::Int((#e) as i64))));
                 let init = quote!(<#ty as ::core::convert::TryFrom<i64>>::try_from(v.int(#pname))
                     .map_err(|_| #c::NodeError::param(#pname, "does not fit its Rust type"))?);
-                (quote!(#c::ParamKind::Int { min: (#lo) as i64, max: (#hi) as i64 }), d, init)
+                (quote!(#c::ParamKind::Int { min: (#lo) as i64, max: (#hi) as i64 }), v, init)
             }
-            Shape::Bool => {
-                (quote!(#c::ParamKind::Bool), a.default.as_ref().map(|e| quote!(#c::ParamValue::Bool(#e))), quote!(v.bool(#pname)))
-            }
+            Shape::Bool => (quote!(#c::ParamKind::Bool), Box::new(|e: &Expr| Ok(quote!(#c::ParamValue::Bool(#e)))), quote!(v.bool(#pname))),
             Shape::Text => (
                 quote!(#c::ParamKind::Text),
-                Some(
-                    a.default
-                        .as_ref()
-                        .map(|e| quote!(#c::ParamValue::Text(::std::string::String::from(#e))))
-                        .unwrap_or(quote!(#c::ParamValue::Text(::std::string::String::new()))),
-                ),
+                Box::new(|e: &Expr| Ok(quote!(#c::ParamValue::Text(::std::string::String::from(#e))))),
                 quote!(v.text(#pname).to_string()),
             ),
             Shape::File => {
                 let kind = if a.output { quote!(#c::ParamKind::OutputFile) } else { quote!(#c::ParamKind::InputFile) };
-                (kind, a.default.as_ref().map(|e| quote!(#c::ParamValue::Text(::std::string::String::from(#e)))), quote!(v.path(#pname)))
+                (kind, Box::new(|e: &Expr| Ok(quote!(#c::ParamValue::Text(::std::string::String::from(#e))))), quote!(v.path(#pname)))
             }
             Shape::Triple => {
                 let kind = if a.rgb {
@@ -185,35 +196,46 @@ fn params_impl(input: &DeriveInput) -> syn::Result<Tokens> {
                 } else {
                     quote!(#c::ParamKind::Vec3)
                 };
-                let d = match &a.default {
-                    None => None,
-                    Some(Expr::Tuple(t)) if t.elems.len() == 3 => {
+                let v = Box::new(|e: &Expr| match e {
+                    Expr::Tuple(t) if t.elems.len() == 3 => {
                         let e = t.elems.iter();
-                        Some(quote!(#c::ParamValue::Tuple(vec![#(#c::ParamValue::Float((#e) as f64)),*])))
+                        Ok(quote!(#c::ParamValue::Tuple(vec![#(#c::ParamValue::Float((#e) as f64)),*])))
                     }
-                    Some(e) => return Err(syn::Error::new(e.span(), "a triple's default is written (x, y, z)")),
-                };
-                (kind, d, quote!(::core::convert::From::from(v.triple(#pname).map(|x| x as f32))))
+                    e => Err(syn::Error::new(e.span(), "a triple's value is written (x, y, z)")),
+                });
+                (kind, v, quote!(::core::convert::From::from(v.triple(#pname).map(|x| x as f32))))
             }
             Shape::Enum => {
-                let d = match &a.default {
-                    None => None,
-                    Some(Expr::Path(p)) if p.path.get_ident().is_some() => {
+                let v = Box::new(|e: &Expr| match e {
+                    Expr::Path(p) if p.path.get_ident().is_some() => {
                         let var = p.path.get_ident().unwrap();
-                        Some(quote!(#c::ParamValue::Ident(#c::ParamEnum::name(&<#ty>::#var).to_string())))
+                        Ok(quote!(#c::ParamValue::Ident(#c::ParamEnum::name(&<#ty>::#var).to_string())))
                     }
-                    Some(e) => return Err(syn::Error::new(e.span(), "an enum parameter's default is a variant name")),
-                };
+                    e => Err(syn::Error::new(e.span(), "an enum parameter's value is a variant name")),
+                });
                 let init = quote!(<#ty as #c::ParamEnum>::from_name(v.variant(#pname))
                     .ok_or_else(|| #c::NodeError::param(#pname, format!("`{}` is not one of {}", v.variant(#pname), <#ty as #c::ParamEnum>::VARIANTS.join(", "))))?);
-                (quote!(#c::ParamKind::Enum(<#ty as #c::ParamEnum>::VARIANTS)), d, init)
+                (quote!(#c::ParamKind::Enum(<#ty as #c::ParamEnum>::VARIANTS)), v, init)
             }
         };
-        let default = match default {
-            Some(d) => quote!(::core::option::Option::Some(#d)),
-            None => quote!(::core::option::Option::None),
+        let option = |e: Option<&Expr>| -> syn::Result<Tokens> {
+            Ok(match e {
+                Some(e) => {
+                    let v = value_of(e)?;
+                    quote!(::core::option::Option::Some(#v))
+                }
+                None => quote!(::core::option::Option::None),
+            })
         };
-        specs.push(quote!(#c::ParamSpec { name: #pname, kind: #kind, default: #default, unit: #unit, help: #help }));
+        // A text parameter without a default defaults to the empty string.
+        let default = match (&a.default, shape_of(ty)) {
+            (None, Shape::Text) => quote!(::core::option::Option::Some(#c::ParamValue::Text(::std::string::String::new()))),
+            (d, _) => option(d.as_ref())?,
+        };
+        let test = option(a.test.as_ref())?;
+        specs.push(
+            quote!(specs.push(#c::ParamSpec { name: #pname, kind: #kind, default: #default, unit: #unit, help: #help, test: #test });),
+        );
         inits.push(quote!(#ident: #init));
     }
     let construct = match &data.fields {
@@ -224,7 +246,10 @@ fn params_impl(input: &DeriveInput) -> syn::Result<Tokens> {
     Ok(quote! {
         impl #ig #c::Params for #name #tg #wc {
             fn schema() -> #c::Schema {
-                #c::Schema(vec![#(#specs),*])
+                #[allow(unused_mut)]
+                let mut specs = ::std::vec::Vec::new();
+                #(#specs)*
+                #c::Schema(specs)
             }
             #[allow(unused_variables)]
             fn from_values(v: &#c::ParamValues) -> ::core::result::Result<Self, #c::NodeError> {
@@ -277,6 +302,8 @@ struct NodeArgs {
     kind: Option<String>,
     caching: Option<syn::Ident>,
     sharded: bool,
+    metrics: Vec<syn::LitStr>,
+    outputs: Option<Vec<syn::Ident>>,
 }
 
 /// `#[node(category = "image", version = 2, caching = Never, kind = "Name")]` on an inherent
@@ -304,8 +331,26 @@ pub fn node(attr: TokenStream, item: TokenStream) -> TokenStream {
             args.caching = Some(meta.value()?.parse()?);
         } else if meta.path.is_ident("sharded") {
             args.sharded = true;
+        } else if meta.path.is_ident("outputs") {
+            let list: syn::ExprArray = meta.value()?.parse()?;
+            let mut names = Vec::new();
+            for e in list.elems {
+                match e {
+                    Expr::Path(p) if p.path.get_ident().is_some() => names.push(p.path.get_ident().unwrap().clone()),
+                    other => return Err(syn::Error::new(other.span(), "outputs = [name, …]: port names")),
+                }
+            }
+            args.outputs = Some(names);
+        } else if meta.path.is_ident("metrics") {
+            let list: syn::ExprArray = meta.value()?.parse()?;
+            for e in list.elems {
+                match e {
+                    Expr::Lit(syn::ExprLit { lit: Lit::Str(s), .. }) => args.metrics.push(s),
+                    other => return Err(syn::Error::new(other.span(), "metrics = [\"name\", …]: string literals")),
+                }
+            }
         } else {
-            return Err(meta.error("unknown #[node] key (category, version, caching, kind, sharded)"));
+            return Err(meta.error("unknown #[node] key (category, version, caching, kind, sharded, outputs, metrics)"));
         }
         Ok(())
     });
@@ -329,6 +374,7 @@ fn node_impl(args: NodeArgs, imp: ItemImpl) -> syn::Result<Tokens> {
     let category = args.category.ok_or_else(|| syn::Error::new(Span::call_site(), "#[node] needs category = \"…\""))?;
     let version = args.version.map(|v| quote!(#v)).unwrap_or(quote!(1));
     let caching = args.caching.unwrap_or_else(|| format_ident!("Auto"));
+    let metrics = &args.metrics;
     let mut run = None;
     let mut memory = None;
     let mut shard_fns: [Option<ImplItemFn>; 3] = [None, None, None];
@@ -351,6 +397,7 @@ fn node_impl(args: NodeArgs, imp: ItemImpl) -> syn::Result<Tokens> {
         const VERSION: u32 = #version;
         const CATEGORY: &'static str = #category;
         const CACHING: #c::Caching = #c::Caching::#caching;
+        const METRICS: &'static [&'static str] = &[#(#metrics),*];
     };
     if args.sharded {
         if let Some(run) = run {
@@ -391,6 +438,9 @@ fn node_impl(args: NodeArgs, imp: ItemImpl) -> syn::Result<Tokens> {
         });
     }
     let run = run.ok_or_else(|| syn::Error::new(Span::call_site(), "#[node] impl has no `fn run`"))?;
+    if let Some(names) = &args.outputs {
+        return ports_from_signature(&head, self_ty, run, memory, rest, names);
+    }
     let inputs = match run.sig.inputs.iter().nth(1) {
         Some(syn::FnArg::Typed(t)) => input_type(&t.ty)?,
         _ => return Err(syn::Error::new(run.sig.span(), "run takes (&self, inputs, cx)")),
@@ -403,6 +453,83 @@ fn node_impl(args: NodeArgs, imp: ItemImpl) -> syn::Result<Tokens> {
             type Outputs = #outputs;
             #run
             #memory
+        }
+        #rest
+    })
+}
+
+/// `fn run(&self, a: &A, b: &B, cx: &RunCtx) -> Result<O, NodeError>` (or `-> Result<(O1, O2),
+/// NodeError>` with as many names in `outputs = […]`): the ports are the arguments and the
+/// named parts of the result. The macro declares the port structs (hidden), implements `Node`
+/// with a `run` that unpacks them, and keeps the written `run` as the inherent `run_ports`.
+fn ports_from_signature(
+    head: &Tokens,
+    self_ty: &Type,
+    mut run: ImplItemFn,
+    memory: Option<ImplItemFn>,
+    rest: Tokens,
+    names: &[syn::Ident],
+) -> syn::Result<Tokens> {
+    let c = quote!(::relume_core);
+    let base = last_ident(self_ty).unwrap_or_default();
+    let in_name = format_ident!("{base}Ports");
+    let out_name = format_ident!("{base}Results");
+    let args: Vec<&syn::FnArg> = run.sig.inputs.iter().collect();
+    if args.len() < 2 || !matches!(args[0], syn::FnArg::Receiver(_)) {
+        return Err(syn::Error::new(run.sig.span(), "run takes (&self, one `name: &Type` per input port, cx: &RunCtx)"));
+    }
+    let mut ports = Vec::new();
+    for a in &args[1..args.len() - 1] {
+        let syn::FnArg::Typed(t) = a else { unreachable!() };
+        let (syn::Pat::Ident(id), Type::Reference(r)) = (t.pat.as_ref(), t.ty.as_ref()) else {
+            return Err(syn::Error::new(t.span(), "an input port is an argument `name: &Type`"));
+        };
+        ports.push((id.ident.clone(), r.elem.clone()));
+    }
+    let results: Vec<Type> = match output_type(&run.sig.output) {
+        Ok(t) => match syn::parse2::<Type>(t)? {
+            Type::Tuple(tuple) if names.len() > 1 => tuple.elems.into_iter().collect(),
+            ty => vec![ty],
+        },
+        Err(e) => return Err(e),
+    };
+    if results.len() != names.len() {
+        return Err(syn::Error::new(
+            run.sig.output.span(),
+            format!("outputs = […] names {} ports, run returns {}", names.len(), results.len()),
+        ));
+    }
+    run.sig.ident = format_ident!("run_ports");
+    let inputs = if ports.is_empty() { quote!(()) } else { quote!(#in_name<'a>) };
+    let in_decl = if ports.is_empty() {
+        quote!()
+    } else {
+        let (pn, pt): (Vec<_>, Vec<_>) = ports.iter().cloned().unzip();
+        quote!(#c::inputs!(#[doc(hidden)] pub #in_name { #(#pn: #pt),* });)
+    };
+    let pn: Vec<_> = ports.iter().map(|(n, _)| n).collect();
+    let unpack = if ports.is_empty() { quote!(let _ = __inputs;) } else { quote!(let #in_name { #(#pn),* } = __inputs;) };
+    let (wrap, bind) = if names.len() == 1 {
+        let n = &names[0];
+        (quote!(#out_name { #n: __result }), quote!(__result))
+    } else {
+        (quote!(#out_name { #(#names),* }), quote!((#(#names),*)))
+    };
+    Ok(quote! {
+        #in_decl
+        #c::outputs!(#[doc(hidden)] pub #out_name { #(#names: #results),* });
+        impl #c::Node for #self_ty {
+            #head
+            type Inputs<'a> = #inputs;
+            type Outputs = #out_name;
+            fn run(&self, __inputs: Self::Inputs<'_>, __cx: &#c::RunCtx) -> ::core::result::Result<Self::Outputs, #c::NodeError> {
+                #unpack
+                self.run_ports(#(#pn,)* __cx).map(|#bind| #wrap)
+            }
+            #memory
+        }
+        impl #self_ty {
+            #run
         }
         #rest
     })

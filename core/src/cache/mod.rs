@@ -2,10 +2,10 @@
 //! when recomputing would cost more than loading (`worth_storing`).
 
 mod disk;
-mod memory;
+mod lru;
 
 pub use disk::DiskCache;
-pub use memory::MemoryCache;
+pub use lru::MemoryCache;
 
 use crate::hash::Hash;
 use crate::port::Value;

@@ -12,20 +12,17 @@ pub mod math;
 pub mod reference;
 pub mod render;
 pub mod scene;
-#[cfg(any(test, feature = "testing"))]
+// The helpers of the nodes' unit tests, here and in the pipeline crates. Always built (a
+// few small functions), not behind a feature: a feature that only the tests turn on would
+// give the tests and the binaries two builds of every crate above this one.
+#[doc(hidden)]
 pub mod testing;
 pub mod types;
 
 use relume_core::Registry;
 
-/// Registers the node kinds of this crate.
-pub fn register(reg: &mut Registry) {
-    image::register(reg);
-    scene::register(reg);
-    brdf_space::register(reg);
-    geometry::register(reg);
-    reference::register(reg);
-}
+// `pub fn register(reg)`: every node kind of the crate, found by build.rs.
+include!(concat!(env!("OUT_DIR"), "/register.rs"));
 
 /// A registry with the node kinds of this crate only (a pipeline's tests add their own).
 pub fn registry() -> Registry {

@@ -14,7 +14,7 @@ pub(crate) fn print(reg: &Registry, kind: Option<&str>) -> Result<(), CliError> 
     Ok(())
 }
 
-/// A node kind as text: header, doc, ports and parameters.
+/// A node kind as text: header, doc, ports, parameters and the metrics it reports.
 pub fn describe(n: &dyn DynNode) -> String {
     let mut s = format!("{} v{} [{}]\n", n.kind(), n.version(), n.category());
     for line in n.doc().lines() {
@@ -30,7 +30,11 @@ pub fn describe(n: &dyn DynNode) -> String {
         let range = p.kind.range_text();
         let range = if range.is_empty() { String::new() } else { format!(" {range}") };
         let unit = if p.unit.is_empty() { String::new() } else { format!(" {}", p.unit) };
-        s.push_str(&format!("  param {}: {}{default}{range}{unit} — {}\n", p.name, p.kind.type_name(), p.help));
+        let test = p.test.as_ref().map(|t| format!(" (test size: {})", t.to_text())).unwrap_or_default();
+        s.push_str(&format!("  param {}: {}{default}{range}{unit}{test} — {}\n", p.name, p.kind.type_name(), p.help));
+    }
+    if !n.metrics().is_empty() {
+        s.push_str(&format!("  metrics: {}\n", n.metrics().join(", ")));
     }
     if let Some(sh) = n.sharded() {
         s.push_str(&format!(
@@ -40,4 +44,24 @@ pub fn describe(n: &dyn DynNode) -> String {
     }
     s.push('\n');
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_entry_lists_ports_test_sizes_and_metrics() {
+        let reg = crate::registry();
+        let error = describe(reg.node("ImageError").unwrap().as_ref());
+        assert!(error.contains("  in  image: Image\n  in  reference: Image\n  out metrics: Metrics\n  out error_map: Image\n"), "{error}");
+        assert!(error.contains("  metrics: mse, rel_mse, psnr_db, l2_percent, flip, ssim, nonfinite_pixels\n"), "{error}");
+        let scene = describe(reg.node("LoadScene").unwrap().as_ref());
+        assert!(scene.contains("param width: int = 0 [0, 16384] px (test size: 24)"), "{scene}");
+        assert!(!scene.contains("  metrics: \n"), "{scene}");
+        // A flattened group's parameters are the node's own, in place.
+        let pre = describe(reg.node("TransferPrecompute").unwrap().as_ref());
+        let names: Vec<&str> = pre.lines().filter_map(|l| l.strip_prefix("  param ")).map(|l| l.split(':').next().unwrap()).collect();
+        assert_eq!(names, ["spp", "light_samples", "bounce_rays", "bounce_light_samples", "seed"]);
+    }
 }

@@ -3,7 +3,7 @@
 use crate::types::{PointRadiance, PointTree};
 use glam::Vec3;
 use relume_base::types::SurfacePoints;
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 /// Builds the point hierarchy of PBGI ([P] 2.1.2): a binary bounding-sphere tree with one
 /// point per leaf (2N − 1 nodes). Top-down, each set of points is split at the median of
@@ -21,10 +21,7 @@ use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 #[derive(Params)]
 pub struct BuildPointTree;
 
-inputs!(pub BuildPointTreeIn { points: SurfacePoints, radiance: PointRadiance });
-outputs!(pub BuildPointTreeOut { tree: PointTree });
-
-#[node(category = "pbgi", kind = "PointTree", version = 2)]
+#[node(category = "pbgi", kind = "PointTree", version = 2, metrics = ["nodes", "depth"], outputs = [tree])]
 impl BuildPointTree {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // 2N − 1 nodes and the points' radiance.
@@ -33,13 +30,13 @@ impl BuildPointTree {
         relume_core::MemoryEstimate { outputs: vec![n.map(|n| relume_core::PortSize::bytes(2 * n * node + 12 * n))], working: 0 }
     }
 
-    fn run(&self, i: BuildPointTreeIn, cx: &RunCtx) -> Result<BuildPointTreeOut, NodeError> {
-        let (points, radiance) = (i.points, &i.radiance.0);
+    fn run(&self, points: &SurfacePoints, radiance: &PointRadiance, cx: &RunCtx) -> Result<PointTree, NodeError> {
+        let (points, radiance) = (points, &radiance.0);
         check_inputs(points, radiance)?;
         let tree = PointTree::build_with(points, radiance, cx)?;
         cx.metric("nodes", tree.len() as f64);
         cx.metric("depth", tree.depth() as f64);
-        Ok(BuildPointTreeOut { tree })
+        Ok(tree)
     }
 }
 

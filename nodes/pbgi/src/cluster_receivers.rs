@@ -5,7 +5,7 @@ use glam::{DVec3, Vec3};
 use relume_base::math::kmeans::{KMeans, Metric};
 use relume_base::math::rng::mix64;
 use relume_base::types::{Cluster, Clusters};
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 /// Groups the receivers into clusters of similar position and normal, for the factorized
 /// gather ([P] 3.3.2). The image is cut into `tile` × `tile` pixel tiles and each tile's
@@ -34,9 +34,6 @@ pub struct ClusterReceivers {
     #[param(default = 0, range = 0..=u32::MAX)]
     pub seed: u64,
 }
-
-inputs!(pub ClusterReceiversIn { receivers: Receivers });
-outputs!(pub ClusterReceiversOut { clusters: Clusters });
 
 /// A receiver (or a cluster centre) as k-means sees it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -194,10 +191,10 @@ pub fn cluster_receivers(rx: &Receivers, p: &ClusterReceivers, cx: &RunCtx) -> R
     Ok((out, stats))
 }
 
-#[node(category = "pbgi")]
+#[node(category = "pbgi", metrics = ["clusters", "tiles", "mean_cluster_size", "max_iterations_used"], outputs = [clusters])]
 impl ClusterReceivers {
-    fn run(&self, i: ClusterReceiversIn, cx: &RunCtx) -> Result<ClusterReceiversOut, NodeError> {
-        let rx = i.receivers;
+    fn run(&self, receivers: &Receivers, cx: &RunCtx) -> Result<Clusters, NodeError> {
+        let rx = receivers;
         let (clusters, stats) = cluster_receivers(rx, self, cx)?;
         let n = clusters.clusters.len();
         cx.metric("clusters", n as f64);
@@ -219,7 +216,7 @@ impl ClusterReceivers {
                 self.iterations, stats.tiles_unconverged, stats.tiles
             ));
         }
-        Ok(ClusterReceiversOut { clusters })
+        Ok(clusters)
     }
 }
 

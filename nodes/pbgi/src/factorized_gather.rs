@@ -5,7 +5,7 @@ use glam::Vec3;
 use relume_base::brdf;
 use relume_base::math::frame::Frame;
 use relume_base::types::{Clusters, Image, Metrics};
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 microbuffer_params! {
     /// Factorised point-based gather ([P] 3.3.3–3.3.4, the FPBGI paper): per receiver cluster,
@@ -28,9 +28,6 @@ microbuffer_params! {
         pub epsilon: f32,
     }
 }
-
-inputs!(pub FactorizedGatherIn { tree: PointTree, receivers: Receivers, clusters: Clusters });
-outputs!(pub FactorizedGatherOut { indirect: Image, stats: Metrics });
 
 /// Indirect radiance for every receiver, cluster by cluster (`extent` sets the traversal's ε).
 pub fn factorized_gather(
@@ -87,15 +84,15 @@ pub fn factorized_gather(
     Ok((img, total))
 }
 
-#[node(category = "pbgi")]
+#[node(category = "pbgi", metrics = ["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver", "clusters"], outputs = [indirect, stats])]
 impl FactorizedGather {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let image = inputs[1].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));
         relume_core::MemoryEstimate { outputs: vec![image, Some(relume_core::PortSize::bytes(256))], working: 0 }
     }
 
-    fn run(&self, i: FactorizedGatherIn, cx: &RunCtx) -> Result<FactorizedGatherOut, NodeError> {
-        let (tree, r, c) = (i.tree, i.receivers, i.clusters);
+    fn run(&self, tree: &PointTree, receivers: &Receivers, clusters: &Clusters, cx: &RunCtx) -> Result<(Image, Metrics), NodeError> {
+        let (r, c) = (receivers, clusters);
         if c.of_receiver.len() != r.len() {
             return Err(NodeError::input(
                 "clusters",
@@ -108,7 +105,7 @@ impl FactorizedGather {
             cx.metric(k, *v);
         }
         cx.metric("clusters", c.clusters.len() as f64);
-        Ok(FactorizedGatherOut { indirect: img, stats: m })
+        Ok((img, m))
     }
 }
 

@@ -3,7 +3,7 @@ use relume_base::render::camera::CameraRays;
 use relume_base::render::surface::Surface;
 use relume_base::types::accel::Accel;
 use relume_base::types::{Material, Scene};
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 /// The camera's primary hits at pixel centres, as receivers: pixel, position, shading normal
 /// turned toward the camera, direction to the camera, object and material. Pixels that see
@@ -16,9 +16,6 @@ pub struct GBuffer {
     #[param(default = false)]
     pub dielectrics: bool,
 }
-
-inputs!(pub GBufferIn { scene: Scene, accel: Accel });
-outputs!(pub GBufferOut { receivers: Receivers });
 
 /// Receivers of every pixel centre, row by row in parallel.
 pub fn gbuffer(scene: &Scene, accel: &Accel, dielectrics: bool, cx: &RunCtx) -> Result<Receivers, NodeError> {
@@ -47,7 +44,7 @@ pub fn gbuffer(scene: &Scene, accel: &Accel, dielectrics: bool, cx: &RunCtx) -> 
     Ok(r)
 }
 
-#[node(category = "pbgi")]
+#[node(category = "pbgi", metrics = ["receivers"], outputs = [receivers])]
 impl GBuffer {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // At most one receiver per pixel.
@@ -58,10 +55,10 @@ impl GBuffer {
         relume_core::MemoryEstimate { outputs: vec![size], working: 0 }
     }
 
-    fn run(&self, i: GBufferIn, cx: &RunCtx) -> Result<GBufferOut, NodeError> {
-        let r = gbuffer(i.scene, i.accel, self.dielectrics, cx)?;
+    fn run(&self, scene: &Scene, accel: &Accel, cx: &RunCtx) -> Result<Receivers, NodeError> {
+        let r = gbuffer(scene, accel, self.dielectrics, cx)?;
         cx.metric("receivers", r.len() as f64);
-        Ok(GBufferOut { receivers: r })
+        Ok(r)
     }
 }
 

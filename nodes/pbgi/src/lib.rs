@@ -27,27 +27,13 @@ pub mod wavelet_gather;
 pub mod wavelet_radiance;
 pub mod wavelet_tree;
 
-use relume_core::Registry;
-
-pub fn register(reg: &mut Registry) {
-    reg.add::<shade_direct::ShadeDirect>();
-    reg.add::<build_point_tree::BuildPointTree>();
-    reg.add::<gbuffer::GBuffer>();
-    reg.add::<pbgi_gather::PbgiGather>();
-    reg.add::<cluster_receivers::ClusterReceivers>();
-    reg.add::<factorized_gather::FactorizedGather>();
-    reg.add::<surfel_wavelets::SurfelWavelets>();
-    reg.add::<wavelet_tree::WaveletTree>();
-    reg.add::<wavelet_gather::WaveletGather>();
-    reg.add::<view_tree::ViewTree>();
-    reg.add::<preview_splat::PreviewSplat>();
-    reg.add::<twin_dielectrics::TwinDielectrics>();
-}
+// `pub fn register(reg)`: every node kind of the crate, found by build.rs.
+include!(concat!(env!("OUT_DIR"), "/register.rs"));
 
 /// A registry with the base's node kinds and this crate's (what the pipeline's own graphs
 /// need, for its tests).
 #[cfg(test)]
-pub(crate) fn registry() -> Registry {
+pub(crate) fn registry() -> relume_core::Registry {
     let mut r = relume_base::registry();
     register(&mut r);
     r

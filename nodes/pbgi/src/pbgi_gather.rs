@@ -3,7 +3,7 @@ use super::microbuffer::Microbuffer;
 use super::traversal::{count_metrics, microbuffer_params, tree_extent, GatherCounts, Traversal};
 use crate::types::{PointTree, Receivers};
 use relume_base::types::{Image, Metrics};
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 microbuffer_params! {
     /// Point-based gather of one bounce of indirect light ([P] 2.2, eq. 2.1). For each receiver
@@ -19,28 +19,25 @@ microbuffer_params! {
     pub struct PbgiGather {}
 }
 
-inputs!(pub PbgiGatherIn { tree: PointTree, receivers: Receivers });
-outputs!(pub PbgiGatherOut { indirect: Image, stats: Metrics });
-
 /// Indirect radiance toward the camera for every receiver (`extent` sets the traversal's ε).
 pub fn gather(tree: &PointTree, r: &Receivers, p: &PbgiGather, extent: f32, cx: &RunCtx) -> Result<(Image, GatherCounts), NodeError> {
     gather_with(&Traversal::new(tree, p.threshold, 1e-5 * extent), r, Microbuffer::new(p.resolution), cx)
 }
 
-#[node(category = "pbgi")]
+#[node(category = "pbgi", metrics = ["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver"], outputs = [indirect, stats])]
 impl PbgiGather {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let image = inputs[1].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));
         relume_core::MemoryEstimate { outputs: vec![image, Some(relume_core::PortSize::bytes(256))], working: 0 }
     }
 
-    fn run(&self, i: PbgiGatherIn, cx: &RunCtx) -> Result<PbgiGatherOut, NodeError> {
-        let (img, counts) = gather(i.tree, i.receivers, self, tree_extent(i.tree), cx)?;
-        let m = count_metrics(counts, i.receivers.len());
+    fn run(&self, tree: &PointTree, receivers: &Receivers, cx: &RunCtx) -> Result<(Image, Metrics), NodeError> {
+        let (img, counts) = gather(tree, receivers, self, tree_extent(tree), cx)?;
+        let m = count_metrics(counts, receivers.len());
         for (k, v) in &m.0 {
             cx.metric(k, *v);
         }
-        Ok(PbgiGatherOut { indirect: img, stats: m })
+        Ok((img, m))
     }
 }
 

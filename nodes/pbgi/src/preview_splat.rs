@@ -3,7 +3,7 @@ use super::wavelet_radiance::WaveletSource;
 use crate::types::{CodedWavelets, PointTree, Receivers};
 use glam::Vec3;
 use relume_base::types::{Image, Metrics};
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
 /// A fast preview of what the coded point tree sends toward the camera ([P] 5.4): the tree's
 /// nodes at level `level` (and leaves above it) are splatted over the G-buffer. A receiver
@@ -24,9 +24,6 @@ pub struct PreviewSplat {
     #[param(default = 1.5, range = 1.0..=10.0)]
     pub radius: f32,
 }
-
-inputs!(pub PreviewSplatIn { tree: PointTree, coded: CodedWavelets, receivers: Receivers });
-outputs!(pub PreviewSplatOut { image: Image, stats: Metrics });
 
 /// Receivers per unit of parallel work.
 const RECEIVERS_PER_TASK: usize = 64;
@@ -80,7 +77,7 @@ impl PreviewSplat {
     }
 }
 
-#[node(category = "pbgi")]
+#[node(category = "pbgi", metrics = ["receivers", "receivers_missed", "nodes_splatted"], outputs = [image, stats])]
 impl PreviewSplat {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         let image = inputs[2].and_then(|s| s.dims).map(|[w, h]| PortSize::image(w, h));
@@ -88,8 +85,8 @@ impl PreviewSplat {
         MemoryEstimate { outputs: vec![image, Some(PortSize::bytes(256))], working: memo }
     }
 
-    fn run(&self, i: PreviewSplatIn, cx: &RunCtx) -> Result<PreviewSplatOut, NodeError> {
-        let (tree, coded, r) = (i.tree, i.coded, i.receivers);
+    fn run(&self, tree: &PointTree, coded: &CodedWavelets, receivers: &Receivers, cx: &RunCtx) -> Result<(Image, Metrics), NodeError> {
+        let r = receivers;
         let source = WaveletSource::checked(tree, coded)?;
         let level = &coded.tree.level;
         let tasks = cx.par_map(r.len().div_ceil(RECEIVERS_PER_TASK), |task| {
@@ -115,7 +112,7 @@ impl PreviewSplat {
         for (k, v) in &m.0 {
             cx.metric(k, *v);
         }
-        Ok(PreviewSplatOut { image: img, stats: m })
+        Ok((img, m))
     }
 }
 

@@ -4,7 +4,7 @@ use glam::Vec3;
 use relume_base::brdf::diffuse_albedo;
 use relume_base::types::accel::Accel;
 use relume_base::types::{Scene, SurfacePoints};
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 use std::f32::consts::FRAC_1_PI;
 
 /// Direct lighting of every surface point, as outgoing diffuse radiance B = kd/π · E:
@@ -21,9 +21,6 @@ pub struct ShadeDirect {
     #[param(default = 0, range = 0..=u32::MAX)]
     pub seed: u64,
 }
-
-inputs!(pub ShadeDirectIn { scene: Scene, accel: Accel, points: SurfacePoints });
-outputs!(pub ShadeDirectOut { radiance: PointRadiance });
 
 /// Points shaded as one unit of parallel work and of progress.
 const POINTS_PER_TASK: usize = 256;
@@ -64,7 +61,7 @@ pub fn shade_direct(
     Ok((out, skipped))
 }
 
-#[node(category = "pbgi")]
+#[node(category = "pbgi", metrics = ["points", "points_skipped"], outputs = [radiance])]
 impl ShadeDirect {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // One RGB radiance per point.
@@ -72,15 +69,15 @@ impl ShadeDirect {
         relume_core::MemoryEstimate { outputs: vec![points.map(|n| relume_core::PortSize::bytes(n * 12))], working: 0 }
     }
 
-    fn run(&self, i: ShadeDirectIn, cx: &RunCtx) -> Result<ShadeDirectOut, NodeError> {
-        let pts = i.points;
-        let (b, skipped) = shade_direct(i.scene, i.accel, pts, self, cx)?;
+    fn run(&self, scene: &Scene, accel: &Accel, points: &SurfacePoints, cx: &RunCtx) -> Result<PointRadiance, NodeError> {
+        let pts = points;
+        let (b, skipped) = shade_direct(scene, accel, pts, self, cx)?;
         cx.metric("points", pts.len() as f64);
         cx.metric("points_skipped", skipped as f64);
         if skipped > 0 {
             cx.note(format!("{skipped} points no light can reach or with no diffuse reflectance were set to 0 without tracing"));
         }
-        Ok(ShadeDirectOut { radiance: PointRadiance(b) })
+        Ok(PointRadiance(b))
     }
 }
 

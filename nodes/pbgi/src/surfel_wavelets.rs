@@ -6,7 +6,7 @@ use relume_base::brdf;
 use relume_base::math::cube_haar::{CubeHaar, SparseCubeHaar};
 use relume_base::types::accel::Accel;
 use relume_base::types::{Material, Scene, SurfacePoints};
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
 /// Each surface point's outgoing radiance as wavelets (wavelet PBGI, [P] 4.4): the direct
 /// light reaching the point, drawn exactly as `ShadeDirect` draws it (same samples for the
@@ -28,7 +28,7 @@ use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, Port
 #[derive(Params)]
 pub struct SurfelWavelets {
     /// cube-map side per face (a power of two; [P]: 32, 128 for the ring's caustic)
-    #[param(default = 32, range = 2..=128, unit = "texels")]
+    #[param(default = 32, range = 2..=128, unit = "texels", test = 16)]
     pub resolution: usize,
     /// light samples per point for area lights and the environment
     #[param(default = 16, range = 1..=4096, unit = "samples/point")]
@@ -43,9 +43,6 @@ pub struct SurfelWavelets {
     #[param(default = 4096, range = 1..=98304, unit = "terms/point")]
     pub max_terms: usize,
 }
-
-inputs!(pub SurfelWaveletsIn { scene: Scene, accel: Accel, points: SurfacePoints });
-outputs!(pub SurfelWaveletsOut { wavelets: PointWavelets });
 
 /// What one point came to, for the report.
 enum Outcome {
@@ -98,7 +95,7 @@ impl SurfelWavelets {
     }
 }
 
-#[node(category = "pbgi", version = 2)]
+#[node(category = "pbgi", version = 2, metrics = ["points", "points_skipped", "points_capped", "terms_per_point", "terms_of_full_map"], outputs = [wavelets])]
 impl SurfelWavelets {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         let points = inputs[2].map(|s| s.bytes / SurfacePoints::BYTES_PER_POINT as u64);
@@ -112,15 +109,15 @@ impl SurfelWavelets {
         }
     }
 
-    fn run(&self, i: SurfelWaveletsIn, cx: &RunCtx) -> Result<SurfelWaveletsOut, NodeError> {
+    fn run(&self, scene: &Scene, accel: &Accel, points: &SurfacePoints, cx: &RunCtx) -> Result<PointWavelets, NodeError> {
         if !self.resolution.is_power_of_two() {
             return Err(NodeError::param(
                 "resolution",
                 format!("{} is not a power of two (the Haar transform halves each face)", self.resolution),
             ));
         }
-        let pts = i.points;
-        let sampler = DirectSampler::new(i.scene, i.accel, self.samples, self.seed);
+        let pts = points;
+        let sampler = DirectSampler::new(scene, accel, self.samples, self.seed);
         let per_point = cx.par_map_init(pts.len(), Incident::default, |inc, k| self.point(&sampler, pts, k, inc))?;
         let (mut skipped, mut capped) = (0u64, 0u64);
         let mut points = Vec::with_capacity(per_point.len());
@@ -141,7 +138,7 @@ impl SurfelWavelets {
         if capped > 0 {
             cx.note(format!("{capped} points had more than {} terms above the threshold and kept the largest {0}", self.cap()));
         }
-        Ok(SurfelWaveletsOut { wavelets: w })
+        Ok(w)
     }
 }
 

@@ -1,5 +1,5 @@
 use relume_base::types::{Material, SurfacePoints};
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
 /// Refraction through the points ([P] 5.3.5): a PBGI point is a one-sided disk that sends
 /// light toward its normal's side only, but a point on glass sends light both ways, out of
@@ -14,9 +14,6 @@ use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, Port
 /// and every node that reads the points.
 #[derive(Params)]
 pub struct TwinDielectrics;
-
-inputs!(pub TwinDielectricsIn { points: SurfacePoints });
-outputs!(pub TwinDielectricsOut { points: SurfacePoints });
 
 /// `pts` with a twin appended for each point on a smooth dielectric.
 pub fn twin_dielectrics(pts: &SurfacePoints) -> SurfacePoints {
@@ -33,19 +30,19 @@ pub fn twin_dielectrics(pts: &SurfacePoints) -> SurfacePoints {
     out
 }
 
-#[node(category = "pbgi")]
+#[node(category = "pbgi", metrics = ["points", "twins"], outputs = [points])]
 impl TwinDielectrics {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         // At most twice the points.
         MemoryEstimate { outputs: vec![inputs[0].map(|s| PortSize::bytes(2 * s.bytes))], working: 0 }
     }
 
-    fn run(&self, i: TwinDielectricsIn, cx: &RunCtx) -> Result<TwinDielectricsOut, NodeError> {
+    fn run(&self, points: &SurfacePoints, cx: &RunCtx) -> Result<SurfacePoints, NodeError> {
         cx.check()?;
-        let out = twin_dielectrics(i.points);
-        cx.metric("points", i.points.len() as f64);
-        cx.metric("twins", (out.len() - i.points.len()) as f64);
-        Ok(TwinDielectricsOut { points: out })
+        let out = twin_dielectrics(points);
+        cx.metric("points", points.len() as f64);
+        cx.metric("twins", (out.len() - points.len()) as f64);
+        Ok(out)
     }
 }
 

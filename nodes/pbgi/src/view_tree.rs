@@ -13,7 +13,7 @@ use relume_base::math::frame::Frame;
 use relume_base::math::tree_coding::Threshold;
 use relume_base::types::{Material, Metrics, SurfacePoints};
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, ParamEnum, Params, PortSize, RunCtx};
+use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
 
 /// How every point gathers.
 #[derive(ParamEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -37,6 +37,7 @@ pub enum Walk {
 /// dielectrics (with their twins, `TwinDielectrics`) gather the whole sphere on their own
 /// (`spherical_microbuffer`) and send what their reflected and refracted lobes read.
 /// A reused group buffer stands for its points' own frames (within `reuse_angle`).
+/// Memory: known only from the inputs' content; `run` checks it before each bounce.
 #[derive(Params)]
 pub struct ViewTree {
     /// bounces of light between the points (0: the direct light, coded)
@@ -70,9 +71,6 @@ pub struct ViewTree {
     #[param(default = ViewTree)]
     pub walk: Walk,
 }
-
-inputs!(pub ViewTreeIn { tree: PointTree, points: SurfacePoints, wavelets: PointWavelets });
-outputs!(pub ViewTreeOut { coded: CodedWavelets, stats: Metrics });
 
 /// What a point reflects with: Lambert's constant, the BRDF's wavelets, a smooth
 /// dielectric's two lobes read from a spherical buffer, or nothing.
@@ -196,16 +194,16 @@ impl ViewTree {
     }
 }
 
-#[node(category = "pbgi", version = 5)]
+#[node(category = "pbgi", version = 5, metrics = ["bounces", "pairs_per_point", "nodes_rasterised_per_point", "near_leaves_per_point", "group_buffers", "points_reusing_a_group_buffer", "coded_bytes", "terms_per_point", "walk_seconds"], outputs = [coded, stats])]
 impl ViewTree {
-    fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
-        // Known only from the inputs' content: `run` checks before each bounce.
-        let _ = inputs;
-        MemoryEstimate::unknown(2)
-    }
-
-    fn run(&self, i: ViewTreeIn, cx: &RunCtx) -> Result<ViewTreeOut, NodeError> {
-        let (tree, pts, direct) = (i.tree, i.points, i.wavelets);
+    fn run(
+        &self,
+        tree: &PointTree,
+        points: &SurfacePoints,
+        wavelets: &PointWavelets,
+        cx: &RunCtx,
+    ) -> Result<(CodedWavelets, Metrics), NodeError> {
+        let (pts, direct) = (points, wavelets);
         let leaves = tree.nodes.iter().filter(|t| t.is_leaf()).count();
         if leaves != pts.len() || tree.nodes.iter().any(|t| t.is_leaf() && t.point as usize >= pts.len()) {
             return Err(NodeError::input("points", format!("{} points for a tree of {leaves} points", pts.len())));
@@ -303,7 +301,7 @@ impl ViewTree {
         if capped > 0 {
             cx.note(format!("{capped} point maps had more than {} terms and kept the largest", self.cap(side)));
         }
-        Ok(ViewTreeOut { coded, stats: m })
+        Ok((coded, m))
     }
 }
 
@@ -483,7 +481,7 @@ mod tests {
             max_terms: 4096,
             walk: Walk::ViewTree,
         };
-        let e = relume_core::Node::run(&node, ViewTreeIn { tree: &s.tree, points: &s.points, wavelets: &s.wavelets }, &cx).err().unwrap();
+        let e = node.run_ports(&s.tree, &s.points, &s.wavelets, &cx).err().unwrap();
         assert!(e.is_over_limit() && e.to_string().contains("budget"), "{e}");
         cancels_midway::<ViewTree>(&[], inputs(s));
     }

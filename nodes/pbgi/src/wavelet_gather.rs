@@ -5,7 +5,7 @@ use super::traversal::{count_metrics, microbuffer_params, tree_extent, Traversal
 use super::wavelet_radiance::WaveletSource;
 use crate::types::{CodedWavelets, PointTree, Receivers};
 use relume_base::types::{Image, Metrics};
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
 microbuffer_params! {
     /// One bounce of glossy light gathered from the wavelet point tree (wavelet PBGI, [P]
@@ -42,10 +42,7 @@ microbuffer_params! {
     }
 }
 
-inputs!(pub WaveletGatherIn { tree: PointTree, coded: CodedWavelets, receivers: Receivers });
-outputs!(pub WaveletGatherOut { indirect: Image, stats: Metrics });
-
-#[node(category = "pbgi", version = 6)]
+#[node(category = "pbgi", version = 6, metrics = ["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver"], outputs = [indirect, stats])]
 impl WaveletGather {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         let image = inputs[2].and_then(|s| s.dims).map(|[w, h]| PortSize::image(w, h));
@@ -54,27 +51,27 @@ impl WaveletGather {
         MemoryEstimate { outputs: vec![image, Some(PortSize::bytes(256))], working: memo }
     }
 
-    fn run(&self, i: WaveletGatherIn, cx: &RunCtx) -> Result<WaveletGatherOut, NodeError> {
-        let source = WaveletSource::checked(i.tree, i.coded)?;
-        let t = Traversal::with_source(i.tree, &source, self.threshold, 1e-5 * tree_extent(i.tree));
+    fn run(&self, tree: &PointTree, coded: &CodedWavelets, receivers: &Receivers, cx: &RunCtx) -> Result<(Image, Metrics), NodeError> {
+        let source = WaveletSource::checked(tree, coded)?;
+        let t = Traversal::with_source(tree, &source, self.threshold, 1e-5 * tree_extent(tree));
         let (img, counts) = if self.max_level == 0 {
-            gather_with(&t, i.receivers, SphericalMicrobuffer::new(self.resolution), cx)?
+            gather_with(&t, receivers, SphericalMicrobuffer::new(self.resolution), cx)?
         } else {
             if self.resolution < 2 {
                 return Err(NodeError::param("resolution", "the adaptive microbuffer starts at 2 × 2 or more"));
             }
             gather_with(
                 &t,
-                i.receivers,
+                receivers,
                 AdaptiveMicrobuffer::new(self.resolution, self.max_level, self.gamma).with_coarse_cut(self.coarse_cut),
                 cx,
             )?
         };
-        let m = count_metrics(counts, i.receivers.len());
+        let m = count_metrics(counts, receivers.len());
         for (k, v) in &m.0 {
             cx.metric(k, *v);
         }
-        Ok(WaveletGatherOut { indirect: img, stats: m })
+        Ok((img, m))
     }
 }
 

@@ -1,7 +1,7 @@
 use super::wavelet_radiance::code_tree;
 use crate::types::{CodedWavelets, PointTree, PointWavelets};
 use relume_base::math::tree_coding::Threshold;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, ParamEnum, Params, PortSize, RunCtx};
+use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
 
 /// How small stored coefficients are dropped.
 #[derive(ParamEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -19,6 +19,7 @@ pub enum Rule {
 /// only; stored vectors are thresholded by `rule`. One post-order pass holding at most
 /// depth + 2 uncompressed vectors. The report gives the coded bytes against every node
 /// keeping its average (the uncoded tree, measured by coding it so) and the vectors held.
+/// Memory: known only from the inputs' content; `run` checks the coded bound before coding.
 #[derive(Params)]
 pub struct WaveletTree {
     /// split level ε: nodes above keep averages, below details ([P]: 20)
@@ -35,9 +36,6 @@ pub struct WaveletTree {
     pub report_uncoded: bool,
 }
 
-inputs!(pub WaveletTreeIn { tree: PointTree, wavelets: PointWavelets });
-outputs!(pub WaveletTreeOut { coded: CodedWavelets });
-
 impl WaveletTree {
     fn threshold(&self) -> Threshold {
         match self.rule {
@@ -47,16 +45,10 @@ impl WaveletTree {
     }
 }
 
-#[node(category = "pbgi")]
+#[node(category = "pbgi", metrics = ["nodes", "coded_bytes", "coefficients_kept", "coefficients_before_threshold", "uncompressed_vectors_held", "uncoded_bytes", "coding_ratio"], outputs = [coded])]
 impl WaveletTree {
-    fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
-        // Known only from the inputs' content: `run` checks `bound` before coding.
-        let _ = inputs;
-        MemoryEstimate::unknown(1)
-    }
-
-    fn run(&self, i: WaveletTreeIn, cx: &RunCtx) -> Result<WaveletTreeOut, NodeError> {
-        let (tree, w) = (i.tree, i.wavelets);
+    fn run(&self, tree: &PointTree, wavelets: &PointWavelets, cx: &RunCtx) -> Result<CodedWavelets, NodeError> {
+        let w = wavelets;
         let points = tree.nodes.iter().filter(|t| t.is_leaf()).count();
         if points != w.len() || tree.nodes.iter().any(|t| t.is_leaf() && t.point as usize >= w.len()) {
             return Err(NodeError::input("wavelets", format!("{} points' wavelets for a tree of {points} points", w.len())));
@@ -87,7 +79,7 @@ impl WaveletTree {
             cx.metric("coding_ratio", uncoded.bytes() as f64 / coded.bytes().max(1) as f64);
         }
         cx.progress(2, 2);
-        Ok(WaveletTreeOut { coded: CodedWavelets { n: w.n, tree: coded } })
+        Ok(CodedWavelets { n: w.n, tree: coded })
     }
 }
 
@@ -161,7 +153,7 @@ mod tests {
         let cancel = relume_core::CancelToken::new();
         let cx = RunCtx::new("t", &cancel, None).with_memory_budget(1000);
         let node = WaveletTree { split: 20, threshold: 0.002, rule: Rule::Coefficient, report_uncoded: false };
-        let err = relume_core::Node::run(&node, WaveletTreeIn { tree: &tree, wavelets: &w }, &cx).err().unwrap();
+        let err = node.run_ports(&tree, &w, &cx).err().unwrap();
         assert!(err.to_string().contains("over the 1000 B budget") || err.to_string().contains("budget"), "{err}");
     }
 }

@@ -5,7 +5,7 @@ use relume_base::render::camera::CameraRays;
 use relume_base::render::zbuffer::{slots_per_pixel, BandHits, Projection, Rasterizer, BAND_ROWS, MAX_SIDE, MISS, SKIP, SLOT_BYTES};
 use relume_base::types::{Camera, Scene, TrianglePlanes};
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 use std::mem::MaybeUninit;
 use std::ops::Range;
 
@@ -47,7 +47,7 @@ use std::ops::Range;
 #[derive(Params)]
 pub struct CameraHits {
     /// samples per pixel (box filter), in every pixel or, adaptive, at edges
-    #[param(default = 16, range = 1..=1024, unit = "samples/pixel")]
+    #[param(default = 16, range = 1..=1024, unit = "samples/pixel", test = 2)]
     pub spp: u32,
     /// rotates the in-pixel sample pattern
     #[param(default = 0, range = 0..=u32::MAX)]
@@ -62,9 +62,6 @@ pub struct CameraHits {
     #[param(default = false)]
     pub cull_back_faces: bool,
 }
-
-inputs!(pub CameraHitsIn { scene: Scene, camera: Camera });
-outputs!(pub CameraHitsOut { hits: ScreenHits });
 
 /// One band's pixels, laid out as `ScreenHits`' arrays are (so that joining the bands
 /// copies slices): where each pixel's entries end, their vertices and weights, the missed
@@ -406,7 +403,7 @@ fn pair_differs(step: f32, a: (&[u32], &[f32]), b: (&[u32], &[f32]), out: &mut [
     }
 }
 
-#[node(category = "ptt", version = 4, caching = Keyed)]
+#[node(category = "ptt", version = 4, caching = Keyed, metrics = ["spp", "triangles", "centre_triangles", "covered_fraction", "supersampled_fraction", "seen", "weights_per_pixel"], outputs = [hits])]
 impl CameraHits {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         let hits = inputs[1].and_then(|s| s.dims).map(|[w, h]| {
@@ -416,8 +413,8 @@ impl CameraHits {
         MemoryEstimate { outputs: vec![hits], working: 0 }
     }
 
-    fn run(&self, i: CameraHitsIn, cx: &RunCtx) -> Result<CameraHitsOut, NodeError> {
-        let (scene, cam) = (i.scene, i.camera);
+    fn run(&self, scene: &Scene, camera: &Camera, cx: &RunCtx) -> Result<ScreenHits, NodeError> {
+        let cam = camera;
         let (w, h) = (cam.width, cam.height);
         let pixels = (w * h) as u64;
         let spp = self.spp as usize;
@@ -540,7 +537,7 @@ impl CameraHits {
         cx.metric("supersampled_fraction", supersampled as f64 / pixels as f64);
         cx.metric("seen", out.seen.len() as f64);
         cx.metric("weights_per_pixel", out.vertex.len() as f64 / pixels as f64);
-        Ok(CameraHitsOut { hits: out })
+        Ok(out)
     }
 }
 

@@ -2,7 +2,7 @@ use super::types::{CtaPlan, Visibility};
 use relume_base::math::cpca::Cpca;
 use relume_base::types::Scene;
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
 /// Plans the clustered tensor approximation (CTA) of the bounce transfer ([S] 5.3.3.4, after
 /// Tsai & Shih 2006; defaults [S]: 32 eigenvectors, lighting 64): clusters the vertices by
@@ -19,13 +19,13 @@ use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, Port
 #[derive(Params)]
 pub struct CtaCompress {
     /// vertex clusters ([S]: 13–62 per scene)
-    #[param(default = 32, range = 1..=4096)]
+    #[param(default = 32, range = 1..=4096, test = 64)]
     pub clusters: usize,
     /// eigenvectors kept over a cluster's vertices ([S]: 16 or 32)
-    #[param(default = 32, range = 1..=1024)]
+    #[param(default = 32, range = 1..=1024, test = 8)]
     pub eigenvectors: usize,
     /// rank kept over the lighting bases ([S]: 64)
-    #[param(default = 64, range = 1..=6144)]
+    #[param(default = 64, range = 1..=6144, test = 8)]
     pub lighting: usize,
     /// HOOI rounds after the HOSVD start
     #[param(default = 1, range = 0..=20)]
@@ -34,15 +34,12 @@ pub struct CtaCompress {
     #[param(default = 4, range = 0..=64)]
     pub cpca_components: usize,
     /// iterations of the clustering
-    #[param(default = 10, range = 0..=200)]
+    #[param(default = 10, range = 0..=200, test = 2)]
     pub cpca_iterations: usize,
     /// random seed of the clustering's start
     #[param(default = 1, range = 0..=u32::MAX)]
     pub seed: u64,
 }
-
-inputs!(pub CtaCompressIn { scene: Scene, visibility: Visibility });
-outputs!(pub CtaCompressOut { plan: CtaPlan });
 
 /// The clustering features of every vertex (see the node doc), row-major.
 pub fn features(scene: &Scene, vis: &Visibility) -> (Vec<f32>, usize) {
@@ -72,18 +69,18 @@ pub fn features(scene: &Scene, vis: &Visibility) -> (Vec<f32>, usize) {
     (f, dim)
 }
 
-#[node(category = "ptt")]
+#[node(category = "ptt", metrics = ["clusters", "largest_cluster", "smallest_cluster"], outputs = [plan])]
 impl CtaCompress {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         let b = inputs[1].map_or(0, |s| s.bytes);
         MemoryEstimate { outputs: vec![Some(PortSize::bytes(b / 64))], working: b / 2 }
     }
 
-    fn run(&self, i: CtaCompressIn, cx: &RunCtx) -> Result<CtaCompressOut, NodeError> {
-        let vis = i.visibility;
+    fn run(&self, scene: &Scene, visibility: &Visibility, cx: &RunCtx) -> Result<CtaPlan, NodeError> {
+        let vis = visibility;
         let n = vis.vertices();
-        if n != i.scene.positions.len() {
-            return Err(NodeError::input("visibility", format!("holds {n} vertices; the scene has {}", i.scene.positions.len())));
+        if n != scene.positions.len() {
+            return Err(NodeError::input("visibility", format!("holds {n} vertices; the scene has {}", scene.positions.len())));
         }
         let dim = 6 * (vis.coarse as usize).pow(2) + 6;
         let bytes = (n * dim * 4) as u64 + Cpca::bytes_for(n, dim, self.clusters, self.cpca_components);
@@ -98,7 +95,7 @@ impl CtaCompress {
         let members = if n == 0 {
             vec![]
         } else {
-            let (f, dim) = features(i.scene, vis);
+            let (f, dim) = features(scene, vis);
             let cpca = Cpca { k, m: self.cpca_components, max_iterations: self.cpca_iterations, seed: self.seed };
             let r = cpca.run_with(&f, dim, cx, (0.0, 1.0))?;
             if !r.converged {
@@ -114,7 +111,7 @@ impl CtaCompress {
         cx.metric("clusters", sizes.len() as f64);
         cx.metric("largest_cluster", plan.largest() as f64);
         cx.metric("smallest_cluster", sizes.iter().copied().min().unwrap_or(0) as f64);
-        Ok(CtaCompressOut { plan })
+        Ok(plan)
     }
 }
 

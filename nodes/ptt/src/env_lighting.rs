@@ -5,7 +5,7 @@ use relume_base::math::cube_haar::CubeHaar;
 use relume_base::math::cubemap::CubeMap;
 use relume_base::types::{Environment, Metrics, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
 /// The scene's environment as the transfer-tensor renderer reads it ([S] 5.2.3, 5.3.3.3): a
 /// cube map of 6 × `side` × `side` texels (each the solid-angle-weighted mean of
@@ -26,10 +26,10 @@ use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, Port
 #[derive(Params)]
 pub struct EnvLighting {
     /// texels along a cube face ([S]: 64)
-    #[param(default = 64, range = 4..=512)]
+    #[param(default = 64, range = 4..=512, test = 8)]
     pub side: usize,
     /// sub-texels per texel side averaged from the lat-long map
-    #[param(default = 4, range = 1..=16)]
+    #[param(default = 4, range = 1..=16, test = 2)]
     pub supersample: usize,
     /// angular standard deviation of the first specular lobe; lobe k has k times it
     #[param(default = 7.0, range = 0.1..=60.0, unit = "°")]
@@ -38,9 +38,6 @@ pub struct EnvLighting {
     #[param(default = 3, range = 0..=8)]
     pub lobes: usize,
 }
-
-inputs!(pub EnvLightingIn { scene: Scene });
-outputs!(pub EnvLightingOut { light: EnvLight, metrics: Metrics });
 
 impl EnvLighting {
     fn bytes(&self) -> u64 {
@@ -57,7 +54,7 @@ impl EnvLighting {
     }
 }
 
-#[node(category = "ptt")]
+#[node(category = "ptt", metrics = ["radiance_max", "luminance_integral", "haar_nonzero", "energy_share_top96", "bytes"], outputs = [light, metrics])]
 impl EnvLighting {
     fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
         MemoryEstimate {
@@ -66,11 +63,11 @@ impl EnvLighting {
         }
     }
 
-    fn run(&self, i: EnvLightingIn, cx: &RunCtx) -> Result<EnvLightingOut, NodeError> {
+    fn run(&self, scene: &Scene, cx: &RunCtx) -> Result<(EnvLight, Metrics), NodeError> {
         if !self.side.is_power_of_two() {
             return Err(NodeError::param("side", format!("the Haar transform needs a power of two, not {}", self.side)));
         }
-        if i.scene.environment.is_none() {
+        if scene.environment.is_none() {
             return Err(NodeError::input("scene", "the scene has no environment to light it (add `environment: Map(…)` or `Constant(…)`)"));
         }
         let bytes = self.bytes();
@@ -80,7 +77,7 @@ impl EnvLighting {
                 msg: format!("the cube maps would hold {}, over the {} budget", fmt_bytes(bytes), fmt_bytes(cx.memory_budget())),
             });
         }
-        let map = self.cube(i.scene);
+        let map = self.cube(scene);
         cx.check()?;
         let haar = CubeHaar::forward(&map);
         let lobes = (1..=self.lobes)
@@ -107,7 +104,7 @@ impl EnvLighting {
         for (name, v) in &m.0 {
             cx.metric(name, *v);
         }
-        Ok(EnvLightingOut { light: EnvLight { n: self.side as u32, map: map.texels, haar: haar.coeffs, lobes }, metrics: m })
+        Ok((EnvLight { n: self.side as u32, map: map.texels, haar: haar.coeffs, lobes }, m))
     }
 }
 

@@ -1,5 +1,5 @@
 use super::bounce::SH;
-use super::brdf::types::TuckerBrdf;
+use super::types::brdf::TuckerBrdf;
 use super::types::Visibility;
 use super::vertices::vertex_frame;
 use crate::types::{ShColumns, NO_OWNER, NO_SLOT};
@@ -9,7 +9,7 @@ use relume_base::math::sh::sh_basis_into;
 use relume_base::math::sh_rotation::ShRotation;
 use relume_base::types::Scene;
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 /// Per scene vertex, the object it belongs to (the first triangle that uses it), if any.
 pub fn vertex_objects(scene: &Scene) -> Vec<Option<u32>> {
@@ -64,17 +64,10 @@ pub struct IncidentProjection {
     pub quadrature_side: usize,
 }
 
-inputs!(pub IncidentProjectionIn { scene: Scene, visibility: Visibility, brdf: TuckerBrdf });
-outputs!(pub IncidentProjectionOut { projection: ShColumns });
-
-#[node(category = "ptt", version = 2)]
+#[node(category = "ptt", version = 2, metrics = ["slots", "columns", "bytes"], outputs = [projection])]
 impl IncidentProjection {
-    fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
-        MemoryEstimate { outputs: vec![None], working: 0 }
-    }
-
-    fn run(&self, i: IncidentProjectionIn, cx: &RunCtx) -> Result<IncidentProjectionOut, NodeError> {
-        let (scene, vis) = (i.scene, i.visibility);
+    fn run(&self, scene: &Scene, visibility: &Visibility, brdf: &TuckerBrdf, cx: &RunCtx) -> Result<ShColumns, NodeError> {
+        let vis = visibility;
         let n = scene.positions.len();
         if vis.vertices() != n {
             return Err(NodeError::input(
@@ -85,7 +78,7 @@ impl IncidentProjection {
         let owner = vertex_objects(scene);
         let dynamic = |v: usize| owner[v].is_some_and(|o| scene.objects[o as usize].dynamic) && vis.normals[v] != Vec3::ZERO;
         let shaded: Vec<usize> = (0..n).filter(|&v| dynamic(v)).collect();
-        let cols = i.brdf.ranks[2] as usize;
+        let cols = brdf.ranks[2] as usize;
         let bytes = ShColumns::bytes_for(n as u64, shaded.len() as u64, cols as u64);
         if bytes > cx.memory_budget() {
             return Err(NodeError::over_limit(format!(
@@ -95,7 +88,7 @@ impl IncidentProjection {
                 fmt_bytes(cx.memory_budget())
             )));
         }
-        let local = local_projection(i.brdf, self.quadrature_side);
+        let local = local_projection(brdf, self.quadrature_side);
         let local: Vec<Vec<f32>> = local.chunks(SH).map(|c| c.iter().map(|&x| x as f32).collect()).collect();
         cx.check()?;
         let per = cx.par_map(shaded.len(), |t| {
@@ -110,14 +103,14 @@ impl IncidentProjection {
         cx.metric("columns", cols as f64);
         cx.metric("bytes", bytes as f64);
         let owner = owner.iter().map(|o| o.unwrap_or(NO_OWNER)).collect();
-        Ok(IncidentProjectionOut { projection: ShColumns { columns: cols as u32, slot, owner, normals: vis.normals.clone(), values } })
+        Ok(ShColumns { columns: cols as u32, slot, owner, normals: vis.normals.clone(), values })
     }
 }
 
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::brdf::test_support::small_brdf;
+    use crate::brdf_factors::test_support::small_brdf;
     use crate::vertex_visibility::tests::{floor_and_roof, visibility};
     use relume_base::math::rng::uniform;
     use relume_base::math::sh::sh_eval;

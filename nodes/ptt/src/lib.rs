@@ -6,7 +6,7 @@
 //! the separated specular lobes; then rasterised.
 
 pub mod bounce;
-pub mod brdf;
+pub mod brdf_factors;
 pub mod camera_hits;
 pub mod channels;
 pub mod cta_compress;
@@ -26,45 +26,8 @@ pub mod vertex_path_trace;
 pub mod vertex_visibility;
 pub mod vertices;
 
-use relume_core::Registry;
-
-/// Registers the transfer-tensor nodes.
-pub fn register(reg: &mut Registry) {
-    reg.add::<env_lighting::EnvLighting>();
-    reg.add::<vertex_visibility::VertexVisibility>();
-    reg.add::<cta_compress::CtaCompress>();
-    reg.add::<transfer_t0::TransferT0>();
-    reg.add::<transfer_t1::TransferT1>();
-    reg.add::<transfer_t2::TransferT2>();
-    reg.add::<incident_projection::IncidentProjection>();
-    reg.add::<ptt_direct::PttDirect>();
-    reg.add::<ptt_bounce_light::PttBounceLight>();
-    reg.add::<ptt_incident::PttIncident>();
-    reg.add::<ptt_relight::PttRelight>();
-    reg.add::<camera_hits::CameraHits>();
-    reg.add::<rasterize_vertex_colors::RasterizeVertexColors>();
-    reg.add::<vertex_path_trace::VertexPathTrace>();
-    brdf::register(reg);
-}
-
-/// Test-size parameters of the transfer-tensor nodes (pipeline 2): coarse cube maps, few rays,
-/// a small BRDF tensor, few clusters, on envlit's 49 K vertices: what the graph,
-/// port-type, editor tests and the benches' test mode run.
-pub fn test_size(kind: &str) -> &'static [(&'static str, &'static str)] {
-    match kind {
-        "EnvLighting" => &[("side", "8"), ("supersample", "2")],
-        "VertexVisibility" => &[("side", "8"), ("coarse", "2")],
-        "BrdfTensor" => &[("disk", "6"), ("samples", "12"), ("m_count", "3"), ("f0_count", "2")],
-        "BrdfSpaceSample" => &[("n_theta_i", "8"), ("n_theta_o", "8"), ("n_phi", "16"), ("samples", "21")],
-        "CtaCompress" => &[("clusters", "64"), ("eigenvectors", "8"), ("lighting", "8"), ("cpca_iterations", "2")],
-        "TransferT0" => &[("terms", "16"), ("lobe_side", "2")],
-        "TransferT1" => &[("rays_side", "2")],
-        "TransferT2" => &[("side", "1"), ("rays_side", "2")],
-        "VertexPathTrace" => &[("spp", "4")],
-        "CameraHits" => &[("spp", "2")],
-        _ => &[],
-    }
-}
+// `pub fn register(reg)`: every node kind of the crate, found by build.rs.
+include!(concat!(env!("OUT_DIR"), "/register.rs"));
 
 #[cfg(test)]
 pub(crate) mod test_support;

@@ -8,7 +8,7 @@ use crate::types::{BounceLight, LitCore};
 use glam::Vec3;
 use relume_base::math::cubemap::CubeView;
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx};
+use relume_core::{node, NodeError, Params, PortValue, RunCtx};
 
 /// The environment at side `m` as box-basis weights per colour (`CubeMap::box_downsample`).
 fn box_light(env: &EnvLight, m: usize) -> Result<Vec<Vec3>, NodeError> {
@@ -51,31 +51,24 @@ pub struct PttBounceLight {
     pub bounces: usize,
 }
 
-inputs!(pub PttBounceLightIn { env: EnvLight, bounce: BounceTransfer, two: TwoBounce });
-outputs!(pub PttBounceLightOut { light: BounceLight });
-
-#[node(category = "ptt", caching = Keyed)]
+#[node(category = "ptt", caching = Keyed, metrics = ["bounces", "clusters", "slots", "bytes"], outputs = [light])]
 impl PttBounceLight {
-    fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
-        MemoryEstimate { outputs: vec![None], working: 0 }
-    }
-
-    fn run(&self, i: PttBounceLightIn, cx: &RunCtx) -> Result<PttBounceLightOut, NodeError> {
-        let t = i.bounce;
+    fn run(&self, env: &EnvLight, bounce: &BounceTransfer, two: &TwoBounce, cx: &RunCtx) -> Result<BounceLight, NodeError> {
+        let t = bounce;
         let n = t.plan.vertices();
         let ch = t.channels();
-        if i.two.channels as usize != ch {
+        if two.channels as usize != ch {
             return Err(NodeError::input(
                 "two",
-                format!("has {} channels, the one-bounce transfer {ch}: they must come from the same scene and basis", i.two.channels),
+                format!("has {} channels, the one-bounce transfer {ch}: they must come from the same scene and basis", two.channels),
             ));
         }
-        if self.bounces == 2 && i.two.values.len() / i.two.stride().max(1) != n {
+        if self.bounces == 2 && two.values.len() / two.stride().max(1) != n {
             return Err(NodeError::input(
                 "two",
                 format!(
                     "holds {} vertices, the one-bounce transfer {n}: they must come from the same scene",
-                    i.two.values.len() / i.two.stride().max(1)
+                    two.values.len() / two.stride().max(1)
                 ),
             ));
         }
@@ -92,7 +85,7 @@ impl PttBounceLight {
         }
         let mut out = BounceLight { bounces: self.bounces as u32, groups: t.groups.clone(), bases: t.bases, cores: vec![], pairs: vec![] };
         if self.bounces >= 1 {
-            let light = box_light(i.env, t.coarse as usize)?;
+            let light = box_light(env, t.coarse as usize)?;
             out.cores = cx.par_map(t.clusters.len(), |c| {
                 let k = &t.clusters[c];
                 let (l, s, rv, rl) = (k.lights as usize, k.columns as usize, k.rank_v as usize, k.rank_l as usize);
@@ -115,7 +108,7 @@ impl PttBounceLight {
             })?;
         }
         if self.bounces == 2 {
-            let light = box_light(i.env, i.two.side as usize)?;
+            let light = box_light(env, two.side as usize)?;
             // Each channel pair's slot pair and colour weight.
             let pair: Vec<(usize, Vec3)> =
                 slot.iter().flat_map(|&(r1, w1)| slot.iter().map(move |&(r2, w2)| (r1 * slots + r2, w1 * w2))).collect();
@@ -125,7 +118,7 @@ impl PttBounceLight {
                 let mut acc = [vec![0.0f32; ch * ch], vec![0.0f32; ch * ch], vec![0.0f32; ch * ch]];
                 for (v, dst) in (k * CHUNK..).zip(pairs.chunks_mut(slots * slots)) {
                     acc.iter_mut().for_each(|a| a.fill(0.0));
-                    for (row, li) in i.two.of(v).chunks_exact(ch * ch).zip(&light) {
+                    for (row, li) in two.of(v).chunks_exact(ch * ch).zip(&light) {
                         for (a, lc) in acc.iter_mut().zip(li.to_array()) {
                             a.iter_mut().zip(row).for_each(|(a, x)| *a += lc * x);
                         }
@@ -140,7 +133,7 @@ impl PttBounceLight {
         cx.metric("clusters", out.cores.len() as f64);
         cx.metric("slots", slots as f64);
         cx.metric("bytes", out.byte_size() as f64);
-        Ok(PttBounceLightOut { light: out })
+        Ok(out)
     }
 }
 

@@ -5,7 +5,7 @@ use super::types::{ShColumns, NO_SLOT};
 use crate::types::{DirectLight, DirectTransfer};
 use glam::Vec3;
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx};
+use relume_core::{node, NodeError, Params, PortValue, RunCtx};
 
 /// The direct light at every vertex under the current environment ([S] 5-7; the part of the
 /// incident light that the dynamic objects' materials do not reach): per vertex, the
@@ -18,17 +18,10 @@ use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, Port
 #[derive(Params)]
 pub struct PttDirect {}
 
-inputs!(pub PttDirectIn { env: EnvLight, direct: DirectTransfer, projection: ShColumns });
-outputs!(pub PttDirectOut { light: DirectLight });
-
-#[node(category = "ptt", caching = Keyed)]
+#[node(category = "ptt", caching = Keyed, metrics = ["vertices", "slots", "e0_mean", "bytes"], outputs = [light])]
 impl PttDirect {
-    fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
-        MemoryEstimate { outputs: vec![None], working: 0 }
-    }
-
-    fn run(&self, i: PttDirectIn, cx: &RunCtx) -> Result<PttDirectOut, NodeError> {
-        let (d, p) = (i.direct, i.projection);
+    fn run(&self, env: &EnvLight, direct: &DirectTransfer, projection: &ShColumns, cx: &RunCtx) -> Result<DirectLight, NodeError> {
+        let (d, p) = (direct, projection);
         let n = p.normals.len();
         if d.vertices() != n {
             return Err(NodeError::input(
@@ -46,8 +39,8 @@ impl PttDirect {
                 ),
             ));
         }
-        if d.n != i.env.n {
-            return Err(NodeError::input("env", format!("the environment's side is {} but the direct transfer's {}", i.env.n, d.n)));
+        if d.n != env.n {
+            return Err(NodeError::input("env", format!("the environment's side is {} but the direct transfer's {}", env.n, d.n)));
         }
         let (cols, slots) = (p.columns as usize, p.slots());
         let bytes = DirectLight::bytes_for(n as u64, slots as u64, cols as u64);
@@ -65,7 +58,7 @@ impl PttDirect {
             let mut col = vec![Vec3::ZERO; cols + 1];
             let mut rows = Vec::with_capacity(CHUNK);
             for v in c * CHUNK..((c + 1) * CHUNK).min(n) {
-                d.apply_into(v, &i.env.haar, &mut col);
+                d.apply_into(v, &env.haar, &mut col);
                 rows.push(col.clone());
             }
             rows
@@ -83,7 +76,7 @@ impl PttDirect {
         cx.metric("slots", slots as f64);
         cx.metric("e0_mean", sum / n.max(1) as f64);
         cx.metric("bytes", out.byte_size() as f64);
-        Ok(PttDirectOut { light: out })
+        Ok(out)
     }
 }
 

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use relume_base::math::sh::{clamped_cosine_zonal, sh_basis_into, Y00};
 use relume_base::types::ObjectMaterials;
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx};
+use relume_core::{inputs, node, outputs, NodeError, Params, PortValue, RunCtx};
 use std::f32::consts::PI;
 
 /// The light arriving at every vertex under the current environment and materials ([S] 5-5,
@@ -132,12 +132,8 @@ impl PttIncident {
     }
 }
 
-#[node(category = "ptt", version = 2, caching = Keyed)]
+#[node(category = "ptt", version = 2, caching = Keyed, metrics = ["vertices", "slots", "bounces", "e0_mean", "e1_mean", "e2_mean", "bytes"])]
 impl PttIncident {
-    fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
-        MemoryEstimate { outputs: vec![None], working: 0 }
-    }
-
     fn run(&self, i: PttIncidentIn, cx: &RunCtx) -> Result<PttIncidentOut, NodeError> {
         let n = self.check(&i)?;
         let (p, cols, bounces) = (i.projection, i.projection.columns as usize, i.light.bounces);

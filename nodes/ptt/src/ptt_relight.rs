@@ -1,6 +1,6 @@
 use super::bounce::SH;
-use super::brdf::types::{Blend, BrdfFamily, MaterialParam, SpecularLobes, TuckerBrdf, MAX_LOBES};
 use super::screen_hits::ScreenHits;
+use super::types::brdf::{Blend, BrdfFamily, MaterialParam, SpecularLobes, TuckerBrdf, MAX_LOBES};
 use super::types::LobeVisibility;
 use super::types::VertexIncident;
 use super::types::{EnvLight, VertexColors, Visibility};
@@ -10,7 +10,7 @@ use glam::Vec3;
 use relume_base::math::cubemap::{CubeAt, CubeView, Taps};
 use relume_base::math::sh::sh_basis_into;
 use relume_base::types::{Camera, Material, ObjectMaterial, ObjectMaterials, Scene};
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 use std::f32::consts::PI;
 
 /// Shades the vertices the camera sees (`hits`, from `CameraHits`; the others stay black,
@@ -194,12 +194,8 @@ impl PttRelight {
     }
 }
 
-#[node(category = "ptt", caching = Keyed, version = 2)]
+#[node(category = "ptt", caching = Keyed, version = 2, metrics = ["vertices", "seen", "shaded", "diffuse_mean", "specular_mean"])]
 impl PttRelight {
-    fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
-        MemoryEstimate { outputs: vec![None], working: 0 }
-    }
-
     fn run(&self, i: PttRelightIn, cx: &RunCtx) -> Result<PttRelightOut, NodeError> {
         let scene = i.scene;
         let n = scene.positions.len();
@@ -387,9 +383,9 @@ impl PttRelight {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::brdf::test_support::{small_brdf, small_ct_brdf};
-    use crate::brdf::types::gaussian_norm;
+    use crate::brdf_factors::test_support::{small_brdf, small_ct_brdf};
     use crate::test_support::{blob_sky, plane, Chain, GLOSSY};
+    use crate::types::brdf::gaussian_norm;
     use relume_base::brdf;
     use relume_base::math::cubemap::CubeMap;
     use relume_base::testing::{f, first, id, rgb, run_on, t};
@@ -405,7 +401,7 @@ mod tests {
     /// BRDF, and with the BRDF as the test tensor represents it (Kd/π + Ks (f_r + Σ a_k
     /// lobe_k), the 0° lobe the environment at the mirror direction).
     fn reference(s: &Scene, v: usize) -> (Vec3, Vec3) {
-        reference_of(s, v, &GLOSSY, crate::brdf::test_support::small_brdf())
+        reference_of(s, v, &GLOSSY, crate::brdf_factors::test_support::small_brdf())
     }
 
     /// [`reference`] for the plane's `material` as the tensor and lobes `tensor` represent it.

@@ -3,7 +3,7 @@ use super::types::VertexColors;
 use glam::Vec3;
 use relume_base::types::{Image, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, NodeError, Params, PortSize, RunCtx};
 
 /// Renders per-vertex radiance to an image ([S] chapter 5: the transfer tensors relight the
 /// vertices, and each pixel interpolates them): each pixel is the environment of `scene`
@@ -27,17 +27,10 @@ pub struct RasterizeVertexColors {
     pub background: bool,
 }
 
-inputs!(pub RasterizeVertexColorsIn { hits: ScreenHits, colors: VertexColors, scene: Scene });
-outputs!(pub RasterizeVertexColorsOut { image: Image });
-
-#[node(category = "ptt", version = 3, caching = Keyed)]
+#[node(category = "ptt", version = 3, caching = Keyed, metrics = ["weights"], outputs = [image])]
 impl RasterizeVertexColors {
-    fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
-        MemoryEstimate { outputs: vec![None], working: 0 }
-    }
-
-    fn run(&self, i: RasterizeVertexColorsIn, cx: &RunCtx) -> Result<RasterizeVertexColorsOut, NodeError> {
-        let (hits, colors) = (i.hits, &i.colors.colors);
+    fn run(&self, hits: &ScreenHits, colors: &VertexColors, scene: &Scene, cx: &RunCtx) -> Result<Image, NodeError> {
+        let (hits, colors) = (hits, &colors.colors);
         if colors.len() != hits.vertices as usize {
             return Err(NodeError::input(
                 "colors",
@@ -65,7 +58,7 @@ impl RasterizeVertexColors {
                         dirs.push(hits.miss_dir[p]);
                     }
                 }
-                i.scene.environment_radiance_many_fast(&dirs, &mut sky);
+                scene.environment_radiance_many_fast(&dirs, &mut sky);
             }
             let mut sky_of = missing.iter().zip(&sky).peekable();
             for (k, out) in px.iter_mut().enumerate() {
@@ -82,7 +75,7 @@ impl RasterizeVertexColors {
             }
         })?;
         cx.metric("weights", hits.weight.len() as f64);
-        Ok(RasterizeVertexColorsOut { image })
+        Ok(image)
     }
 }
 

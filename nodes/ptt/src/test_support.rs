@@ -1,8 +1,7 @@
 //! The whole transfer chain on small scenes, made by the nodes themselves, for the relighting
 //! nodes' unit tests.
 
-use super::brdf::test_support::small_brdf;
-use super::brdf::types::{SpecularLobes, TuckerBrdf};
+use super::brdf_factors::test_support::small_brdf;
 use super::cta_compress::CtaCompress;
 use super::env_lighting::EnvLighting;
 use super::incident_projection::IncidentProjection;
@@ -14,6 +13,7 @@ use super::screen_hits::ScreenHits;
 use super::transfer_t0::TransferT0;
 use super::transfer_t1::TransferT1;
 use super::transfer_t2::TransferT2;
+use super::types::brdf::{SpecularLobes, TuckerBrdf};
 use super::types::BounceLight;
 use super::types::DirectLight;
 use super::types::VertexIncident;

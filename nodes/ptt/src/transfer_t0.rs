@@ -2,7 +2,7 @@
 //! vertex and column (`types::DirectTransfer`), and the per-vertex visible
 //! fraction of each specular lobe over mirror directions ([`LobeVisibility`], [S] 5.3.1).
 
-use super::brdf::types::{SpecularLobes, TuckerBrdf};
+use super::types::brdf::{SpecularLobes, TuckerBrdf};
 use super::types::Visibility;
 use super::vertices::vertex_frame;
 use crate::types::lobe_side as fraction_side;
@@ -302,10 +302,10 @@ fn u_i_into(brdf: &TuckerBrdf, w: Vec3, acc: &mut [f64], out: &mut [f32]) {
 #[derive(Params)]
 pub struct TransferT0 {
     /// Haar terms kept per column ([S]: n_L = 96)
-    #[param(default = 96, range = 1..=4096)]
+    #[param(default = 96, range = 1..=4096, test = 16)]
     pub terms: usize,
     /// texels along a face of each lobe's visible-fraction map
-    #[param(default = 8, range = 1..=64)]
+    #[param(default = 8, range = 1..=64, test = 2)]
     pub lobe_side: usize,
 }
 
@@ -389,7 +389,7 @@ pub fn chunk_of(setup: &DirectSetup, range: Range<usize>, cx: &RunCtx) -> Result
     Ok(c)
 }
 
-#[node(category = "ptt", version = 2, sharded)]
+#[node(category = "ptt", version = 2, sharded, metrics = ["vertices", "columns", "terms_mean", "energy_kept", "lobe_maps", "bytes"])]
 impl TransferT0 {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         // The vertices and columns are known only from the inputs: the node checks itself.
@@ -461,14 +461,14 @@ impl TransferT0 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::brdf::types::MaterialParam;
+    use crate::types::brdf::MaterialParam;
     use crate::vertex_visibility::tests::{floor_and_roof, visibility};
     use relume_base::testing::{first, run_on};
     use relume_core::Value;
     use std::f64::consts::PI;
 
     fn brdf() -> &'static (TuckerBrdf, SpecularLobes) {
-        crate::brdf::test_support::small_brdf()
+        crate::brdf_factors::test_support::small_brdf()
     }
 
     /// graphs/assets/envlit/sky.exr on a cube map of side `n`.

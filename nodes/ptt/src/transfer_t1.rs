@@ -5,7 +5,7 @@ use crate::types::BounceTransfer;
 use relume_base::math::cta::{compress, ClusterTensor};
 use relume_base::types::{Accel, BrdfBasis, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx, ShardSpec};
+use relume_core::{inputs, node, outputs, NodeError, Params, PortValue, RunCtx, ShardSpec};
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
 
@@ -23,10 +23,12 @@ use std::ops::Range;
 /// Metrics: rays, the raw transfer's bytes (what holding it whole would take) and the
 /// compressed bytes, the approximation's relative error ‖T − T̂‖ / ‖T‖ over all clusters, the
 /// channels (fixed ones first) and the lighting bases.
+/// Memory: the channels and cluster sizes come with the inputs, so `run` checks its bytes
+/// itself before allocating.
 #[derive(Params)]
 pub struct TransferT1 {
     /// texels along a face of the cube map whose centres the bounce rays go through
-    #[param(default = 16, range = 2..=128)]
+    #[param(default = 16, range = 2..=128, test = 2)]
     pub rays_side: usize,
 }
 
@@ -78,14 +80,8 @@ impl TransferT1 {
     }
 }
 
-#[node(category = "ptt", sharded)]
+#[node(category = "ptt", sharded, metrics = ["rays", "raw_bytes", "compressed_bytes", "relative_error", "channels", "lighting_bases"])]
 impl TransferT1 {
-    fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
-        // The channels and cluster sizes come with the inputs: the node checks its bytes itself.
-        let _ = inputs;
-        MemoryEstimate { outputs: vec![None], working: 0 }
-    }
-
     fn shard(&self, i: &TransferT1In) -> Result<ShardSpec, NodeError> {
         self.check(i, relume_core::memory::default_budget())?;
         Ok(ShardSpec::new(i.plan.members.len() as u64, 1))

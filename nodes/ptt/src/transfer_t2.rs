@@ -9,7 +9,7 @@ use relume_base::math::cubemap::CubeMap;
 use relume_base::math::sh::{sh_basis_into, sh_clamped_cosine};
 use relume_base::types::{Accel, BrdfBasis, BrdfGrid, Material, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx, ShardSpec};
+use relume_core::{inputs, node, outputs, NodeError, Params, PortValue, RunCtx, ShardSpec};
 use std::f32::consts::PI;
 use std::ops::Range;
 
@@ -31,10 +31,10 @@ use std::ops::Range;
 #[derive(Params)]
 pub struct TransferT2 {
     /// texels along a face of the coarse lighting map ([S]: 2); must divide T¹'s side
-    #[param(default = 2, range = 1..=64)]
+    #[param(default = 2, range = 1..=64, test = 1)]
     pub side: usize,
     /// texels along a face of the cube map whose centres the rays go through
-    #[param(default = 8, range = 2..=64)]
+    #[param(default = 8, range = 2..=64, test = 2)]
     pub rays_side: usize,
 }
 
@@ -138,13 +138,8 @@ impl TransferT2 {
     }
 }
 
-#[node(category = "ptt", sharded)]
+#[node(category = "ptt", sharded, metrics = ["bytes", "channels", "lighting_bases"])]
 impl TransferT2 {
-    fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
-        let _ = inputs;
-        MemoryEstimate { outputs: vec![None], working: 0 }
-    }
-
     fn shard(&self, i: &TransferT2In) -> Result<ShardSpec, NodeError> {
         self.check(i, relume_core::memory::default_budget())?;
         Ok(ShardSpec::new(i.scene.positions.len() as u64, CHUNK))

@@ -2,7 +2,7 @@ use super::types::VertexColors;
 use glam::Vec3;
 use relume_base::render::integrator::{Counts, Settings, Tracer};
 use relume_base::types::{Accel, Scene};
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 /// The reference path tracer's radiance leaving every vertex toward the scene's camera: the
 /// vertex-sampled reference of per-vertex relighting ([S] chapter 5). Rasterised like the
@@ -20,7 +20,7 @@ use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, Port
 #[derive(Params)]
 pub struct VertexPathTrace {
     /// paths per vertex
-    #[param(default = 256, range = 1..=(1 << 20), unit = "samples/vertex")]
+    #[param(default = 256, range = 1..=(1 << 20), unit = "samples/vertex", test = 4)]
     pub spp: u32,
     /// maximum path segments (Mitsuba's meaning); -1 = unbounded
     #[param(default = 4, range = -1..=1024)]
@@ -33,17 +33,9 @@ pub struct VertexPathTrace {
     pub seed: u64,
 }
 
-inputs!(pub VertexPathTraceIn { scene: Scene, accel: Accel });
-outputs!(pub VertexPathTraceOut { colors: VertexColors });
-
-#[node(category = "ptt")]
+#[node(category = "ptt", metrics = ["vertices", "rays"], outputs = [colors])]
 impl VertexPathTrace {
-    fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
-        MemoryEstimate { outputs: vec![None], working: 0 }
-    }
-
-    fn run(&self, i: VertexPathTraceIn, cx: &RunCtx) -> Result<VertexPathTraceOut, NodeError> {
-        let scene = i.scene;
+    fn run(&self, scene: &Scene, accel: &Accel, cx: &RunCtx) -> Result<VertexColors, NodeError> {
         let n = scene.positions.len();
         VertexColors::check_budget(n, cx.memory_budget())?;
         // Per vertex, a point a thousandth of the way from it to the centroid of its first
@@ -57,7 +49,7 @@ impl VertexPathTrace {
                 aim[v as usize].get_or_insert(p + (c - p) * 1e-3);
             }
         }
-        let tracer = Tracer::new(scene, i.accel, Settings { max_depth: self.max_depth, rr_depth: self.rr_depth, seed: self.seed });
+        let tracer = Tracer::new(scene, accel, Settings { max_depth: self.max_depth, rr_depth: self.rr_depth, seed: self.seed });
         let (eye, back) = (scene.camera.origin, 1e-3 * scene.extent());
         let per = cx.par_map(n, |v| {
             let Some(p) = aim[v] else { return (Vec3::ZERO, 0) };
@@ -77,7 +69,7 @@ impl VertexPathTrace {
         })?;
         cx.metric("vertices", n as f64);
         cx.metric("rays", per.iter().map(|p| p.1).sum::<u64>() as f64);
-        Ok(VertexPathTraceOut { colors: VertexColors { colors: per.into_iter().map(|p| p.0).collect() } })
+        Ok(VertexColors { colors: per.into_iter().map(|p| p.0).collect() })
     }
 }
 

@@ -23,10 +23,10 @@ use std::ops::Range;
 #[derive(Params)]
 pub struct VertexVisibility {
     /// texels along a cube face ([S]: 64)
-    #[param(default = 64, range = 4..=256)]
+    #[param(default = 64, range = 4..=256, test = 8)]
     pub side: usize,
     /// texels along a face of the coarse map of the bounce lighting bases ([S] 5.3.3.4: 8)
-    #[param(default = 8, range = 1..=64)]
+    #[param(default = 8, range = 1..=64, test = 2)]
     pub coarse: usize,
 }
 
@@ -112,7 +112,7 @@ pub fn visibility_of(
     Ok((chunk, rays))
 }
 
-#[node(category = "ptt", sharded)]
+#[node(category = "ptt", sharded, metrics = ["vertices", "visible_fraction", "bytes"])]
 impl VertexVisibility {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         // The vertices are known only from the scene: the node checks its bytes itself.

@@ -1,6 +1,6 @@
 use glam::Vec3;
 use relume_base::types::{Material, ObjectMaterials, Scene, Specular};
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 /// The scene with its dynamic objects' materials replaced by `materials` (Blinn-Phong (Kd, Ks,
 /// s), or Cook-Torrance (Kd, Ks, m, F0) for a material whose specular lobe is Cook-Torrance,
@@ -10,9 +10,6 @@ use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 /// are an input error.
 #[derive(Params)]
 pub struct ApplyMaterials {}
-
-inputs!(pub ApplyMaterialsIn { scene: Scene, materials: ObjectMaterials });
-outputs!(pub ApplyMaterialsOut { scene: Scene });
 
 /// `scene` with the materials of its dynamic objects from `materials` (see the node's doc).
 pub fn apply_materials(scene: &Scene, materials: &ObjectMaterials) -> Result<Scene, String> {
@@ -36,15 +33,15 @@ pub fn apply_materials(scene: &Scene, materials: &ObjectMaterials) -> Result<Sce
     Ok(out)
 }
 
-#[node(category = "relight")]
+#[node(category = "relight", outputs = [scene])]
 impl ApplyMaterials {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         relume_core::MemoryEstimate { outputs: vec![inputs[0]], working: 0 }
     }
 
-    fn run(&self, i: ApplyMaterialsIn, _cx: &RunCtx) -> Result<ApplyMaterialsOut, NodeError> {
-        let scene = apply_materials(i.scene, i.materials).map_err(|m| NodeError::input("materials", m))?;
-        Ok(ApplyMaterialsOut { scene })
+    fn run(&self, scene: &Scene, materials: &ObjectMaterials, _cx: &RunCtx) -> Result<Scene, NodeError> {
+        let scene = apply_materials(scene, materials).map_err(|m| NodeError::input("materials", m))?;
+        Ok(scene)
     }
 }
 

@@ -9,7 +9,7 @@ pub mod apply_materials;
 pub mod paint_material;
 pub mod paths;
 #[allow(clippy::module_inception)]
-pub mod relight;
+pub mod relight_pixels;
 pub mod relight_reference;
 pub mod shades;
 pub mod sv_precompute;
@@ -21,18 +21,8 @@ pub mod terms;
 pub mod transfer_precompute;
 pub mod types;
 
-use relume_core::Registry;
-
-/// Registers the relighting nodes.
-pub fn register(reg: &mut Registry) {
-    reg.add::<transfer_precompute::TransferPrecompute>();
-    reg.add::<relight::Relight>();
-    reg.add::<relight_reference::RelightReference>();
-    reg.add::<apply_materials::ApplyMaterials>();
-    reg.add::<paint_material::PaintMaterial>();
-    reg.add::<sv_transfer_precompute::SvTransferPrecompute>();
-    reg.add::<sv_relight::SvRelight>();
-}
+// `pub fn register(reg)`: every node kind of the crate, found by build.rs.
+include!(concat!(env!("OUT_DIR"), "/register.rs"));
 
 /// Small BRDF spaces and bases for the unit tests of this folder, made by the nodes themselves.
 #[cfg(test)]

@@ -1,6 +1,6 @@
 use glam::Vec3;
 use relume_base::types::{ObjectMaterials, Texture};
-use relume_core::{inputs, node, outputs, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
 
 /// One brush stroke on a dynamic object's material texture ([S] 4.2.3: materials are edited
 /// as Kd, Ks and s maps): the texels within `radius` (in UV units) of (`u`, `v`) move toward
@@ -48,9 +48,6 @@ pub enum PaintedMap {
     Exponent,
 }
 
-inputs!(pub PaintMaterialIn { materials: ObjectMaterials });
-outputs!(pub PaintMaterialOut { materials: ObjectMaterials });
-
 /// Paints the stroke of `p` into `t` (see the node's doc); returns the texels it changed.
 pub fn paint(t: &mut Texture, p: &PaintMaterial) -> usize {
     let (w, h) = (t.width as usize, t.height as usize);
@@ -74,19 +71,19 @@ pub fn paint(t: &mut Texture, p: &PaintMaterial) -> usize {
     changed
 }
 
-#[node(category = "relight", version = 2)]
+#[node(category = "relight", version = 2, metrics = ["texels_painted"], outputs = [materials])]
 impl PaintMaterial {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let made = self.size as u64 * self.size as u64 * 12;
         relume_core::MemoryEstimate { outputs: vec![inputs[0].map(|s| relume_core::PortSize::bytes(s.bytes + made))], working: 0 }
     }
 
-    fn run(&self, i: PaintMaterialIn, cx: &RunCtx) -> Result<PaintMaterialOut, NodeError> {
-        let mut out = i.materials.clone();
+    fn run(&self, materials: &ObjectMaterials, cx: &RunCtx) -> Result<ObjectMaterials, NodeError> {
+        let mut out = materials.clone();
         if self.object.is_empty() {
-            return Ok(PaintMaterialOut { materials: out });
+            return Ok(out);
         }
-        let names: Vec<&str> = i.materials.0.iter().map(|m| m.name.as_str()).collect();
+        let names: Vec<&str> = materials.0.iter().map(|m| m.name.as_str()).collect();
         let m = out.0.iter_mut().find(|m| m.name == self.object).ok_or_else(|| {
             NodeError::param("object", format!("no dynamic object \"{}\" (dynamic objects: {})", self.object, names.join(", ")))
         })?;
@@ -102,7 +99,7 @@ impl PaintMaterial {
         if changed == 0 {
             cx.note("the stroke covers no texel centre: widen the radius");
         }
-        Ok(PaintMaterialOut { materials: out })
+        Ok(out)
     }
 }
 

@@ -4,7 +4,7 @@ use glam::{Vec2, Vec3};
 use relume_base::math::haar;
 use relume_base::render::film::with_ctx;
 use relume_base::types::{BasisFamily, BrdfBasis, Image, Material, ObjectMaterial, ObjectMaterials};
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Spatially varying pixel relighting's interactive step ([S] 4.2.3, 4-35): materials are
@@ -19,9 +19,6 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// clamped to it (counted: `clamped_texels`). Same bytes on any thread count.
 #[derive(Params)]
 pub struct SvRelight {}
-
-inputs!(pub SvRelightIn { transfer: SvTransfer, basis: BrdfBasis, materials: ObjectMaterials });
-outputs!(pub SvRelightOut { image: Image });
 
 /// The coefficients of Blinn-Phong (kd, ks, s) on the first `out.len()` bases per channel,
 /// s clamped to the basis' range; returns whether it was clamped.
@@ -173,7 +170,7 @@ pub fn sv_relight(t: &SvTransfer, basis: &BrdfBasis, m: &ObjectMaterials, cx: Op
     Ok((img, clamped.into_inner()))
 }
 
-#[node(category = "relight")]
+#[node(category = "relight", metrics = ["clamped_texels"], outputs = [image])]
 impl SvRelight {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The image and the wavelet planes (4 x′ bases × 3 channels of the padded square);
@@ -182,22 +179,22 @@ impl SvRelight {
         relume_core::MemoryEstimate { outputs: vec![None], working: 16 << 20 }
     }
 
-    fn run(&self, i: SvRelightIn, cx: &RunCtx) -> Result<SvRelightOut, NodeError> {
-        let (image, clamped) = sv_relight(i.transfer, i.basis, i.materials, Some(cx))?;
+    fn run(&self, transfer: &SvTransfer, basis: &BrdfBasis, materials: &ObjectMaterials, cx: &RunCtx) -> Result<Image, NodeError> {
+        let (image, clamped) = sv_relight(transfer, basis, materials, Some(cx))?;
         cx.metric("clamped_texels", clamped as f64);
         if clamped > 0 {
             cx.note(format!(
                 "{clamped} texels or sub-regions have an exponent outside the basis' sampled range: clamped to it (widen BrdfSpaceSample's s_min / s_max)"
             ));
         }
-        Ok(SvRelightOut { image })
+        Ok(image)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::relight::relight;
+    use crate::relight_pixels::relight;
     use crate::relight_reference::{reference_rows, ReferenceBrdf};
     use crate::sv_precompute::{sv_precompute, SvSettings};
     use crate::test_support::{precompute, sv_scene};

@@ -4,7 +4,7 @@ use crate::types::{PathCounts, SvTransfer};
 use relume_base::types::accel::Accel;
 use relume_base::types::{BrdfBasis, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 /// The precompute of spatially varying pixel relighting ([S] 4.2.1–4.2.2): the paths of
 /// `TransferPrecompute`, but each dynamic object is split into n × n sub-regions of its UV
@@ -24,23 +24,11 @@ use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 /// Gram sums first.
 #[derive(Params)]
 pub struct SvTransferPrecompute {
-    /// camera samples per pixel, jittered over the pixel
-    #[param(default = 16, range = 1..=65536, unit = "samples/pixel")]
-    pub spp: u32,
-    /// light samples at the first hit, per camera sample
-    #[param(default = 4, range = 1..=4096)]
-    pub light_samples: u32,
-    /// uniform hemisphere rays from the first hit, per camera sample
-    #[param(default = 16, range = 0..=65536)]
-    pub bounce_rays: u32,
-    /// light samples at the second hit, per hemisphere ray
-    #[param(default = 1, range = 1..=4096)]
-    pub bounce_light_samples: u32,
-    /// random seed
-    #[param(default = 0, range = 0..=u32::MAX)]
-    pub seed: u64,
+    /// the path counts and the seed (shared with the other precompute)
+    #[param(flatten)]
+    pub paths: PathCounts,
     /// sub-regions per side of each dynamic object's UV square ([S]: 32, 1024 in all)
-    #[param(default = 32, range = 1..=64)]
+    #[param(default = 32, range = 1..=64, test = 4)]
     pub sub_regions: u32,
     /// bases of the bounce (the first of the basis; [S]: 4 of 6)
     #[param(default = 4, range = 1..=64)]
@@ -56,20 +44,7 @@ pub struct SvTransferPrecompute {
     pub median_radius: u32,
 }
 
-inputs!(pub SvTransferPrecomputeIn { scene: Scene, accel: Accel, basis: BrdfBasis });
-outputs!(pub SvTransferPrecomputeOut { transfer: SvTransfer, paths: PathCounts });
-
 impl SvTransferPrecompute {
-    pub fn counts(&self) -> PathCounts {
-        PathCounts {
-            spp: self.spp,
-            light_samples: self.light_samples,
-            bounce_rays: self.bounce_rays,
-            bounce_light_samples: self.bounce_light_samples,
-            seed: self.seed,
-        }
-    }
-
     pub fn settings(&self) -> SvSettings {
         SvSettings {
             sub_regions: self.sub_regions as usize,
@@ -81,7 +56,7 @@ impl SvTransferPrecompute {
     }
 }
 
-#[node(category = "relight", version = 2)]
+#[node(category = "relight", version = 2, metrics = ["groups", "sub_regions", "images_uncompressed", "components", "uncompressed_bytes", "bytes", "compression_ratio", "pca_energy_lost_pct", "haar_energy_lost_pct", "passes", "rays", "dropped_samples", "mixed_pixels"], outputs = [transfer, paths])]
 impl SvTransferPrecompute {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // What it holds depends on the scene's objects: the node checks its own estimate
@@ -90,9 +65,9 @@ impl SvTransferPrecompute {
         relume_core::MemoryEstimate { outputs: vec![None, Some(relume_core::PortSize::bytes(32))], working: px * 16 }
     }
 
-    fn run(&self, i: SvTransferPrecomputeIn, cx: &RunCtx) -> Result<SvTransferPrecomputeOut, NodeError> {
-        let (transfer, st) = sv_precompute(i.scene, i.accel, i.basis, self.counts(), &self.settings(), cx)?;
-        let sv = scene_sv_terms(i.scene, self.sub_regions as usize, i.basis.bases(), self.indirect_bases as usize)
+    fn run(&self, scene: &Scene, accel: &Accel, basis: &BrdfBasis, cx: &RunCtx) -> Result<(SvTransfer, PathCounts), NodeError> {
+        let (transfer, st) = sv_precompute(scene, accel, basis, self.paths, &self.settings(), cx)?;
+        let sv = scene_sv_terms(scene, self.sub_regions as usize, basis.bases(), self.indirect_bases as usize)
             .map_err(|m| NodeError::param("indirect_bases", m))?;
         let bytes = transfer.bytes();
         cx.metric("groups", sv.groups.len() as f64);
@@ -122,10 +97,10 @@ impl SvTransferPrecompute {
         if !sv.traits.fixed_objects {
             cx.note("no fixed-material object: no images of the bounce onto fixed objects");
         }
-        if !i.scene.has_lights() {
+        if !scene.has_lights() {
             cx.note("the scene has no light: every image is black");
         }
-        Ok(SvTransferPrecomputeOut { transfer, paths: self.counts() })
+        Ok((transfer, self.paths))
     }
 }
 

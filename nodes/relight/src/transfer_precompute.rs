@@ -26,37 +26,13 @@ use std::ops::Range;
 /// (images × pixels × 4) are checked against the limit before anything is allocated.
 #[derive(Params)]
 pub struct TransferPrecompute {
-    /// camera samples per pixel, jittered over the pixel
-    #[param(default = 16, range = 1..=65536, unit = "samples/pixel")]
-    pub spp: u32,
-    /// light samples at the first hit, per camera sample ([S]: 98 per pixel)
-    #[param(default = 4, range = 1..=4096)]
-    pub light_samples: u32,
-    /// uniform hemisphere rays from the first hit, per camera sample ([S]: 4096 per pixel)
-    #[param(default = 16, range = 0..=65536)]
-    pub bounce_rays: u32,
-    /// light samples at the second hit, per hemisphere ray ([S]: 8)
-    #[param(default = 1, range = 1..=4096)]
-    pub bounce_light_samples: u32,
-    /// random seed
-    #[param(default = 0, range = 0..=u32::MAX)]
-    pub seed: u64,
+    /// the path counts and the seed (shared with the other precompute)
+    #[param(flatten)]
+    pub paths: PathCounts,
 }
 
 inputs!(pub TransferPrecomputeIn { scene: Scene, accel: Accel, basis: BrdfBasis });
 outputs!(pub TransferPrecomputeOut { transfer: Transfer, paths: PathCounts });
-
-impl TransferPrecompute {
-    pub fn counts(&self) -> PathCounts {
-        PathCounts {
-            spp: self.spp,
-            light_samples: self.light_samples,
-            bounce_rays: self.bounce_rays,
-            bounce_light_samples: self.bounce_light_samples,
-            seed: self.seed,
-        }
-    }
-}
 
 /// The terms of the scene after the checks, with the bytes they will hold refused over the
 /// limit: 16 GiB or the run's memory budget (`--memory-budget`), the lower.
@@ -187,7 +163,7 @@ pub fn gather_transfer(
     Ok((transfer, counters))
 }
 
-#[node(category = "relight", version = 3, sharded)]
+#[node(category = "relight", version = 3, sharded, metrics = ["images", "images_grey", "images_rgb", "images_emitted", "dynamic_objects", "bytes", "rays", "hemisphere_rays_per_pixel", "dropped_samples", "mixed_pixels"])]
 impl TransferPrecompute {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The images' count depends on the scene's objects and lights: the node checks the
@@ -202,11 +178,11 @@ impl TransferPrecompute {
     }
 
     fn run_items(&self, i: &TransferPrecomputeIn, rows: Range<u64>, cx: &RunCtx) -> Result<TransferRows, NodeError> {
-        precompute_rows(i.scene, i.accel, i.basis, self.counts(), rows.start as usize..rows.end as usize, Some(cx))
+        precompute_rows(i.scene, i.accel, i.basis, self.paths, rows.start as usize..rows.end as usize, Some(cx))
     }
 
     fn gather(&self, i: &TransferPrecomputeIn, parts: &[&TransferRows], cx: &RunCtx) -> Result<TransferPrecomputeOut, NodeError> {
-        let (transfer, [rays, dropped, mixed]) = gather_transfer(i.scene, i.basis, self.counts(), parts, cx.memory_budget())?;
+        let (transfer, [rays, dropped, mixed]) = gather_transfer(i.scene, i.basis, self.paths, parts, cx.memory_budget())?;
         let set = scene_terms(i.scene, i.basis.bases());
         cx.metric("images", set.terms.len() as f64);
         cx.metric("images_grey", set.count(Channels::Grey) as f64);
@@ -215,7 +191,7 @@ impl TransferPrecompute {
         cx.metric("dynamic_objects", transfer.groups.len() as f64);
         cx.metric("bytes", (transfer.data.len() * 4) as f64);
         cx.metric("rays", rays as f64);
-        cx.metric("hemisphere_rays_per_pixel", (self.spp as u64 * self.bounce_rays as u64) as f64);
+        cx.metric("hemisphere_rays_per_pixel", (self.paths.spp as u64 * self.paths.bounce_rays as u64) as f64);
         cx.metric("dropped_samples", dropped as f64);
         cx.metric("mixed_pixels", mixed as f64);
         for l in &set.left_out {
@@ -224,7 +200,7 @@ impl TransferPrecompute {
         if !i.scene.has_lights() {
             cx.note("the scene has no light: every image is black");
         }
-        Ok(TransferPrecomputeOut { transfer, paths: self.counts() })
+        Ok(TransferPrecomputeOut { transfer, paths: self.paths })
     }
 }
 
@@ -301,7 +277,7 @@ mod tests {
         assert!(full > 4 && partial > 4, "lamp pixels {full}, edge pixels {partial}");
         // The relit image carries the fraction: on an edge pixel that is not the lamp's class
         // the light still shows.
-        let relit = super::super::relight::relight(&t, &m, None).unwrap();
+        let relit = super::super::relight_pixels::relight(&t, &m, None).unwrap();
         let lamp_class_not_kept = (0..t.pixels()).filter(|&p| k[p].round() > 0.0 && k[p].round() < spp as f32 / 2.0);
         for p in lamp_class_not_kept {
             assert!(relit.pixels[p][0] >= k[p] * 4.0 / spp as f32 * 0.999, "pixel {p}: {:?}", relit.pixels[p]);

@@ -5,7 +5,7 @@ use relume_base::math::cubemap::rect_solid_angle;
 use relume_base::math::rng::uniform;
 use relume_base::types::{Accel, Light, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
 
 /// Photons from every light into a medium's box, shadow-map style ([S] 6.3.3): each light
 /// looks at the proxy through a `resolution`² image (a frustum around the proxy's bounding
@@ -21,7 +21,7 @@ use relume_core::{inputs, node, outputs, NodeError, ParamEnum, Params, RunCtx};
 #[derive(Params)]
 pub struct EmitPhotons {
     /// texels across the light's view of the proxy (photons ≤ resolution² per light)
-    #[param(default = 1024, range = 1..=8192, unit = "texels")]
+    #[param(default = 1024, range = 1..=8192, unit = "texels", test = 64)]
     pub resolution: u32,
     /// where photons enter: the active part of the medium or its whole box
     #[param(default = Active)]
@@ -39,9 +39,6 @@ pub enum Proxy {
     /// the medium's whole box
     Box,
 }
-
-inputs!(pub EmitPhotonsIn { scene: Scene, accel: Accel, medium: Volume });
-outputs!(pub EmitPhotonsOut { photons: Photons });
 
 /// The box of voxels of `m` with n ≠ 1 or κ > 0, one voxel wider (clamped to the box), if any.
 pub fn active_box(m: &Volume) -> Option<(Vec3, Vec3)> {
@@ -186,19 +183,19 @@ pub fn emit(scene: &Scene, accel: &Accel, medium: &Volume, p: &EmitPhotons, cx: 
     Ok(all)
 }
 
-#[node(category = "volume")]
+#[node(category = "volume", metrics = ["photons", "lights", "power_w"], outputs = [photons])]
 impl EmitPhotons {
     fn memory(&self, _inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let most = Photons::bytes_for((self.resolution as u64).pow(2));
         relume_core::MemoryEstimate { outputs: vec![Some(relume_core::PortSize::bytes(most))], working: most }
     }
 
-    fn run(&self, i: EmitPhotonsIn, cx: &RunCtx) -> Result<EmitPhotonsOut, NodeError> {
-        let photons = emit(i.scene, i.accel, i.medium, self, cx)?;
+    fn run(&self, scene: &Scene, accel: &Accel, medium: &Volume, cx: &RunCtx) -> Result<Photons, NodeError> {
+        let photons = emit(scene, accel, medium, self, cx)?;
         cx.metric("photons", photons.len() as f64);
-        cx.metric("lights", photon_lights(i.scene).len() as f64);
+        cx.metric("lights", photon_lights(scene).len() as f64);
         cx.metric("power_w", luminance(photons.total_power()) as f64);
-        Ok(EmitPhotonsOut { photons })
+        Ok(photons)
     }
 }
 

@@ -26,17 +26,5 @@ pub mod volume_slice;
 pub mod volume_source;
 pub mod voxelize;
 
-use relume_core::Registry;
-
-/// Registers the volume nodes.
-pub fn register(reg: &mut Registry) {
-    reg.add::<voxelize::Voxelize>();
-    reg.add::<volume_slice::VolumeSlice>();
-    reg.add::<octree::Octree>();
-    reg.add::<volume_source::VolumeSource>();
-    reg.add::<volume_paint::VolumePaint>();
-    reg.add::<emit_photons::EmitPhotons>();
-    reg.add::<march_photons::MarchPhotons>();
-    reg.add::<eikonal_paths::EikonalPaths>();
-    reg.add::<eikonal_render::EikonalRender>();
-}
+// `pub fn register(reg)`: every node kind of the crate, found by build.rs.
+include!(concat!(env!("OUT_DIR"), "/register.rs"));

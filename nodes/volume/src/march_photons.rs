@@ -499,7 +499,7 @@ impl<'a> Setup<'a> {
     }
 }
 
-#[node(category = "volume", version = 5, sharded)]
+#[node(category = "volume", version = 5, sharded, metrics = ["photons", "photon_steps", "steps_per_photon", "landed_pct", "left_pct", "absorbed_pct", "stopped_pct", "straight_pct"])]
 impl MarchPhotons {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The radiance on the medium's grid (6 channels where it has 3) and its blur.

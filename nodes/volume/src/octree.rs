@@ -3,7 +3,7 @@ use super::pyramid::MinMaxPyramid;
 use crate::types::Volume;
 use glam::Vec3;
 use rayon::prelude::*;
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 /// The adaptive step of photon marching ([S] 6.3.2, 6.4.3, figure 6-4), per voxel of the
 /// refractive index (channel 0 of `medium`): from the min/max pyramid (a cell spans its
@@ -39,9 +39,6 @@ pub struct Octree {
     #[param(default = 8.0, range = 1.0..=1024.0, unit = "voxels")]
     pub step: f32,
 }
-
-inputs!(pub OctreeIn { medium: Volume });
-outputs!(pub OctreeOut { octree: Volume });
 
 /// The octree of channel 0 of `v` (see the node's doc) and the voxel counts per step class
 /// [unbounded, `step`, minimum].
@@ -156,7 +153,7 @@ fn mark_clearance(o: &mut Volume) {
     o.data.par_chunks_mut(ch).zip(dist.par_iter()).for_each(|(c, &x)| c[CLEARANCE] = x.saturating_sub(1).min(CLEARANCE_CAP) as f32);
 }
 
-#[node(category = "volume", version = 6)]
+#[node(category = "volume", version = 6, metrics = ["unbounded_pct", "stepped_pct", "minimum_step_pct"], outputs = [octree])]
 impl Octree {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // Eight channels per voxel where the medium has three (its usual layout), and two pyramids (8 bytes a
@@ -165,13 +162,13 @@ impl Octree {
         relume_core::MemoryEstimate { outputs: vec![out], working: inputs[0].map_or(0, |s| s.bytes / 3 * 6) }
     }
 
-    fn run(&self, i: OctreeIn, cx: &RunCtx) -> Result<OctreeOut, NodeError> {
-        let (octree, [unbounded, stepped, minimum]) = build(i.medium, self, cx.memory_budget())?;
+    fn run(&self, medium: &Volume, cx: &RunCtx) -> Result<Volume, NodeError> {
+        let (octree, [unbounded, stepped, minimum]) = build(medium, self, cx.memory_budget())?;
         let n = octree.voxels() as f64;
         cx.metric("unbounded_pct", 100.0 * unbounded as f64 / n);
         cx.metric("stepped_pct", 100.0 * stepped as f64 / n);
         cx.metric("minimum_step_pct", 100.0 * minimum as f64 / n);
-        Ok(OctreeOut { octree })
+        Ok(octree)
     }
 }
 

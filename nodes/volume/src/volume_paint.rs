@@ -1,6 +1,6 @@
 use crate::types::Volume;
 use glam::{EulerRot, Quat, Vec3};
-use relume_core::{inputs, node, outputs, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
 
 /// One brush stroke in a medium ([S] 6.5.2.1, volume painting): a brush pattern placed at
 /// `centre`, scaled by `radius` × `stretch` along its own axes and turned by `rotation` (Euler
@@ -53,9 +53,6 @@ pub enum Brush {
     /// a box, full strength inside |x|, |y|, |z| ≤ 1
     Box,
 }
-
-inputs!(pub VolumePaintIn { medium: Volume });
-outputs!(pub VolumePaintOut { medium: Volume });
 
 impl VolumePaint {
     fn pattern(&self, local: Vec3) -> f32 {
@@ -111,20 +108,20 @@ pub fn paint(v: &mut Volume, s: &VolumePaint) -> Result<usize, NodeError> {
     Ok(touched)
 }
 
-#[node(category = "volume")]
+#[node(category = "volume", metrics = ["voxels_painted"], outputs = [medium])]
 impl VolumePaint {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         relume_core::MemoryEstimate { outputs: vec![inputs[0]], working: 0 }
     }
 
-    fn run(&self, i: VolumePaintIn, cx: &RunCtx) -> Result<VolumePaintOut, NodeError> {
-        let mut medium = i.medium.clone();
+    fn run(&self, medium: &Volume, cx: &RunCtx) -> Result<Volume, NodeError> {
+        let mut medium = medium.clone();
         let touched = paint(&mut medium, self)?;
         cx.metric("voxels_painted", touched as f64);
         if touched == 0 {
             cx.note("the stroke reaches no voxel centre: move it into the volume or enlarge it");
         }
-        Ok(VolumePaintOut { medium })
+        Ok(medium)
     }
 }
 

@@ -1,6 +1,6 @@
 use crate::types::Volume;
 use relume_base::types::Image;
-use relume_core::{inputs, node, outputs, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
 
 /// A plane through a volume as an image, to look at a voxelised index, a painted weight or the
 /// stored radiance: the voxels of one slice across `axis` at `position` (0 … 1 across the box),
@@ -32,9 +32,6 @@ pub enum Axis {
     Z,
 }
 
-inputs!(pub VolumeSliceIn { volume: Volume });
-outputs!(pub VolumeSliceOut { image: Image });
-
 /// The slice of `v` (see the node's doc).
 pub fn slice(v: &Volume, axis: Axis, position: f32, channel: i32) -> Result<Image, NodeError> {
     if channel >= v.channels as i32 || (channel < 0 && v.channels < 3) {
@@ -58,15 +55,10 @@ pub fn slice(v: &Volume, axis: Axis, position: f32, channel: i32) -> Result<Imag
     Ok(img)
 }
 
-#[node(category = "volume")]
+#[node(category = "volume", outputs = [image])]
 impl VolumeSlice {
-    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
-        let _ = inputs;
-        relume_core::MemoryEstimate { outputs: vec![None], working: 0 }
-    }
-
-    fn run(&self, i: VolumeSliceIn, _cx: &RunCtx) -> Result<VolumeSliceOut, NodeError> {
-        Ok(VolumeSliceOut { image: slice(i.volume, self.axis, self.position, self.channel)? })
+    fn run(&self, volume: &Volume, _cx: &RunCtx) -> Result<Image, NodeError> {
+        Ok(slice(volume, self.axis, self.position, self.channel)?)
     }
 }
 

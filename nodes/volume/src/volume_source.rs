@@ -1,7 +1,7 @@
 use crate::types::Volume;
 use glam::Vec3;
 use relume_base::math::rng::uniform;
-use relume_core::{node, outputs, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
 
 /// A procedural medium ([S] 6.5: gradient-index objects, turbulent media) on a cubic grid of
 /// `resolution`³ voxels over the cube of side `size` at `centre`, in the layout `Voxelize`
@@ -22,7 +22,7 @@ pub struct VolumeSource {
     #[param(default = GrinSphere)]
     pub kind: SourceKind,
     /// voxels along each side
-    #[param(default = 128, range = 1..=1024, unit = "voxels")]
+    #[param(default = 128, range = 1..=1024, unit = "voxels", test = 32)]
     pub resolution: u32,
     /// centre of the cube
     #[param(default = (0.0, 0.6, 0.0))]
@@ -66,8 +66,6 @@ pub enum SourceKind {
     Turbulence,
 }
 
-outputs!(pub VolumeSourceOut { medium: Volume });
-
 /// Zero-mean trilinear lattice noise at `p` (lattice units), values in [−1, 1].
 fn lattice_noise(seed: u64, p: Vec3) -> f32 {
     let i = p.floor();
@@ -101,14 +99,14 @@ impl VolumeSource {
     }
 }
 
-#[node(category = "volume")]
+#[node(category = "volume", outputs = [medium])]
 impl VolumeSource {
     fn memory(&self, _inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let bytes = Volume::bytes_for([self.resolution; 3], 3);
         relume_core::MemoryEstimate { outputs: vec![Some(relume_core::PortSize::bytes(bytes))], working: 0 }
     }
 
-    fn run(&self, _: (), cx: &RunCtx) -> Result<VolumeSourceOut, NodeError> {
+    fn run(&self, cx: &RunCtx) -> Result<Volume, NodeError> {
         if self.scattering > self.extinction {
             return Err(NodeError::param("scattering", format!("σ = {} exceeds the extinction κ = {}", self.scattering, self.extinction)));
         }
@@ -125,7 +123,7 @@ impl VolumeSource {
                 }
             }
         })?;
-        Ok(VolumeSourceOut { medium: v })
+        Ok(v)
     }
 }
 

@@ -4,7 +4,7 @@ use crate::types::Volume;
 use glam::{UVec3, Vec3};
 use relume_base::geometry::closed_mesh::{enclosed_volume, open_edges};
 use relume_base::types::{Material, Scene};
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 /// A closed mesh object as a refractive medium ([S] 6.3.1): the inside fraction f of every
 /// voxel of a grid fitted around the object (cubic voxels, `resolution` along its longest
@@ -26,7 +26,7 @@ pub struct Voxelize {
     #[param(default = "glass")]
     pub object: String,
     /// voxels along the object's longest side
-    #[param(default = 128, range = 1..=1024, unit = "voxels")]
+    #[param(default = 128, range = 1..=1024, unit = "voxels", test = 32)]
     pub resolution: u32,
     /// margin around the object, as a fraction of its longest side
     #[param(default = 0.1, range = 0.0..=2.0)]
@@ -50,9 +50,6 @@ pub struct Voxelize {
     #[param(default = 4, range = 1..=16)]
     pub supersample: u32,
 }
-
-inputs!(pub VoxelizeIn { scene: Scene });
-outputs!(pub VoxelizeOut { medium: Volume });
 
 /// The grid fitted around `lo … hi`: its box and dimensions.
 pub fn fit_grid(lo: Vec3, hi: Vec3, resolution: u32, padding: f32) -> (Vec3, Vec3, [u32; 3]) {
@@ -147,7 +144,7 @@ fn fractions(tris: &[[Vec3; 3]], min: Vec3, h: f32, dims: [usize; 3], ss: usize,
     Ok(f)
 }
 
-#[node(category = "volume")]
+#[node(category = "volume", metrics = ["voxels", "inside_volume", "volume_error_pct", "index"], outputs = [medium])]
 impl Voxelize {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // At most resolution · (1 + 2 padding)-ish voxels a side, 3 channels, and the blur's copy.
@@ -157,8 +154,8 @@ impl Voxelize {
         relume_core::MemoryEstimate { outputs: vec![Some(relume_core::PortSize::bytes(bytes))], working: 2 * bytes }
     }
 
-    fn run(&self, i: VoxelizeIn, cx: &RunCtx) -> Result<VoxelizeOut, NodeError> {
-        let s = i.scene;
+    fn run(&self, scene: &Scene, cx: &RunCtx) -> Result<Volume, NodeError> {
+        let s = scene;
         let names: Vec<&str> = s.objects.iter().map(|o| o.name.as_str()).collect();
         let o = s.objects.iter().find(|o| o.name == self.object).ok_or_else(|| {
             NodeError::param("object", format!("no object \"{}\" in the scene (objects: {})", self.object, names.join(", ")))
@@ -205,7 +202,7 @@ impl Voxelize {
         cx.metric("inside_volume", inside);
         cx.metric("volume_error_pct", if exact > 0.0 { 100.0 * (inside - exact) / exact } else { 0.0 });
         cx.metric("index", index as f64);
-        Ok(VoxelizeOut { medium: vol })
+        Ok(vol)
     }
 }
 

@@ -1,6 +1,6 @@
 use crate::math::pca::uncentred_pca_with;
 use crate::types::{BasisFamily, BrdfBasis, BrdfSample, BrdfSpace, Metrics};
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, ParamEnum, Params, PortSize, RunCtx};
+use relume_core::{node, MemoryEstimate, NodeError, ParamEnum, Params, PortSize, RunCtx};
 
 /// N_b basis BRDFs from a BRDF space ([S] 4-19 … 4-22). Basis 1 is the diffuse sample itself
 /// (divided by its kd: the table 1/π, so a material's diffuse coefficient is its Kd); bases
@@ -53,9 +53,6 @@ pub enum Weighting {
     /// every (θi, θo, φ) cell alike, as [S] flattens its tensor
     Uniform,
 }
-
-inputs!(pub BrdfPcaIn { space: BrdfSpace });
-outputs!(pub BrdfPcaOut { basis: BrdfBasis, metrics: Metrics });
 
 /// Per specular sample: ‖f − f̂‖² and ‖f‖² under the solid-angle and the uniform weight.
 #[derive(Clone, Copy, Default)]
@@ -135,7 +132,7 @@ fn check_space(space: &BrdfSpace) -> Result<BasisFamily, NodeError> {
     Ok(BasisFamily::CookTorrance { m: range(|p| p.m), f0: range(|p| p.f0) })
 }
 
-#[node(category = "relight", version = 2)]
+#[node(category = "relight", version = 2, metrics = ["bases", "specular_samples", "specular_rank", "l2_error_mean_pct", "l2_error_max_pct", "l2_error_total_pct", "solid_angle_l2_error_mean_pct", "solid_angle_l2_error_max_pct", "uniform_l2_error_mean_pct", "uniform_l2_error_max_pct", "energy_kept_pct"], outputs = [basis, metrics])]
 impl BrdfPca {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         // The basis holds at most as many tables as the space has samples (its rank bounds
@@ -146,8 +143,7 @@ impl BrdfPca {
         MemoryEstimate { outputs: vec![Some(PortSize::bytes(b)), Some(PortSize::bytes(1024))], working: b.saturating_mul(3) }
     }
 
-    fn run(&self, i: BrdfPcaIn, cx: &RunCtx) -> Result<BrdfPcaOut, NodeError> {
-        let space = i.space;
+    fn run(&self, space: &BrdfSpace, cx: &RunCtx) -> Result<(BrdfBasis, Metrics), NodeError> {
         let family = check_space(space)?;
         let (grid, cells) = (space.grid, space.grid.cells());
         let spec = &space.samples[1..];
@@ -255,7 +251,7 @@ impl BrdfPca {
                 self.bases
             ));
         }
-        Ok(BrdfPcaOut { basis, metrics: m })
+        Ok((basis, m))
     }
 }
 

@@ -1,7 +1,7 @@
 use crate::brdf::BrdfModel;
 use crate::math::spread;
 use crate::types::{cos_half, BrdfGrid, BrdfSample, BrdfSpace, MAX_BRDF_SPACE_BYTES};
-use relume_core::{memory::fmt_bytes, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{memory::fmt_bytes, node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
 /// Tabulates BRDFs on a (θi, θo, φ) grid, the BRDF space of pipeline 1 ([S] 4.1.2, 4-17,
 /// 4-18). Sample 1 is diffuse (kd = 1, ks = 0); the other samples − 1 are specular (kd = 0,
@@ -25,16 +25,16 @@ use relume_core::{memory::fmt_bytes, node, outputs, MemoryEstimate, NodeError, P
 #[derive(Params)]
 pub struct BrdfSpaceSample {
     /// cells over the incident polar angle θi ∈ [0, π/2]
-    #[param(default = 30, range = 1..=1024)]
+    #[param(default = 30, range = 1..=1024, test = 8)]
     pub n_theta_i: usize,
     /// cells over the outgoing polar angle θo ∈ [0, π/2]
-    #[param(default = 30, range = 1..=1024)]
+    #[param(default = 30, range = 1..=1024, test = 8)]
     pub n_theta_o: usize,
     /// cells over the relative azimuth φ ∈ [0, π] (mirror direction at π)
-    #[param(default = 60, range = 1..=2048)]
+    #[param(default = 60, range = 1..=2048, test = 16)]
     pub n_phi: usize,
     /// BRDF samples N_s: one diffuse, N_s − 1 specular
-    #[param(default = 201, range = 2..=2048)]
+    #[param(default = 201, range = 2..=2048, test = 21)]
     pub samples: usize,
     /// Blinn-Phong: smallest exponent of the specular samples
     #[param(default = 1.0, range = 0.0..=1e5)]
@@ -61,8 +61,6 @@ pub struct BrdfSpaceSample {
     #[param(default = 2, range = 1..=64)]
     pub f0_count: usize,
 }
-
-outputs!(pub BrdfSpaceSampleOut { space: BrdfSpace });
 
 impl BrdfSpaceSample {
     fn grid(&self) -> BrdfGrid {
@@ -108,7 +106,7 @@ impl BrdfSpaceSample {
     }
 }
 
-#[node(category = "relight", version = 2)]
+#[node(category = "relight", version = 2, outputs = [space])]
 impl BrdfSpaceSample {
     fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
         // The table, and one f64 cos δ per cell besides it.
@@ -119,7 +117,7 @@ impl BrdfSpaceSample {
         }
     }
 
-    fn run(&self, _: (), cx: &RunCtx) -> Result<BrdfSpaceSampleOut, NodeError> {
+    fn run(&self, cx: &RunCtx) -> Result<BrdfSpace, NodeError> {
         let samples = self.sample_list()?;
         let grid = self.grid();
         let bytes = BrdfSpace::bytes_for(&grid, self.samples as u64);
@@ -148,7 +146,7 @@ impl BrdfSpaceSample {
                 *v = if p.is_cook_torrance() { p.eval(grid.centre(c)) } else { p.eval_cos_h(cos_h[c]) } as f32;
             }
         })?;
-        Ok(BrdfSpaceSampleOut { space: BrdfSpace { grid, samples, values } })
+        Ok(BrdfSpace { grid, samples, values })
     }
 }
 

@@ -1,6 +1,6 @@
 use crate::brdf::BrdfModel;
 use crate::types::{BasisFamily, BrdfBasis, BrdfSample, ObjectMaterial, ObjectMaterials, Specular};
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 /// Projects the dynamic objects' materials on a BRDF basis ([S] 4-22), per colour channel:
 /// basis 0 (diffuse) gets Kd, specular basis k gets Ks · c_k. This is the edit node of
@@ -60,9 +60,6 @@ pub struct MaterialProject {
     pub f0: f32,
 }
 
-inputs!(pub MaterialProjectIn { basis: BrdfBasis, materials: ObjectMaterials });
-outputs!(pub MaterialProjectOut { materials: ObjectMaterials });
-
 /// A material's specular coefficients on bases 1.. and the fit's relative error (`None`
 /// when read from the basis' table).
 type Coefficients = (Vec<f64>, Option<f64>);
@@ -99,12 +96,12 @@ fn specular_coefficients(basis: &BrdfBasis, m: &ObjectMaterial) -> Result<Coeffi
     Ok((c, Some(err)))
 }
 
-#[node(category = "relight", version = 3)]
+#[node(category = "relight", version = 3, metrics = ["fit_error_max_pct"], outputs = [materials])]
 impl MaterialProject {
-    fn run(&self, i: MaterialProjectIn, cx: &RunCtx) -> Result<MaterialProjectOut, NodeError> {
-        let mut out = i.materials.clone();
+    fn run(&self, basis: &BrdfBasis, materials: &ObjectMaterials, cx: &RunCtx) -> Result<ObjectMaterials, NodeError> {
+        let mut out = materials.clone();
         if !self.object.is_empty() {
-            let names: Vec<&str> = i.materials.0.iter().map(|m| m.name.as_str()).collect();
+            let names: Vec<&str> = materials.0.iter().map(|m| m.name.as_str()).collect();
             let m = out.0.iter_mut().find(|m| m.name == self.object).ok_or_else(|| {
                 NodeError::param("object", format!("no dynamic object \"{}\" (dynamic objects: {})", self.object, names.join(", ")))
             })?;
@@ -117,9 +114,9 @@ impl MaterialProject {
         let mut fit_error: Option<f64> = None;
         for m in &mut out.0 {
             let spec = if m.ks == [0.0; 3] {
-                vec![0.0; i.basis.bases() - 1]
+                vec![0.0; basis.bases() - 1]
             } else {
-                let (c, err) = specular_coefficients(i.basis, m).map_err(|(param, msg)| {
+                let (c, err) = specular_coefficients(basis, m).map_err(|(param, msg)| {
                     if m.name == self.object {
                         NodeError::param(param, msg)
                     } else {
@@ -145,7 +142,7 @@ impl MaterialProject {
         if let Some(e) = fit_error {
             cx.metric("fit_error_max_pct", 100.0 * e);
         }
-        Ok(MaterialProjectOut { materials: out })
+        Ok(out)
     }
 }
 

@@ -10,19 +10,9 @@ pub mod brdf_space_sample;
 pub mod material_project;
 pub mod scene_materials;
 
-use relume_core::Registry;
-
-/// Registers the BRDF-space nodes.
-pub fn register(reg: &mut Registry) {
-    reg.add::<brdf_space_sample::BrdfSpaceSample>();
-    reg.add::<brdf_pca::BrdfPca>();
-    reg.add::<scene_materials::SceneMaterials>();
-    reg.add::<material_project::MaterialProject>();
-}
-
 /// Small BRDF spaces and bases made by the nodes themselves, for unit tests here and in the
 /// pipelines that use them.
-#[cfg(any(test, feature = "testing"))]
+#[doc(hidden)]
 pub mod test_support {
     use crate::testing::{f, first, i, run_on};
     use crate::types::{BrdfBasis, BrdfGrid, BrdfSample, BrdfSpace, Metrics};

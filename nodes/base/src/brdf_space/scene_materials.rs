@@ -1,5 +1,5 @@
 use crate::types::{Material, ObjectMaterial, ObjectMaterials, Scene};
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 /// The materials of a scene's dynamic objects, as pixel relighting edits them: one entry per
 /// dynamic object (`Scene::dynamic_groups`: dynamic shapes sharing a named material are one
@@ -9,9 +9,6 @@ use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 /// basis coefficients and applies edits.
 #[derive(Params)]
 pub struct SceneMaterials {}
-
-inputs!(pub SceneMaterialsIn { scene: Scene });
-outputs!(pub SceneMaterialsOut { materials: ObjectMaterials });
 
 /// The dynamic objects' materials of `scene` (see the node's doc).
 pub fn scene_materials(scene: &Scene) -> Result<ObjectMaterials, String> {
@@ -33,15 +30,15 @@ pub fn scene_materials(scene: &Scene) -> Result<ObjectMaterials, String> {
     Ok(ObjectMaterials(out))
 }
 
-#[node(category = "relight", version = 2)]
+#[node(category = "relight", version = 2, metrics = ["dynamic_objects"], outputs = [materials])]
 impl SceneMaterials {
-    fn run(&self, i: SceneMaterialsIn, cx: &RunCtx) -> Result<SceneMaterialsOut, NodeError> {
-        let materials = scene_materials(i.scene).map_err(|m| NodeError::input("scene", m))?;
+    fn run(&self, scene: &Scene, cx: &RunCtx) -> Result<ObjectMaterials, NodeError> {
+        let materials = scene_materials(scene).map_err(|m| NodeError::input("scene", m))?;
         if materials.0.is_empty() {
             cx.note("the scene has no dynamic object: there is no material to edit");
         }
         cx.metric("dynamic_objects", materials.0.len() as f64);
-        Ok(SceneMaterialsOut { materials })
+        Ok(materials)
     }
 }
 

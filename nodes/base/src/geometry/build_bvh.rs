@@ -1,6 +1,6 @@
 use crate::types::accel::{Accel, BuildQuality};
 use crate::types::Scene;
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 /// Builds a compressed-wide BVH (obvhs, PLOC) over every triangle of a scene, for
 /// closest-hit rays and shadow rays that stop at the first blocker. The build is
@@ -17,25 +17,22 @@ pub struct BuildBvh {
     pub exclude: String,
 }
 
-inputs!(pub BuildBvhIn { scene: Scene });
-outputs!(pub BuildBvhOut { accel: Accel });
-
-#[node(category = "geometry", version = 2)]
+#[node(category = "geometry", version = 2, metrics = ["triangles", "bvh_nodes"], outputs = [accel])]
 impl BuildBvh {
-    fn run(&self, i: BuildBvhIn, cx: &RunCtx) -> Result<BuildBvhOut, NodeError> {
+    fn run(&self, scene: &Scene, cx: &RunCtx) -> Result<Accel, NodeError> {
         // One obvhs call: not cancellable inside.
         let accel = if self.exclude.is_empty() {
-            Accel::build(i.scene, self.quality)
+            Accel::build(scene, self.quality)
         } else {
-            let Some(o) = i.scene.objects.iter().position(|o| o.name == self.exclude) else {
-                let names: Vec<_> = i.scene.objects.iter().map(|o| o.name.as_str()).collect();
+            let Some(o) = scene.objects.iter().position(|o| o.name == self.exclude) else {
+                let names: Vec<_> = scene.objects.iter().map(|o| o.name.as_str()).collect();
                 return Err(NodeError::param("exclude", format!("no object \"{}\" (objects: {})", self.exclude, names.join(", "))));
             };
-            Accel::build_filtered(i.scene, self.quality, |t| i.scene.tri_object[t] as usize != o)
+            Accel::build_filtered(scene, self.quality, |t| scene.tri_object[t] as usize != o)
         };
         cx.metric("triangles", accel.triangle_count() as f64);
         cx.metric("bvh_nodes", accel.node_count() as f64);
-        Ok(BuildBvhOut { accel })
+        Ok(accel)
     }
 }
 

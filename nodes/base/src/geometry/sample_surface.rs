@@ -2,7 +2,7 @@ use crate::math::rng::uniform;
 use crate::math::sampling::{uniform_triangle, Distribution1D};
 use crate::types::{Material, Scene, SurfacePoints, MAX_IMAGE_BYTES};
 use glam::{Vec2, Vec3};
-use relume_core::{inputs, node, outputs, CancelToken, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, CancelToken, NodeError, ParamEnum, Params, RunCtx};
 use std::collections::HashMap;
 
 /// Samples points on every surface of a scene. `AreaCdf`: exactly `count` points, each
@@ -18,7 +18,7 @@ pub struct SampleSurface {
     #[param(default = AreaCdf)]
     pub method: Method,
     /// points requested
-    #[param(default = 100_000, range = 1..=100_000_000, unit = "points")]
+    #[param(default = 100_000, range = 1..=100_000_000, unit = "points", test = 2000)]
     pub count: usize,
     /// random seed
     #[param(default = 0, range = 0..=u32::MAX)]
@@ -33,9 +33,6 @@ pub enum Method {
     AreaCdf,
     PoissonDisk,
 }
-
-inputs!(pub SampleSurfaceIn { scene: Scene });
-outputs!(pub SampleSurfaceOut { points: SurfacePoints });
 
 /// Points generated per parallel work item.
 const CHUNK: usize = 4096;
@@ -138,7 +135,7 @@ pub fn sample_surface_with(scene: &Scene, p: &SampleSurface, cx: &RunCtx) -> Res
     Ok(pts)
 }
 
-#[node(category = "geometry")]
+#[node(category = "geometry", metrics = ["points"], outputs = [points])]
 impl SampleSurface {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let _ = inputs;
@@ -146,13 +143,13 @@ impl SampleSurface {
         relume_core::MemoryEstimate { outputs: vec![Some(relume_core::PortSize::bytes(bytes))], working: 0 }
     }
 
-    fn run(&self, i: SampleSurfaceIn, cx: &RunCtx) -> Result<SampleSurfaceOut, NodeError> {
-        let pts = sample_surface_with(i.scene, self, cx)?;
+    fn run(&self, scene: &Scene, cx: &RunCtx) -> Result<SurfacePoints, NodeError> {
+        let pts = sample_surface_with(scene, self, cx)?;
         cx.metric("points", pts.len() as f64);
         if self.method == Method::PoissonDisk {
             cx.note(format!("Poisson-disk sampling kept {} of {} requested points", pts.len(), self.count));
         }
-        Ok(SampleSurfaceOut { points: pts })
+        Ok(pts)
     }
 }
 

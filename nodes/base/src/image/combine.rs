@@ -1,6 +1,6 @@
 use crate::types::Image;
 use rayon::prelude::*;
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 /// Weighted sum of two images of the same size: out = weight_a · a + weight_b · b
 /// (direct + indirect lighting, or the difference of two renders with weight_b = −1).
@@ -14,21 +14,17 @@ pub struct Combine {
     pub weight_b: f32,
 }
 
-inputs!(pub CombineIn { a: Image, b: Image });
-outputs!(pub CombineOut { image: Image });
-
-#[node(category = "image")]
+#[node(category = "image", outputs = [image])]
 impl Combine {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         relume_core::MemoryEstimate { outputs: vec![inputs[0]], working: 0 }
     }
 
-    fn run(&self, i: CombineIn, _cx: &RunCtx) -> Result<CombineOut, NodeError> {
-        let (a, b) = (i.a, i.b);
+    fn run(&self, a: &Image, b: &Image, _cx: &RunCtx) -> Result<Image, NodeError> {
         a.check_same_size(b, "a", "b")?;
         let pixels =
             a.pixels.par_iter().zip(&b.pixels).map(|(x, y)| std::array::from_fn(|c| self.weight_a * x[c] + self.weight_b * y[c])).collect();
-        Ok(CombineOut { image: Image { width: a.width, height: a.height, pixels } })
+        Ok(Image { width: a.width, height: a.height, pixels })
     }
 }
 

@@ -1,5 +1,5 @@
 use crate::types::Image;
-use relume_core::{inputs, node, outputs, CancelToken, NodeError, Params, RunCtx};
+use relume_core::{node, CancelToken, NodeError, Params, RunCtx};
 
 /// Separable Gaussian blur with clamp-to-edge borders. The kernel reaches
 /// ceil(truncate · σ) pixels each way and is normalised to sum 1, so a constant image stays
@@ -13,9 +13,6 @@ pub struct GaussianBlur {
     #[param(default = 3.0, range = 1.0..=8.0, unit = "σ")]
     pub truncate: f64,
 }
-
-inputs!(pub GaussianBlurIn { image: Image });
-outputs!(pub GaussianBlurOut { image: Image });
 
 /// Normalised 1-D Gaussian weights for offsets −r..=r.
 pub fn gaussian_kernel(sigma: f64, truncate: f64) -> Vec<f32> {
@@ -77,15 +74,15 @@ pub fn gaussian_blur_with(img: &Image, sigma: f64, truncate: f64, cx: &RunCtx) -
     Ok(Image { width: w, height: h, pixels: out })
 }
 
-#[node(category = "image")]
+#[node(category = "image", outputs = [image])]
 impl GaussianBlur {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The horizontal pass's image besides the output.
         relume_core::MemoryEstimate { outputs: vec![inputs[0]], working: inputs[0].map_or(0, |s| s.bytes) }
     }
 
-    fn run(&self, i: GaussianBlurIn, cx: &RunCtx) -> Result<GaussianBlurOut, NodeError> {
-        Ok(GaussianBlurOut { image: gaussian_blur_with(i.image, self.sigma, self.truncate, cx)? })
+    fn run(&self, image: &Image, cx: &RunCtx) -> Result<Image, NodeError> {
+        gaussian_blur_with(image, self.sigma, self.truncate, cx)
     }
 }
 

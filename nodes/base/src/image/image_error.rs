@@ -1,7 +1,7 @@
 use crate::image::ssim::ssim_with;
 use crate::math::srgb::srgb_encode;
 use crate::types::{Image, Metrics};
-use relume_core::{inputs, node, outputs, CancelToken, NodeError, Params, RunCtx};
+use relume_core::{node, CancelToken, NodeError, Params, RunCtx};
 
 /// Error of an image against a reference of the same size, into the run report:
 /// MSE (mean over pixels and channels of (x − r)²), relative MSE (mean of
@@ -27,9 +27,6 @@ pub struct ImageError {
     #[param(default = 1e-2, range = 1e-8..=1.0)]
     pub epsilon: f64,
 }
-
-inputs!(pub ImageErrorIn { image: Image, reference: Image });
-outputs!(pub ImageErrorOut { metrics: Metrics, error_map: Image });
 
 /// Error figures of `x` against `r` (same size), in the order the report lists them; outside
 /// a node run (never cancelled).
@@ -148,7 +145,7 @@ pub fn flip_mean_with(x: &Image, r: &Image, peak: f64, cx: &RunCtx) -> Result<f6
     Ok(if n == 0 { 0.0 } else { sum / n as f64 })
 }
 
-#[node(category = "quality", version = 2)]
+#[node(category = "quality", version = 2, metrics = ["mse", "rel_mse", "psnr_db", "l2_percent", "flip", "ssim", "nonfinite_pixels"], outputs = [metrics, error_map])]
 impl ImageError {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // SSIM holds two luma planes (f64) and three planes of six f64 moments per pixel
@@ -161,8 +158,8 @@ impl ImageError {
         }
     }
 
-    fn run(&self, i: ImageErrorIn, cx: &RunCtx) -> Result<ImageErrorOut, NodeError> {
-        let (x, r) = (i.image, i.reference);
+    fn run(&self, image: &Image, reference: &Image, cx: &RunCtx) -> Result<(Metrics, Image), NodeError> {
+        let (x, r) = (image, reference);
         r.check_same_size(x, "reference", "image")?;
         cx.phase(0.0, 0.9);
         let m = error_metrics_with(x, r, self.peak, self.epsilon, cx)?;
@@ -180,7 +177,7 @@ impl ImageError {
                 *m = std::array::from_fn(|c| (a[c] - b[c]) * (a[c] - b[c]));
             }
         })?;
-        Ok(ImageErrorOut { metrics: m, error_map: Image { width: x.width, height: x.height, pixels: map } })
+        Ok((m, Image { width: x.width, height: x.height, pixels: map }))
     }
 }
 

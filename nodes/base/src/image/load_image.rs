@@ -1,6 +1,6 @@
 use crate::image::io::read_image;
 use crate::types::Image;
-use relume_core::{node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 use std::path::PathBuf;
 
 /// Reads an image file: OpenEXR (linear RGB) or PNG (sRGB, decoded to linear).
@@ -11,9 +11,7 @@ pub struct LoadImage {
     pub path: PathBuf,
 }
 
-outputs!(pub LoadImageOut { image: Image });
-
-#[node(category = "image")]
+#[node(category = "image", outputs = [image])]
 impl LoadImage {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The header gives the size without decoding the pixels.
@@ -22,9 +20,9 @@ impl LoadImage {
         relume_core::MemoryEstimate { outputs: vec![size], working: 0 }
     }
 
-    fn run(&self, _: (), _cx: &RunCtx) -> Result<LoadImageOut, NodeError> {
+    fn run(&self, _cx: &RunCtx) -> Result<Image, NodeError> {
         let image = read_image(&self.path).map_err(|m| NodeError::param("path", m))?;
-        Ok(LoadImageOut { image })
+        Ok(image)
     }
 }
 

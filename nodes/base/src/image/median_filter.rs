@@ -1,5 +1,5 @@
 use crate::types::Image;
-use relume_core::{inputs, node, outputs, CancelToken, NodeError, Params, RunCtx};
+use relume_core::{node, CancelToken, NodeError, Params, RunCtx};
 
 /// Per-channel median over a (2·radius + 1)² window with clamp-to-edge borders: removes
 /// isolated outliers (fireflies) while keeping edges. NaN sorts above every number
@@ -10,9 +10,6 @@ pub struct MedianFilter {
     #[param(default = 1, range = 0..=16, unit = "px")]
     pub radius: usize,
 }
-
-inputs!(pub MedianFilterIn { image: Image });
-outputs!(pub MedianFilterOut { image: Image });
 
 /// Median-filters an image (shared with later pipeline stages), outside a node run: never
 /// cancelled.
@@ -76,14 +73,14 @@ pub fn median_plane_by_class(plane: &[f32], class: &[u32], w: usize, h: usize, r
         .collect()
 }
 
-#[node(category = "image")]
+#[node(category = "image", outputs = [image])]
 impl MedianFilter {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         relume_core::MemoryEstimate { outputs: vec![inputs[0]], working: 0 }
     }
 
-    fn run(&self, i: MedianFilterIn, cx: &RunCtx) -> Result<MedianFilterOut, NodeError> {
-        Ok(MedianFilterOut { image: median_filter_with(i.image, self.radius, cx)? })
+    fn run(&self, image: &Image, cx: &RunCtx) -> Result<Image, NodeError> {
+        Ok(median_filter_with(image, self.radius, cx)?)
     }
 }
 

@@ -12,17 +12,3 @@ pub mod ssim;
 pub mod test_pattern;
 pub mod tonemap;
 pub mod z_test;
-
-use relume_core::Registry;
-
-pub fn register(reg: &mut Registry) {
-    reg.add::<load_image::LoadImage>();
-    reg.add::<save_image::SaveImage>();
-    reg.add::<tonemap::Tonemap>();
-    reg.add::<image_error::ImageError>();
-    reg.add::<gaussian_blur::GaussianBlur>();
-    reg.add::<median_filter::MedianFilter>();
-    reg.add::<test_pattern::TestPattern>();
-    reg.add::<combine::Combine>();
-    reg.add::<z_test::ZTest>();
-}

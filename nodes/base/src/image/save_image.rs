@@ -1,6 +1,6 @@
 use crate::image::io::write_image;
 use crate::types::Image;
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 use std::path::PathBuf;
 
 /// Writes its input to a file (.exr: linear float; .png: 8-bit sRGB, clamped) and passes
@@ -13,18 +13,15 @@ pub struct SaveImage {
     pub path: PathBuf,
 }
 
-inputs!(pub SaveImageIn { image: Image });
-outputs!(pub SaveImageOut { image: Image });
-
-#[node(category = "image", caching = Never)]
+#[node(category = "image", caching = Never, outputs = [image])]
 impl SaveImage {
-    fn run(&self, i: SaveImageIn, cx: &RunCtx) -> Result<SaveImageOut, NodeError> {
+    fn run(&self, image: &Image, cx: &RunCtx) -> Result<Image, NodeError> {
         cx.check_write_path("path", &self.path)?;
         if let Some(dir) = self.path.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|e| NodeError::param("path", format!("cannot create {}: {e}", dir.display())))?;
         }
-        write_image(&self.path, i.image).map_err(|m| NodeError::param("path", m))?;
-        Ok(SaveImageOut { image: i.image.clone() })
+        write_image(&self.path, image).map_err(|m| NodeError::param("path", m))?;
+        Ok(image.clone())
     }
 }
 

@@ -1,7 +1,7 @@
 use crate::math::rng::uniform;
 use crate::types::Image;
 use rayon::prelude::*;
-use relume_core::{node, outputs, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
 
 /// A synthetic image for tests, benchmarks and filter demos: a gradient, a checkerboard
 /// or a constant colour, plus optional seeded uniform noise of ± noise/2 (the same bytes
@@ -39,16 +39,14 @@ pub enum Pattern {
     Constant,
 }
 
-outputs!(pub TestPatternOut { image: Image });
-
-#[node(category = "image", version = 2)]
+#[node(category = "image", version = 2, outputs = [image])]
 impl TestPattern {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let _ = inputs;
         relume_core::MemoryEstimate { outputs: vec![Some(relume_core::PortSize::image(self.width, self.height))], working: 0 }
     }
 
-    fn run(&self, _: (), _cx: &RunCtx) -> Result<TestPatternOut, NodeError> {
+    fn run(&self, _cx: &RunCtx) -> Result<Image, NodeError> {
         let mut img = Image::try_new(self.width, self.height)?;
         let (w, h, cell) = (self.width, self.height, self.cell);
         img.pixels.par_iter_mut().enumerate().for_each(|(i, px)| {
@@ -63,7 +61,7 @@ impl TestPattern {
                 base[c] * self.color[c] + n
             });
         });
-        Ok(TestPatternOut { image: img })
+        Ok(img)
     }
 }
 

@@ -1,6 +1,6 @@
 use crate::types::Image;
 use rayon::prelude::*;
-use relume_core::{inputs, node, outputs, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
 
 /// Maps linear HDR radiance to display-referred values in [0, 1]: exposure in stops, then
 /// a curve (Clamp, Reinhard x/(1+x), or the ACES filmic fit of Narkowicz 2015). The output
@@ -22,9 +22,6 @@ pub enum Operator {
     Reinhard,
     Aces,
 }
-
-inputs!(pub TonemapIn { image: Image });
-outputs!(pub TonemapOut { image: Image });
 
 /// One channel through exposure scale and curve; always finite, in [0, 1].
 pub fn tonemap_channel(x: f32, scale: f32, op: Operator) -> f32 {
@@ -57,16 +54,16 @@ pub fn tonemap_channel(x: f32, scale: f32, op: Operator) -> f32 {
     }
 }
 
-#[node(category = "image")]
+#[node(category = "image", outputs = [image])]
 impl Tonemap {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         relume_core::MemoryEstimate { outputs: vec![inputs[0]], working: 0 }
     }
 
-    fn run(&self, i: TonemapIn, _cx: &RunCtx) -> Result<TonemapOut, NodeError> {
+    fn run(&self, image: &Image, _cx: &RunCtx) -> Result<Image, NodeError> {
         let scale = 2f32.powf(self.exposure);
-        let pixels = i.image.pixels.par_iter().map(|c| c.map(|x| tonemap_channel(x, scale, self.operator))).collect();
-        Ok(TonemapOut { image: Image { width: i.image.width, height: i.image.height, pixels } })
+        let pixels = image.pixels.par_iter().map(|c| c.map(|x| tonemap_channel(x, scale, self.operator))).collect();
+        Ok(Image { width: image.width, height: image.height, pixels })
     }
 }
 

@@ -1,5 +1,5 @@
 use crate::types::{Image, Metrics};
-use relume_core::{inputs, node, outputs, CancelToken, NodeError, Params, RunCtx};
+use relume_core::{node, CancelToken, NodeError, Params, RunCtx};
 
 /// Per-pixel z-test of a noisy estimate against a reference, both given with the variance
 /// of their mean: per pixel and channel z = (x − r) / sqrt(var_x + var_r + tiny), tiny =
@@ -22,9 +22,6 @@ pub struct ZTest {
     #[param(default = 0.995, range = 0.0..=1.0)]
     pub min_pass: f64,
 }
-
-inputs!(pub ZTestIn { image: Image, image_variance: Image, reference: Image, reference_variance: Image });
-outputs!(pub ZTestOut { metrics: Metrics, z_map: Image });
 
 /// Result of `z_test`.
 #[derive(Clone, Debug, PartialEq)]
@@ -136,15 +133,22 @@ pub fn z_test_with(
     })
 }
 
-#[node(category = "quality", version = 2)]
+#[node(category = "quality", version = 2, metrics = ["pass_fraction", "max_abs_z", "mean_z", "pixels", "nonfinite_pixels", "zero_variance_channels"], outputs = [metrics, z_map])]
 impl ZTest {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let outputs = (0..2).map(|k| if k == 1 { inputs[0] } else { Some(relume_core::PortSize::bytes(256)) }).collect();
         relume_core::MemoryEstimate { outputs, working: 0 }
     }
 
-    fn run(&self, i: ZTestIn, cx: &RunCtx) -> Result<ZTestOut, NodeError> {
-        let t = z_test_with(i.image, i.image_variance, i.reference, i.reference_variance, self.z, cx)?;
+    fn run(
+        &self,
+        image: &Image,
+        image_variance: &Image,
+        reference: &Image,
+        reference_variance: &Image,
+        cx: &RunCtx,
+    ) -> Result<(Metrics, Image), NodeError> {
+        let t = z_test_with(image, image_variance, reference, reference_variance, self.z, cx)?;
         let m = t.metrics();
         for (k, v) in &m.0 {
             cx.metric(k, *v);
@@ -160,7 +164,7 @@ impl ZTest {
         if t.nonfinite_pixels > 0 {
             cx.note(format!("{} pixels with NaN or infinity counted as failures", t.nonfinite_pixels));
         }
-        Ok(ZTestOut { metrics: m, z_map: t.z_map })
+        Ok((m, t.z_map))
     }
 }
 

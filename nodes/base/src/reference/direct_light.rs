@@ -25,7 +25,7 @@ use std::ops::Range;
 #[derive(Params)]
 pub struct DirectLight {
     /// camera rays per pixel, jittered over the pixel (antialiasing)
-    #[param(default = 16, range = 1..=(1 << 16), unit = "rays/pixel")]
+    #[param(default = 16, range = 1..=(1 << 16), unit = "rays/pixel", test = 4)]
     pub pixel_samples: u32,
     /// shadow rays toward the lights per camera hit
     #[param(default = 4, range = 1..=1024, unit = "rays/hit")]
@@ -127,7 +127,7 @@ pub fn render(scene: &Scene, accel: &Accel, p: &DirectLight, cx: Option<&RunCtx>
     Ok((imgs.pop().expect("one layer"), c[0]))
 }
 
-#[node(category = "reference", sharded)]
+#[node(category = "reference", sharded, metrics = ["rays", "rays_per_pixel"])]
 impl DirectLight {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The bands of the chunks and the gathered image.

@@ -4,10 +4,3 @@
 
 pub mod direct_light;
 pub mod path_trace;
-
-use relume_core::Registry;
-
-pub fn register(reg: &mut Registry) {
-    reg.add::<path_trace::PathTrace>();
-    reg.add::<direct_light::DirectLight>();
-}

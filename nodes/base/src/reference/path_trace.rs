@@ -20,7 +20,7 @@ use std::ops::Range;
 #[derive(Params)]
 pub struct PathTrace {
     /// samples per pixel
-    #[param(default = 16, range = 1..=(1 << 20), unit = "samples/pixel")]
+    #[param(default = 16, range = 1..=(1 << 20), unit = "samples/pixel", test = 4)]
     pub spp: u32,
     /// maximum path segments (Mitsuba's meaning); -1 = unbounded
     #[param(default = -1, range = -1..=1024)]
@@ -83,7 +83,7 @@ pub fn render(scene: &Scene, accel: &Accel, p: &PathTrace, cx: Option<&RunCtx>) 
     Ok((imgs.pop().expect("two layers"), var, c[0], c[1]))
 }
 
-#[node(category = "reference", sharded)]
+#[node(category = "reference", sharded, metrics = ["spp", "rays", "nonfinite_samples"])]
 impl PathTrace {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The film of a band (a sum and a sum of squares, f64 RGB, per pixel), the bands of

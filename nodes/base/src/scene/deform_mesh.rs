@@ -1,6 +1,6 @@
 use crate::types::Scene;
 use glam::{Mat3, Vec3};
-use relume_core::{inputs, node, outputs, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
 
 /// Deforms one object of a scene ([S] 6.5, geometry deformation of a refractive object: the
 /// edit that re-runs voxelisation onward). With d = p − `centre`, w = d's coordinate along
@@ -81,9 +81,6 @@ impl Axis {
         }
     }
 }
-
-inputs!(pub DeformMeshIn { scene: Scene });
-outputs!(pub DeformMeshOut { scene: Scene });
 
 /// A deformation with its parameters resolved.
 #[derive(Clone, Copy, Debug)]
@@ -257,18 +254,18 @@ pub fn deform_mesh(
     Ok((s, duplicated))
 }
 
-#[node(category = "scene")]
+#[node(category = "scene", outputs = [scene])]
 impl DeformMesh {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         relume_core::MemoryEstimate { outputs: vec![inputs[0]], working: 0 }
     }
 
-    fn run(&self, i: DeformMeshIn, cx: &RunCtx) -> Result<DeformMeshOut, NodeError> {
-        let (scene, duplicated) = deform_mesh(i.scene, &self.object, self.kind, self.centre, self.axis, self.amount, self.across)?;
+    fn run(&self, scene: &Scene, cx: &RunCtx) -> Result<Scene, NodeError> {
+        let (scene, duplicated) = deform_mesh(scene, &self.object, self.kind, self.centre, self.axis, self.amount, self.across)?;
         if duplicated > 0 {
             cx.note(format!("{duplicated} vertices of \"{}\" were shared with other objects and were duplicated", self.object));
         }
-        Ok(DeformMeshOut { scene })
+        Ok(scene)
     }
 }
 

@@ -1,6 +1,6 @@
 use super::format::load_scene_file;
 use crate::types::Scene;
-use relume_core::{node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 use std::path::PathBuf;
 
 /// Loads a scene file (RON: camera, materials, OBJ meshes and spheres, lights,
@@ -12,16 +12,14 @@ pub struct LoadScene {
     /// scene file (.ron), relative to the graph file
     pub path: PathBuf,
     /// image width; 0 keeps the scene file's camera
-    #[param(default = 0, range = 0..=16384, unit = "px")]
+    #[param(default = 0, range = 0..=16384, unit = "px", test = 24)]
     pub width: usize,
     /// image height; 0 keeps the scene file's camera
-    #[param(default = 0, range = 0..=16384, unit = "px")]
+    #[param(default = 0, range = 0..=16384, unit = "px", test = 20)]
     pub height: usize,
 }
 
-outputs!(pub LoadSceneOut { scene: Scene });
-
-#[node(category = "scene", version = 2)]
+#[node(category = "scene", version = 2, metrics = ["triangles", "objects"], outputs = [scene])]
 impl LoadScene {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The scene's bytes are known only once its meshes are read; the resolution is the
@@ -31,7 +29,7 @@ impl LoadScene {
         relume_core::MemoryEstimate { outputs: vec![dims.map(|d| relume_core::PortSize { bytes: 0, dims: Some(d) })], working: 0 }
     }
 
-    fn run(&self, _: (), cx: &RunCtx) -> Result<LoadSceneOut, NodeError> {
+    fn run(&self, cx: &RunCtx) -> Result<Scene, NodeError> {
         let loaded = load_scene_file(&self.path).map_err(|m| NodeError::param("path", m))?;
         for (path, hash) in &loaded.files {
             cx.depends_on_file(path, *hash);
@@ -48,7 +46,7 @@ impl LoadScene {
         }
         cx.metric("triangles", scene.triangles.len() as f64);
         cx.metric("objects", scene.objects.len() as f64);
-        Ok(LoadSceneOut { scene })
+        Ok(scene)
     }
 }
 

@@ -11,13 +11,3 @@ pub mod obj;
 pub mod orbit_camera;
 pub mod shapes;
 pub mod turn_environment;
-
-use relume_core::Registry;
-
-pub fn register(reg: &mut Registry) {
-    reg.add::<load_scene::LoadScene>();
-    reg.add::<move_object::MoveObject>();
-    reg.add::<deform_mesh::DeformMesh>();
-    reg.add::<orbit_camera::OrbitCamera>();
-    reg.add::<turn_environment::TurnEnvironment>();
-}

@@ -1,6 +1,6 @@
 use crate::types::Scene;
 use glam::Vec3;
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 /// Translates one object of a scene (an area light, the bunny) by a vector: the
 /// interactive "move the light" edit. Nodes wired to the scene before this node (surface
@@ -14,9 +14,6 @@ pub struct MoveObject {
     #[param(default = (0.0, 0.0, 0.0))]
     pub translation: Vec3,
 }
-
-inputs!(pub MoveObjectIn { scene: Scene });
-outputs!(pub MoveObjectOut { scene: Scene });
 
 /// The scene with object `name` moved by `t`.
 pub fn move_object(scene: &Scene, name: &str, t: Vec3) -> Result<Scene, NodeError> {
@@ -36,14 +33,14 @@ pub fn move_object(scene: &Scene, name: &str, t: Vec3) -> Result<Scene, NodeErro
     Ok(s)
 }
 
-#[node(category = "scene", version = 2)]
+#[node(category = "scene", version = 2, outputs = [scene])]
 impl MoveObject {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         relume_core::MemoryEstimate { outputs: vec![inputs[0]], working: 0 }
     }
 
-    fn run(&self, i: MoveObjectIn, _cx: &RunCtx) -> Result<MoveObjectOut, NodeError> {
-        Ok(MoveObjectOut { scene: move_object(i.scene, &self.object, self.translation)? })
+    fn run(&self, scene: &Scene, _cx: &RunCtx) -> Result<Scene, NodeError> {
+        Ok(move_object(scene, &self.object, self.translation)?)
     }
 }
 

@@ -1,6 +1,6 @@
 use crate::types::{Camera, Scene};
 use glam::{Quat, Vec3};
-use relume_core::{inputs, node, outputs, NodeError, Params, PortValue, RunCtx};
+use relume_core::{node, NodeError, Params, PortValue, RunCtx};
 
 /// The scene's camera orbited about its target, as a `Camera` of its own: a render that takes
 /// the camera as an input re-runs alone when the view changes, not what reads the scene.
@@ -31,9 +31,6 @@ pub struct OrbitCamera {
     #[param(default = 0, range = 0..=16384, unit = "px")]
     pub height: usize,
 }
-
-inputs!(pub OrbitCameraIn { scene: Scene });
-outputs!(pub OrbitCameraOut { camera: Camera });
 
 /// Largest elevation above or below the plane across `up` that an orbit reaches (degrees).
 pub const MAX_ELEVATION_DEG: f32 = 89.0;
@@ -81,7 +78,7 @@ impl OrbitCamera {
     }
 }
 
-#[node(category = "scene")]
+#[node(category = "scene", outputs = [camera])]
 impl OrbitCamera {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let dims = inputs[0].and_then(|s| s.dims);
@@ -92,10 +89,10 @@ impl OrbitCamera {
         relume_core::MemoryEstimate { outputs: vec![Some(size)], working: 0 }
     }
 
-    fn run(&self, i: OrbitCameraIn, _cx: &RunCtx) -> Result<OrbitCameraOut, NodeError> {
-        let camera = self.apply(&i.scene.camera)?;
+    fn run(&self, scene: &Scene, _cx: &RunCtx) -> Result<Camera, NodeError> {
+        let camera = self.apply(&scene.camera)?;
         debug_assert!(Camera::decode(&camera.encode()).is_some());
-        Ok(OrbitCameraOut { camera })
+        Ok(camera)
     }
 }
 

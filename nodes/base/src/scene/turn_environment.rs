@@ -1,6 +1,6 @@
 use crate::types::{EnvMap, Environment, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
 /// The scene with its environment turned about the vertical (+y) axis by `rotation_deg`
 /// (right-handed: seen from above, counter-clockwise) and its radiance scaled by `scale`: the
@@ -22,9 +22,6 @@ pub struct TurnEnvironment {
     pub scale: f64,
 }
 
-inputs!(pub TurnEnvironmentIn { scene: Scene });
-outputs!(pub TurnEnvironmentOut { scene: Scene });
-
 impl TurnEnvironment {
     /// `map` turned and scaled (see the node's doc).
     pub fn turn(&self, map: &EnvMap) -> Result<EnvMap, String> {
@@ -44,15 +41,15 @@ impl TurnEnvironment {
     }
 }
 
-#[node(category = "scene")]
+#[node(category = "scene", outputs = [scene])]
 impl TurnEnvironment {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         MemoryEstimate { outputs: vec![inputs[0]], working: 0 }
     }
 
-    fn run(&self, i: TurnEnvironmentIn, cx: &RunCtx) -> Result<TurnEnvironmentOut, NodeError> {
-        let mut scene = i.scene.clone();
-        scene.environment = match &i.scene.environment {
+    fn run(&self, scene: &Scene, cx: &RunCtx) -> Result<Scene, NodeError> {
+        let mut scene = scene.clone();
+        scene.environment = match &scene.environment {
             None => {
                 return Err(NodeError::input("scene", "the scene has no environment to turn (add `environment: Map(…)` or `Constant(…)`)"))
             }
@@ -69,7 +66,7 @@ impl TurnEnvironment {
                 Some(Environment::Map(self.turn(m).map_err(|e| NodeError::input("scene", e))?))
             }
         };
-        Ok(TurnEnvironmentOut { scene })
+        Ok(scene)
     }
 }
 

@@ -36,7 +36,7 @@ use crate::brdf::{blinn_phong, cook_torrance};
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Vec3};
 use relume_core::codec::pod_vec;
-use relume_core::{codec, PortValue};
+use relume_core::PortValue;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::{FRAC_1_PI, FRAC_PI_2, PI};
 
@@ -280,6 +280,15 @@ impl BrdfSpace {
     }
 }
 
+impl BrdfSpace {
+    /// Whether the grid is valid and the values fill it for every sample (what a decoded
+    /// payload must satisfy).
+    pub fn is_consistent(&self) -> bool {
+        let n = self.grid.cells_u64().checked_mul(self.samples.len() as u64);
+        self.grid.is_valid() && n == Some(self.values.len() as u64)
+    }
+}
+
 /// Disk encoding: serde through postcard, the sample list and the table as little-endian byte
 /// strings; decoding checks that the grid is valid and the table has one value per sample and
 /// cell.
@@ -290,14 +299,7 @@ impl PortValue for BrdfSpace {
     fn byte_size(&self) -> usize {
         self.values.len() * 4 + self.samples.len() * SAMPLE_BYTES as usize + 32
     }
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        let s = codec::from_bytes::<BrdfSpace>(bytes)?;
-        let n = s.grid.cells_u64().checked_mul(s.samples.len() as u64)?;
-        (s.grid.is_valid() && n == s.values.len() as u64).then_some(s)
-    }
+    relume_core::serde_codec!(check BrdfSpace::is_consistent);
 }
 
 /// Basis BRDFs ([S] 4-19) on a grid: basis 0 is the diffuse sample (kd = 1: the table 1/π),
@@ -430,6 +432,19 @@ impl BrdfBasis {
     }
 }
 
+impl BrdfBasis {
+    /// Whether the tables, coefficients and eigenvalues agree with the grid and the number of
+    /// bases (what a decoded payload must satisfy).
+    pub fn is_consistent(&self) -> bool {
+        let cells = self.grid.cells_u64();
+        self.grid.is_valid()
+            && (self.tables.len() as u64).is_multiple_of(cells)
+            && self.tables.len() as u64 >= cells
+            && self.coefficients.len() == self.s_values.len() * (self.bases() - 1)
+            && self.eigenvalues.len() == self.bases() - 1
+    }
+}
+
 /// Disk encoding: serde through postcard, the tables as a little-endian byte string; decoding
 /// checks the grid, whole tables (at least the diffuse one), a coefficient row per sampled
 /// exponent and an eigenvalue per specular basis.
@@ -440,19 +455,7 @@ impl PortValue for BrdfBasis {
     fn byte_size(&self) -> usize {
         self.tables.len() * 4 + (self.s_values.len() + self.coefficients.len() + self.eigenvalues.len()) * 8 + 32
     }
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        let b = codec::from_bytes::<BrdfBasis>(bytes)?;
-        let cells = b.grid.cells_u64();
-        let ok = b.grid.is_valid()
-            && (b.tables.len() as u64).is_multiple_of(cells)
-            && b.tables.len() as u64 >= cells
-            && b.coefficients.len() == b.s_values.len() * (b.bases() - 1)
-            && b.eigenvalues.len() == b.bases() - 1;
-        ok.then_some(b)
-    }
+    relume_core::serde_codec!(check BrdfBasis::is_consistent);
 }
 
 #[cfg(test)]

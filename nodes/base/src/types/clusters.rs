@@ -2,7 +2,7 @@
 //! and read by FactorizedGather.
 
 use glam::Vec3;
-use relume_core::{codec, PortValue};
+use relume_core::PortValue;
 use serde::{Deserialize, Serialize};
 
 /// One cluster of receivers, all in one tile.
@@ -53,12 +53,7 @@ impl PortValue for Clusters {
     fn byte_size(&self) -> usize {
         self.clusters.len() * std::mem::size_of::<Cluster>() + self.of_receiver.len() * 8
     }
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        codec::from_bytes::<Clusters>(bytes).filter(Clusters::links_hold)
-    }
+    relume_core::serde_codec!(check Clusters::links_hold);
 }
 
 #[cfg(test)]

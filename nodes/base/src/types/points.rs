@@ -3,7 +3,7 @@
 use super::material::Material;
 use glam::Vec3;
 use relume_core::codec::pod_vec;
-use relume_core::{codec, PortValue};
+use relume_core::PortValue;
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
@@ -33,20 +33,22 @@ impl SurfacePoints {
     pub const BYTES_PER_POINT: usize = 12 + 12 + 4 + 4 + std::mem::size_of::<Material>();
 }
 
+impl SurfacePoints {
+    /// Whether every per-point list has one entry per point (what a decoded payload must
+    /// satisfy).
+    pub fn is_consistent(&self) -> bool {
+        let n = self.len();
+        [self.normal.len(), self.radius.len(), self.object.len(), self.material.len()].iter().all(|&l| l == n)
+    }
+}
+
 /// Disk encoding: serde through postcard, the per-point numbers as little-endian byte
 /// strings; decoding checks that every array has one entry per point.
 impl PortValue for SurfacePoints {
     const NAME: &'static str = "SurfacePoints";
     const COLOR: [u8; 3] = [220, 110, 150];
     const DOC: &'static str = "surface points with normal, disk radius, object and material";
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        let p = codec::from_bytes::<SurfacePoints>(bytes)?;
-        let n = p.len();
-        [p.normal.len(), p.radius.len(), p.object.len(), p.material.len()].iter().all(|&l| l == n).then_some(p)
-    }
+    relume_core::serde_codec!(check SurfacePoints::is_consistent);
     fn byte_size(&self) -> usize {
         self.len() * Self::BYTES_PER_POINT
     }

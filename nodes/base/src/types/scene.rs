@@ -6,7 +6,7 @@ use super::triangle_planes::{SceneDerived, TrianglePlanes};
 use crate::math::sampling::Bilinear2D;
 use glam::{Vec2, Vec3};
 use relume_core::codec::pod_vec;
-use relume_core::{codec, PortValue};
+use relume_core::PortValue;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::ops::Range;
 
@@ -51,12 +51,7 @@ impl PortValue for Camera {
     fn byte_size(&self) -> usize {
         std::mem::size_of::<Camera>()
     }
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        codec::from_bytes::<Camera>(bytes).filter(Camera::is_consistent)
-    }
+    relume_core::serde_codec!(check Camera::is_consistent);
 }
 
 /// Delta lights. Area lights are objects with emission; the environment is separate.
@@ -262,12 +257,7 @@ impl PortValue for Scene {
         relume_core::PortSize { bytes: self.byte_size() as u64, dims: Some([self.camera.width, self.camera.height]) }
     }
 
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        codec::from_bytes::<Scene>(bytes).filter(Scene::is_consistent)
-    }
+    relume_core::serde_codec!(check Scene::is_consistent);
 
     fn byte_size(&self) -> usize {
         let env = match &self.environment {

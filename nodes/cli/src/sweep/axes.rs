@@ -1,7 +1,6 @@
 //! What a sweep's plot draws: the x axis (time, a varied parameter or a metric, `--x`) and the
 //! curves (one for the method's rows, or one per value of a varied parameter, `--series`).
 
-use super::metrics::reported_metrics;
 use super::rows::{Row, Series, TimeAxis, Vary};
 use crate::error::CliError;
 use crate::plot::Curve;
@@ -39,8 +38,8 @@ impl XAxis {
         };
         let (id, metric) = x.split_once('.').ok_or_else(|| refuse("not a column".into()))?;
         let node = graph.node(id).ok_or_else(|| refuse(format!("no node \"{id}\" in the graph")))?;
-        if reg.node(&node.kind).is_none() || !reported_metrics(&node.kind).contains(&metric) {
-            let have = reported_metrics(&node.kind);
+        let have = reg.node(&node.kind).map_or(&[][..], |k| k.metrics());
+        if !have.contains(&metric) {
             return Err(refuse(if have.is_empty() {
                 format!("node \"{id}\" ({}) reports no metric and `{metric}` is not a varied parameter", node.kind)
             } else {

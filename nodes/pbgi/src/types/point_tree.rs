@@ -5,7 +5,7 @@ use glam::{DVec3, Vec3};
 use relume_base::math::frame::Frame;
 use relume_base::math::sh::{sh9, sh9_clamped_cosine, sh9_dot, sh9_dot_rgb, sh9_eval, sh9_eval_rgb};
 use relume_base::types::SurfacePoints;
-use relume_core::{codec, CancelToken, NodeError, PortValue, RunCtx};
+use relume_core::{CancelToken, NodeError, PortValue, RunCtx};
 use serde::{Deserialize, Serialize};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -555,12 +555,7 @@ impl PortValue for PointTree {
     fn byte_size(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<TreeNode>() + self.point_radiance.len() * 12
     }
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        codec::from_bytes::<PointTree>(bytes).filter(PointTree::links_hold)
-    }
+    relume_core::serde_codec!(check PointTree::links_hold);
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 use glam::Vec3;
 use relume_base::types::Material;
 use relume_core::codec::pod_vec;
-use relume_core::{codec, PortValue};
+use relume_core::PortValue;
 use serde::{Deserialize, Serialize};
 
 /// One receiver per pixel whose primary ray hit a surface.
@@ -40,6 +40,18 @@ impl Receivers {
     }
 }
 
+impl Receivers {
+    /// Whether every per-receiver list has one entry per receiver and every pixel index lies in
+    /// the image (what a decoded payload must satisfy).
+    pub fn is_consistent(&self) -> bool {
+        let n = self.len();
+        let Some(pixels) = self.width.checked_mul(self.height) else { return false };
+        let lengths =
+            [self.position.len(), self.normal.len(), self.wo.len(), self.object.len(), self.material.len()].iter().all(|&l| l == n);
+        lengths && self.pixel.iter().all(|&p| (p as usize) < pixels)
+    }
+}
+
 /// Disk encoding: serde through postcard, the per-receiver numbers as little-endian byte
 /// strings; decoding checks that every array has one entry per receiver and that every
 /// pixel index lies inside the image.
@@ -47,16 +59,7 @@ impl PortValue for Receivers {
     const NAME: &'static str = "Receivers";
     const COLOR: [u8; 3] = [230, 140, 80];
     const DOC: &'static str = "camera primary hits: pixel, position, normal, view direction, material";
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        let r = codec::from_bytes::<Receivers>(bytes)?;
-        let n = r.len();
-        let pixels = r.width.checked_mul(r.height)?;
-        let lengths = [r.position.len(), r.normal.len(), r.wo.len(), r.object.len(), r.material.len()].iter().all(|&l| l == n);
-        (lengths && r.pixel.iter().all(|&p| (p as usize) < pixels)).then_some(r)
-    }
+    relume_core::serde_codec!(check Receivers::is_consistent);
     fn byte_size(&self) -> usize {
         self.len() * Self::BYTES_PER_RECEIVER
     }

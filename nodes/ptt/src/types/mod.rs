@@ -1,6 +1,8 @@
 //! Port types of the transfer-tensor pipeline: the environment as the renderer reads it
-//! (`EnvLight`) and the vertices' visibility of it (`Visibility`).
+//! (`EnvLight`) and the vertices' visibility of it (`Visibility`); the BRDF tensor and its
+//! factors in `brdf`, the light and transfer of the bounces in `incident` and `transfer`.
 
+pub mod brdf;
 mod incident;
 mod transfer;
 

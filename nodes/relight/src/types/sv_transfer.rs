@@ -5,7 +5,7 @@
 
 use super::transfer::PathCounts;
 use relume_core::codec::pod_vec;
-use relume_core::{codec, PortValue};
+use relume_core::PortValue;
 use serde::{Deserialize, Serialize};
 
 /// A Haar coefficient image keeping some terms: indices (ascending) into the `side × side`
@@ -122,12 +122,7 @@ impl PortValue for SvTransfer {
     fn byte_size(&self) -> usize {
         self.bytes() as usize + self.blocks.len() * 64 + 128
     }
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        codec::from_bytes::<SvTransfer>(bytes).filter(SvTransfer::is_consistent)
-    }
+    relume_core::serde_codec!(check SvTransfer::is_consistent);
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 
 use crate::terms::{Channels, Term};
 use relume_core::codec::pod_vec;
-use relume_core::{codec, PortValue};
+use relume_core::{Params, PortValue};
 use serde::{Deserialize, Serialize};
 
 /// Largest transfer the precompute may hold (the thesis' two-object scene at 512² is 142 MiB;
@@ -12,17 +12,24 @@ use serde::{Deserialize, Serialize};
 pub const MAX_TRANSFER_BYTES: u64 = 16 << 30;
 
 /// How the stored images were sampled (the precompute's parameters), kept with them so that a
-/// same-seed reference traces exactly the same paths.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+/// same-seed reference traces exactly the same paths. Both precompute nodes take these as
+/// their own parameters (`#[param(flatten)]`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Params)]
 pub struct PathCounts {
-    /// Camera samples per pixel (jittered over the pixel).
+    /// camera samples per pixel, jittered over the pixel
+    #[param(default = 16, range = 1..=65536, unit = "samples/pixel", test = 2)]
     pub spp: u32,
-    /// Light samples at x′ per camera sample.
+    /// light samples at the first hit, per camera sample ([S]: 98 per pixel)
+    #[param(default = 4, range = 1..=4096)]
     pub light_samples: u32,
-    /// Uniform hemisphere rays from x′ per camera sample.
+    /// uniform hemisphere rays from the first hit, per camera sample ([S]: 4096 per pixel)
+    #[param(default = 16, range = 0..=65536, test = 2)]
     pub bounce_rays: u32,
-    /// Light samples at x″ per hemisphere ray.
+    /// light samples at the second hit, per hemisphere ray ([S]: 8)
+    #[param(default = 1, range = 1..=4096)]
     pub bounce_light_samples: u32,
+    /// random seed
+    #[param(default = 0, range = 0..=u32::MAX)]
     pub seed: u64,
 }
 
@@ -115,12 +122,7 @@ impl PortValue for Transfer {
     fn byte_size(&self) -> usize {
         self.data.len() * 4 + self.class.len() * 4 + self.terms.len() * 8 + 64
     }
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        codec::from_bytes::<Transfer>(bytes).filter(Transfer::is_consistent)
-    }
+    relume_core::serde_codec!(check Transfer::is_consistent);
 }
 
 /// Rows `first_row ..` of a transfer (same layout as `Transfer`), with counters summed over the

@@ -4,7 +4,7 @@
 
 use glam::{Vec2, Vec3};
 use relume_core::codec::pod_vec;
-use relume_core::{codec, PortValue};
+use relume_core::PortValue;
 use serde::{Deserialize, Serialize};
 
 /// Photons at their entry into a medium's box: position on the box, unit direction of travel
@@ -47,12 +47,7 @@ impl PortValue for Photons {
     fn byte_size(&self) -> usize {
         self.len() * 36 + 64
     }
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        codec::from_bytes::<Photons>(bytes).filter(Photons::is_consistent)
-    }
+    relume_core::serde_codec!(check Photons::is_consistent);
 }
 
 /// Irradiance (W/unit², RGB) on a rectangle of a planar receiver: texel (i, j) covers
@@ -134,12 +129,7 @@ impl PortValue for CausticMap {
     fn byte_size(&self) -> usize {
         self.texels.len() * 12 + 96
     }
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        codec::from_bytes::<CausticMap>(bytes).filter(CausticMap::is_consistent)
-    }
+    relume_core::serde_codec!(check CausticMap::is_consistent);
 }
 
 /// A chunk of photon marching's result (`MarchPhotons`' partial): fixed-point sums, so that

@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 use relume_core::codec::pod_vec;
-use relume_core::{codec, PortValue};
+use relume_core::PortValue;
 use serde::{Deserialize, Serialize};
 
 /// Where a camera sample's path ends: it leaves along the straight segment `o + t d`,
@@ -94,12 +94,7 @@ impl PortValue for ViewPaths {
     fn byte_size(&self) -> usize {
         (self.ends.len() as u64 * Self::SAMPLE_BYTES + self.gathers.len() as u64 * Self::GATHER_BYTES) as usize + 96
     }
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        codec::from_bytes::<ViewPaths>(bytes).filter(ViewPaths::is_consistent)
-    }
+    relume_core::serde_codec!(check ViewPaths::is_consistent);
 }
 
 #[cfg(test)]

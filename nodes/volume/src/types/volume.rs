@@ -6,7 +6,7 @@
 use glam::{UVec3, Vec3, Vec4};
 use relume_core::codec::pod_vec;
 use relume_core::memory::fmt_bytes;
-use relume_core::{codec, NodeError, PortValue};
+use relume_core::{NodeError, PortValue};
 use serde::{Deserialize, Serialize};
 
 /// Largest volume any node may hold (a 1024³ scalar grid is 4 GiB).
@@ -207,12 +207,7 @@ impl PortValue for Volume {
     fn byte_size(&self) -> usize {
         self.data.len() * 4 + 64
     }
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        codec::from_bytes::<Volume>(bytes).filter(Volume::is_consistent)
-    }
+    relume_core::serde_codec!(check Volume::is_consistent, own fingerprint);
     /// The header and the floats' bytes where they lie: no copy of the encoding (64 MiB for
     /// an octree at 128³, the largest part of its time in the engine after its own work).
     fn fingerprint(&self) -> relume_core::Hash {

@@ -33,7 +33,7 @@ use glam::{DVec3, Vec3};
 use relume_base::brdf::{blinn_phong, cook_torrance};
 use relume_base::types::{Material, ObjectMaterial, Specular};
 use relume_core::codec::pod_vec;
-use relume_core::{codec, PortValue};
+use relume_core::PortValue;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
@@ -420,12 +420,7 @@ impl PortValue for BrdfTensorTable {
     fn byte_size(&self) -> usize {
         self.values.len() * 4 + self.family.bytes() + 64
     }
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        codec::from_bytes::<BrdfTensorTable>(bytes).filter(|t| t.consistent())
-    }
+    relume_core::serde_codec!(check BrdfTensorTable::consistent);
 }
 
 // ---- lobes ---------------------------------------------------------------------------------
@@ -537,6 +532,17 @@ impl SpecularLobes {
     }
 }
 
+impl SpecularLobes {
+    /// Whether the family is valid, the lobe widths finite and few enough, and the amplitudes
+    /// fill the table (what a decoded payload must satisfy).
+    pub fn is_consistent(&self) -> bool {
+        self.family.is_valid()
+            && self.sigmas.len() <= MAX_LOBES
+            && self.sigmas.iter().all(|s| s.is_finite() && *s >= 0.0)
+            && (self.family.len() * self.disk.len() * self.lobes()) as u64 == self.amplitudes.len() as u64
+    }
+}
+
 /// Disk encoding: serde through postcard; decoding checks the family, at most `MAX_LOBES`
 /// finite widths and K amplitudes per (h, ωo).
 impl PortValue for SpecularLobes {
@@ -546,17 +552,7 @@ impl PortValue for SpecularLobes {
     fn byte_size(&self) -> usize {
         self.amplitudes.len() * 4 + self.sigmas.len() * 8 + self.family.bytes() + 64
     }
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        codec::from_bytes::<SpecularLobes>(bytes).filter(|l| {
-            l.family.is_valid()
-                && l.sigmas.len() <= MAX_LOBES
-                && l.sigmas.iter().all(|s| s.is_finite() && *s >= 0.0)
-                && (l.family.len() * l.disk.len() * l.lobes()) as u64 == l.amplitudes.len() as u64
-        })
-    }
+    relume_core::serde_codec!(check SpecularLobes::is_consistent);
 }
 
 // ---- the decomposition ---------------------------------------------------------------------
@@ -666,6 +662,19 @@ impl TuckerBrdf {
     }
 }
 
+impl TuckerBrdf {
+    /// Whether the core and the three factors have the sizes the ranks, the family and the
+    /// disk give (what a decoded payload must satisfy).
+    pub fn is_consistent(&self) -> bool {
+        let [a, b, c] = self.ranks.map(|r| r as usize);
+        self.family.is_valid()
+            && self.core.len() == a * b * c
+            && self.factor_h.len() == self.family.len() * a
+            && self.factor_o.len() == self.disk.len() * b
+            && self.factor_i.len() == self.disk.len() * c
+    }
+}
+
 /// Disk encoding: serde through postcard; decoding checks the family and every table's size
 /// against the ranks.
 impl PortValue for TuckerBrdf {
@@ -675,19 +684,7 @@ impl PortValue for TuckerBrdf {
     fn byte_size(&self) -> usize {
         (self.core.len() + self.factor_h.len() + self.factor_o.len() + self.factor_i.len()) * 4 + self.family.bytes() + 64
     }
-    fn encode(&self) -> Vec<u8> {
-        codec::to_bytes(self)
-    }
-    fn decode(bytes: &[u8]) -> Option<Self> {
-        codec::from_bytes::<TuckerBrdf>(bytes).filter(|t| {
-            let [a, b, c] = t.ranks.map(|r| r as usize);
-            t.family.is_valid()
-                && t.core.len() == a * b * c
-                && t.factor_h.len() == t.family.len() * a
-                && t.factor_o.len() == t.disk.len() * b
-                && t.factor_i.len() == t.disk.len() * c
-        })
-    }
+    relume_core::serde_codec!(check TuckerBrdf::is_consistent);
 }
 
 #[cfg(test)]
@@ -771,7 +768,7 @@ mod tests {
     fn the_per_material_tables_blended_at_a_view_give_the_tensor_and_the_lobes_there() {
         // What a shader of one material reads at many views: U^ωo · M and the lobes'
         // amplitudes per disk sample, blended at ωo, against the contraction and `amplitudes`.
-        for (brdf, lobes) in [crate::brdf::test_support::small_brdf(), crate::brdf::test_support::small_ct_brdf()] {
+        for (brdf, lobes) in [crate::brdf_factors::test_support::small_brdf(), crate::brdf_factors::test_support::small_ct_brdf()] {
             let h = brdf.family.position(brdf.family.param(1)).unwrap();
             let m = brdf.core_for(&brdf.u_h_at(&h));
             let (view, amps, k) = (brdf.view_table(&m), lobes.table_at(&h), lobes.lobes());

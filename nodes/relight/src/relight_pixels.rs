@@ -2,7 +2,7 @@ use super::terms::{Channels, First, Second, Term};
 use crate::types::Transfer;
 use relume_base::render::film::with_ctx;
 use relume_base::types::{Image, ObjectMaterials};
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{node, NodeError, Params, RunCtx};
 
 /// Pixel relighting's interactive step ([S] 4-12, 4-26, 4-27): per pixel,
 /// L = Σ c(R′, ρ′) I(P0, ρ′) + Σ c(R′, ρ′) c(R1, ρ1) I(P1, ρ′, R1, ρ1), with the coefficients of
@@ -13,9 +13,6 @@ use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
 /// parallel, an 8-lane loop the compiler vectorises (the same bytes on any thread count).
 #[derive(Params)]
 pub struct Relight {}
-
-inputs!(pub RelightIn { transfer: Transfer, materials: ObjectMaterials });
-outputs!(pub RelightOut { image: Image });
 
 /// The weights of every class (0: fixed; g + 1: dynamic object g): for each, three rows (R, G,
 /// B) of `stride` floats such that a pixel's channel is the row · the pixel's floats.
@@ -159,7 +156,7 @@ pub fn relight(t: &Transfer, m: &ObjectMaterials, cx: Option<&RunCtx>) -> Result
     Ok(img)
 }
 
-#[node(category = "relight")]
+#[node(category = "relight", outputs = [image])]
 impl Relight {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // An RGB image of the transfer's size; the dimensions are not known before it exists.
@@ -167,8 +164,8 @@ impl Relight {
         relume_core::MemoryEstimate { outputs: vec![None], working: 1 << 20 }
     }
 
-    fn run(&self, i: RelightIn, cx: &RunCtx) -> Result<RelightOut, NodeError> {
-        Ok(RelightOut { image: relight(i.transfer, i.materials, Some(cx))? })
+    fn run(&self, transfer: &Transfer, materials: &ObjectMaterials, cx: &RunCtx) -> Result<Image, NodeError> {
+        Ok(relight(transfer, materials, Some(cx))?)
     }
 }
 

@@ -1,7 +1,7 @@
-use super::types::{BrdfTensorTable, TuckerBrdf};
+use crate::types::brdf::{BrdfTensorTable, TuckerBrdf};
 use relume_base::math::tucker::{tucker, Tensor3, Tucker};
 use relume_base::types::Metrics;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
 /// Tucker-decomposes a BRDF tensor ([S] 5-3, 5-4): F ≈ D ×_h U^h ×_ωo U^ωo ×_ωi U^ωi, by HOOI
 /// started from the truncated HOSVD (`math/tucker.rs`, f64), into the `TuckerBrdf` a renderer
@@ -47,9 +47,6 @@ pub struct TuckerDecompose {
     pub error_grid: bool,
 }
 
-inputs!(pub TuckerDecomposeIn { tensor: BrdfTensorTable });
-outputs!(pub TuckerDecomposeOut { brdf: TuckerBrdf, metrics: Metrics });
-
 /// √(mean squared error over the entries) of a decomposition of a tensor of squared norm
 /// `norm2` and `entries` entries.
 fn rms(d: &Tucker, norm2: f64, entries: usize) -> f64 {
@@ -61,7 +58,7 @@ fn flat(rows: &[Vec<f64>]) -> Vec<f32> {
     rows.iter().flatten().map(|&v| v as f32).collect()
 }
 
-#[node(category = "ptt")]
+#[node(category = "ptt", metrics = ["rms_error", "relative_error", "iterations", "converged", "rank_h", "rank_wo", "rank_wi"], outputs = [brdf, metrics])]
 impl TuckerDecompose {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         // The f64 copy of the tensor and HOOI's projections and Gram rows (each at most as
@@ -70,8 +67,8 @@ impl TuckerDecompose {
         MemoryEstimate { outputs: vec![Some(PortSize::bytes(b / 16 + 4096)), Some(PortSize::bytes(4096))], working: b.saturating_mul(6) }
     }
 
-    fn run(&self, i: TuckerDecomposeIn, cx: &RunCtx) -> Result<TuckerDecomposeOut, NodeError> {
-        let t = i.tensor;
+    fn run(&self, tensor: &BrdfTensorTable, cx: &RunCtx) -> Result<(TuckerBrdf, Metrics), NodeError> {
+        let t = tensor;
         let dims = t.dims();
         if let Some(k) = t.values.iter().position(|v| !v.is_finite()) {
             return Err(NodeError::input("tensor", format!("entry {k} is not finite")));
@@ -142,15 +139,15 @@ impl TuckerDecompose {
         for (k, v) in &m {
             cx.metric(k, *v);
         }
-        Ok(TuckerDecomposeOut { brdf, metrics: Metrics(m) })
+        Ok((brdf, Metrics(m)))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::brdf::test_support::{decompose, tensor};
-    use crate::brdf::types::{BrdfFamily, DiskGrid, MaterialParam};
+    use crate::brdf_factors::test_support::{decompose, tensor};
+    use crate::types::brdf::{BrdfFamily, DiskGrid, MaterialParam};
     use glam::{Quat, Vec3};
     use relume_base::testing::{cancels_midway, f, i, run_on};
     use relume_core::{PortValue, Value};

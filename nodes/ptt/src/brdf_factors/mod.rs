@@ -2,27 +2,18 @@
 //! family's specular part into F(h, ωo, ωi) over the disk-projected hemisphere,
 //! `SpecularSeparation` splits F into Gaussian lobes around the mirror direction plus a
 //! low-frequency residual, and `TuckerDecompose` factors a tensor (F or the residual) into
-//! the core and the h, ωo, ωi factors a renderer shades with. Port types in `types`.
+//! the core and the h, ωo, ωi factors a renderer shades with. Their port types are in
+//! `types::brdf`.
 
 pub mod brdf_tensor;
 pub mod specular_separation;
 pub mod tucker_decompose;
-pub mod types;
-
-use relume_core::Registry;
-
-/// Registers the BRDF-tensor nodes.
-pub fn register(reg: &mut Registry) {
-    reg.add::<brdf_tensor::BrdfTensor>();
-    reg.add::<specular_separation::SpecularSeparation>();
-    reg.add::<tucker_decompose::TuckerDecompose>();
-}
 
 /// Tensors, separations and decompositions made by the nodes themselves, for this folder's
 /// unit tests.
 #[cfg(test)]
 pub(crate) mod test_support {
-    use super::types::{BrdfTensorTable, SpecularLobes, TuckerBrdf};
+    use crate::types::brdf::{BrdfTensorTable, SpecularLobes, TuckerBrdf};
     use relume_base::testing::{first, run_on};
     use relume_base::types::Metrics;
     use relume_core::{ParamValue, Value};

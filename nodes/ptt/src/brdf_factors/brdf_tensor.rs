@@ -1,7 +1,7 @@
-use super::types::{BrdfFamily, BrdfTensorTable, DiskGrid, MAX_BRDF_TENSOR_BYTES};
+use crate::types::brdf::{BrdfFamily, BrdfTensorTable, DiskGrid, MAX_BRDF_TENSOR_BYTES};
 use relume_base::brdf::BrdfModel;
 use relume_base::math::spread;
-use relume_core::{memory::fmt_bytes, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{memory::fmt_bytes, node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
 /// Samples the specular (non-diffuse) part of a BRDF family, ks = 1, into the tensor
 /// F(h, ωo, ωi) of [S] 5.2.2 (N_h × N_ωo × N_ωi) for `TuckerDecompose` (directly, or after
@@ -34,10 +34,10 @@ pub struct BrdfTensor {
     #[param(default = BlinnPhong)]
     pub model: BrdfModel,
     /// disk resolution n: n × n cells over [−1, 1]², those inside the unit disk are directions
-    #[param(default = 16, range = 1..=256)]
+    #[param(default = 16, range = 1..=256, test = 6)]
     pub disk: usize,
     /// Blinn-Phong: number of exponents (h samples)
-    #[param(default = 200, range = 1..=4096)]
+    #[param(default = 200, range = 1..=4096, test = 12)]
     pub samples: usize,
     /// Blinn-Phong: smallest exponent
     #[param(default = 1.0, range = 0.0..=1e5)]
@@ -46,7 +46,7 @@ pub struct BrdfTensor {
     #[param(default = 200.0, range = 0.0..=1e5)]
     pub s_max: f32,
     /// Cook-Torrance: number of roughness values
-    #[param(default = 10, range = 1..=256)]
+    #[param(default = 10, range = 1..=256, test = 3)]
     pub m_count: usize,
     /// Cook-Torrance: smallest Beckmann roughness m (RMS slope)
     #[param(default = 0.05, range = 0.001..=1.0)]
@@ -55,7 +55,7 @@ pub struct BrdfTensor {
     #[param(default = 0.6, range = 0.001..=1.0)]
     pub m_max: f32,
     /// Cook-Torrance: number of F0 values
-    #[param(default = 10, range = 1..=256)]
+    #[param(default = 10, range = 1..=256, test = 2)]
     pub f0_count: usize,
     /// Cook-Torrance: smallest Schlick F0 (reflectance at normal incidence)
     #[param(default = 0.02, range = 0.0..=1.0)]
@@ -64,8 +64,6 @@ pub struct BrdfTensor {
     #[param(default = 1.0, range = 0.0..=1.0)]
     pub f0_max: f32,
 }
-
-outputs!(pub BrdfTensorOut { tensor: BrdfTensorTable });
 
 impl BrdfTensor {
     /// N_h the parameters ask for.
@@ -106,14 +104,14 @@ impl BrdfTensor {
     }
 }
 
-#[node(category = "ptt")]
+#[node(category = "ptt", metrics = ["samples", "directions"], outputs = [tensor])]
 impl BrdfTensor {
     fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
         // The table; the directions beside it are small.
         MemoryEstimate { outputs: vec![Some(PortSize::bytes(self.bytes()))], working: DiskGrid::count(self.disk as u32) as u64 * 32 }
     }
 
-    fn run(&self, _: (), cx: &RunCtx) -> Result<BrdfTensorOut, NodeError> {
+    fn run(&self, cx: &RunCtx) -> Result<BrdfTensorTable, NodeError> {
         let family = self.family()?;
         let bytes = self.bytes();
         let limit = MAX_BRDF_TENSOR_BYTES.min(cx.memory_budget());
@@ -140,15 +138,15 @@ impl BrdfTensor {
         })?;
         cx.metric("samples", family.len() as f64);
         cx.metric("directions", n as f64);
-        Ok(BrdfTensorOut { tensor: BrdfTensorTable { family, disk, values } })
+        Ok(BrdfTensorTable { family, disk, values })
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::brdf::test_support::tensor;
-    use crate::brdf::types::MaterialParam;
+    use crate::brdf_factors::test_support::tensor;
+    use crate::types::brdf::MaterialParam;
     use glam::Vec3;
     use relume_base::brdf::blinn_phong;
     use relume_base::testing::{cancels_midway, f, i, id, run_on};

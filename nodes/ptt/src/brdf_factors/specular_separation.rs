@@ -1,4 +1,4 @@
-use super::types::{lobe_row, BrdfTensorTable, SpecularLobes, MAX_LOBES};
+use crate::types::brdf::{lobe_row, BrdfTensorTable, SpecularLobes, MAX_LOBES};
 use relume_base::types::Metrics;
 use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
 
@@ -139,7 +139,7 @@ impl SpecularSeparation {
     }
 }
 
-#[node(category = "ptt")]
+#[node(category = "ptt", metrics = ["lobes", "lobe_energy_share_min", "lobe_energy_share_mean", "lobe_energy_share_max", "lobe_energy_share_first", "lobe_energy_share_last", "peak_to_mean_before", "peak_to_mean_after", "row_peak_to_mean_before", "row_peak_to_mean_after", "residual_norm_ratio"])]
 impl SpecularSeparation {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         // The residual as big as the input, the lobes table K/N_ω of it, the per-sample
@@ -233,8 +233,8 @@ impl SpecularSeparation {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::brdf::test_support::{decompose, separate, tensor};
-    use crate::brdf::types::{BrdfFamily, DiskGrid, MaterialParam};
+    use crate::brdf_factors::test_support::{decompose, separate, tensor};
+    use crate::types::brdf::{BrdfFamily, DiskGrid, MaterialParam};
     use glam::Vec3;
     use relume_base::testing::{cancels_midway, f, i, run_on};
     use relume_core::{PortValue, Value};
@@ -328,7 +328,7 @@ mod tests {
         let (res, lobes, _) = separate(&t, &[("lobes", i(0))]);
         assert_eq!(res.values, t.values);
         assert!(lobes.amplitudes.is_empty() && lobes.lobes() == 0);
-        assert_eq!(lobes.amplitudes(&crate::brdf::types::Blend::one(0), Vec3::Z), [0.0; 4]);
+        assert_eq!(lobes.amplitudes(&crate::types::brdf::Blend::one(0), Vec3::Z), [0.0; 4]);
         let zero = BrdfTensorTable { values: vec![0.0; t.values.len()], ..t.clone() };
         let (res, lobes, m) = separate(&zero, &[]);
         assert!(res.values.iter().all(|&v| v == 0.0) && lobes.amplitudes.iter().all(|&a| a == 0.0));

@@ -1,0 +1,3 @@
+fn main() {
+    relume_build::register_nodes();
+}
