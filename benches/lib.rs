@@ -42,6 +42,11 @@ pub fn generated_graph(n: usize) -> Graph {
     Graph::parse(&text, None).expect("generated graph parses")
 }
 
+/// The text of `generated_graph(n)`, for benchmarks of loading itself.
+pub fn generated_graph_text(n: usize) -> String {
+    generated_graph(n).to_ron()
+}
+
 /// The node whose parameter the "after one edit" benchmark changes: a GaussianBlur about two
 /// thirds of the way down.
 pub fn edit_node(n: usize) -> String {

@@ -134,6 +134,31 @@ fn texture_maps_need_uvs_an_image_and_a_material_they_apply_to() {
 }
 
 #[test]
+fn texture_maps_holding_nan_inf_or_negative_texels_are_refused_with_the_texel() {
+    use relume_base::image::io::write_exr;
+    use relume_base::types::Image;
+    let dir = tempfile::tempdir().unwrap();
+    let cam = "camera: (origin: (0, 0, 3), target: (0, 0, 0), up: (0, 1, 0), fov: 40, width: 8, height: 8)";
+    std::fs::write(dir.path().join("uv.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n").unwrap();
+    // An all-NaN Kd map rendered the object black with nothing said; an all-inf Ks map wrote
+    // pixels near 1e37.
+    for (map, bad, want) in [("kd_map", f32::NAN, "NaN"), ("ks_map", f32::INFINITY, "inf"), ("exponent_map", -1.0, "-1.0")] {
+        let file = format!("{map}.exr");
+        write_exr(&dir.path().join(&file), &Image::from_fn(4, 3, |x, y| if (x, y) == (2, 1) { [0.5, bad, 0.5] } else { [0.5; 3] }))
+            .unwrap();
+        let scene = dir.path().join("s.ron");
+        std::fs::write(
+            &scene,
+            format!("Scene({cam},\n materials: {{ \"m\": BlinnPhong(kd: 0.5, ks: 0.2, exponent: 20, {map}: \"{file}\") }},\n shapes: [Obj(path: \"uv.obj\", material: \"m\")])"),
+        )
+        .unwrap();
+        let e = load_scene_file(&scene).err().unwrap();
+        assert!(e.contains("s.ron:2:") && e.contains(&format!("`{map}`")) && e.contains("texel (2, 1)") && e.contains(want), "{e}");
+        assert!(e.contains("finite and ≥ 0"), "{e}");
+    }
+}
+
+#[test]
 fn scene_errors_name_the_file_and_line() {
     let dir = tempfile::tempdir().unwrap();
     let write = |name: &str, text: &str| {

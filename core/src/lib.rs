@@ -21,6 +21,7 @@ mod node;
 mod params;
 mod plan;
 mod port;
+mod printable;
 mod registry;
 mod report;
 pub mod ron;
@@ -41,6 +42,7 @@ pub use node::{ports_of, run_typed, Caching, Documented, DynNode, Node};
 pub use params::{ParamEnum, ParamKind, ParamSpec, ParamValue, ParamValues, Params, Schema};
 pub use plan::{make_plan, Plan};
 pub use port::{input_at, InputPorts, OutputPorts, PortDecl, PortTypeInfo, PortValue, Ports, Value};
+pub use printable::printable;
 pub use relume_macros::{node, ParamEnum, Params};
 
 // Lets the derive macros name `::relume_core` inside this crate's own tests.

@@ -49,6 +49,7 @@ pub fn make_plan_for(graph: &Graph, reg: &Registry, requested: Option<&[String]>
         }
     }
 
+    let feeds = graph.feeds();
     let mut sources = vec![Vec::new(); graph.nodes.len()];
     for (i, n) in graph.nodes.iter().enumerate() {
         let Some(k) = reg.node(&n.kind) else { continue };
@@ -57,10 +58,8 @@ pub fn make_plan_for(graph: &Graph, reg: &Registry, requested: Option<&[String]>
             .inputs
             .iter()
             .map(|p| {
-                graph
-                    .edges
-                    .iter()
-                    .find(|e| e.to.node == n.id && e.to.port == p.name)
+                feeds
+                    .get(&(n.id.as_str(), p.name))
                     .map(|e| {
                         let src = index[e.from.node.as_str()];
                         (src, kind(src).ports().outputs.iter().position(|q| q.name == e.from.port).expect("validated"))
@@ -89,11 +88,8 @@ pub fn make_plan_for(graph: &Graph, reg: &Registry, requested: Option<&[String]>
         return Err(GraphErrors(errs).with_file(&graph.file));
     }
     let needed = topology.upstream_of(&roots);
-    for i in (0..graph.nodes.len()).filter(|&i| needed[i]) {
-        if sources[i].iter().any(|s| s.0 == usize::MAX) {
-            errs.extend(graph.unconnected_inputs(reg, &graph.nodes[i].id));
-        }
-    }
+    let unfed = (0..graph.nodes.len()).filter(|&i| needed[i] && sources[i].iter().any(|s| s.0 == usize::MAX));
+    errs.extend(graph.unconnected_inputs_of(reg, unfed.map(|i| graph.nodes[i].id.as_str())));
     if !errs.is_empty() {
         return Err(GraphErrors(errs).with_file(&graph.file));
     }

@@ -411,6 +411,9 @@ impl EditorApp {
                 }
             }
             Err(m) => {
+                if let Some(job) = &mut self.screenshot {
+                    job.run_failed(&m);
+                }
                 self.status = m;
                 self.edit_started = None;
                 self.rest_after = None;

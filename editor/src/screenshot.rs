@@ -17,6 +17,8 @@ pub struct ScreenshotJob {
     frames_with_image: u32,
     requested: bool,
     done: bool,
+    /// The message of a run that failed: nothing will show, so the next frame ends the job.
+    failed: Option<String>,
     /// Process exit code: 0 when the screenshot shows a picture.
     pub exit: Arc<AtomicI32>,
 }
@@ -63,7 +65,13 @@ pub fn region_stats(img: &egui::ColorImage, rect: egui::Rect) -> Region {
 impl ScreenshotJob {
     pub fn new(path: PathBuf, timeout: Duration, exit: Arc<AtomicI32>) -> Self {
         exit.store(3, Ordering::SeqCst);
-        ScreenshotJob { path, deadline: Instant::now() + timeout, frames_with_image: 0, requested: false, done: false, exit }
+        ScreenshotJob { path, deadline: Instant::now() + timeout, frames_with_image: 0, requested: false, done: false, failed: None, exit }
+    }
+
+    /// The run failed with `msg` (the status bar shows it): the job ends at the next frame,
+    /// with exit code 5 and the message, instead of waiting for an image until the timeout.
+    pub fn run_failed(&mut self, msg: &str) {
+        self.failed.get_or_insert_with(|| msg.to_string());
     }
 
     fn finish(&mut self, ctx: &egui::Context, code: i32, msg: &str) {
@@ -77,6 +85,9 @@ impl ScreenshotJob {
     pub fn frame(&mut self, ctx: &egui::Context, viewer: &Viewer, busy: bool) {
         if self.done {
             return;
+        }
+        if let Some(m) = self.failed.take() {
+            return self.finish(ctx, 5, &format!("the run failed: {m}"));
         }
         ctx.request_repaint();
         if Instant::now() > self.deadline {
@@ -122,6 +133,19 @@ impl ScreenshotJob {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_failed_run_ends_the_job_at_the_next_frame_with_its_message() {
+        let exit = Arc::new(AtomicI32::new(0));
+        let mut job = ScreenshotJob::new(PathBuf::from("never.png"), Duration::from_secs(600), exit.clone());
+        let (ctx, viewer) = (egui::Context::default(), Viewer::default());
+        let _ = ctx.run(egui::RawInput::default(), |ctx| job.frame(ctx, &viewer, true));
+        assert_eq!(exit.load(Ordering::SeqCst), 3, "still waiting while the run is busy");
+        job.run_failed("node \"scene\" (LoadScene): cannot read scenes/missing.ron");
+        let _ = ctx.run(egui::RawInput::default(), |ctx| job.frame(ctx, &viewer, false));
+        assert_eq!(exit.load(Ordering::SeqCst), 5, "ended at once, long before the timeout");
+        assert!(job.done);
+    }
 
     #[test]
     fn flat_regions_are_blank_and_pictures_are_not() {

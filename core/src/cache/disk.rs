@@ -49,20 +49,27 @@ impl DiskCache {
         Ok(())
     }
 
-    /// Removes the temporary files (`.NAME.PID.N.tmp`, see `write_atomic`) in the cache's
-    /// folders that are stale at time `now`: older than `STALE_TEMP_AGE`, or older than
-    /// `DEAD_WRITER_TEMP_AGE` and written by a process that is no longer running. Returns how
-    /// many it removed. A fresh file of a live writer is never touched.
+    /// Removes the temporary files relume itself leaves in the cache — an entry's
+    /// (`.KEY.rlc.PID.N.tmp` in a key folder, see `write_atomic`) and the write probe's
+    /// (`.write-probe.PID.tmp` at the top) — that are stale at time `now`: older than
+    /// `STALE_TEMP_AGE`, or older than `DEAD_WRITER_TEMP_AGE` and written by a process that is
+    /// no longer running. Returns how many it removed. A fresh file of a live writer is never
+    /// touched, nor any file of another name or in another folder: a cache may share its folder
+    /// (`--cache .`, a scratch space) with other programs and their temporary files.
     pub fn sweep_stale_temp_files(&self, now: SystemTime) -> usize {
         let mut removed = 0;
         let Ok(top) = std::fs::read_dir(&self.dir) else { return 0 };
-        let mut folders = vec![self.dir.clone()];
-        folders.extend(top.flatten().filter(|e| e.file_type().is_ok_and(|t| t.is_dir())).map(|e| e.path()));
-        for folder in folders {
+        let mut folders = vec![(self.dir.clone(), true)];
+        folders.extend(
+            top.flatten()
+                .filter(|e| e.file_type().is_ok_and(|t| t.is_dir()) && is_key_folder(&e.file_name().to_string_lossy()))
+                .map(|e| (e.path(), false)),
+        );
+        for (folder, is_top) in folders {
             let Ok(entries) = std::fs::read_dir(&folder) else { continue };
             for e in entries.flatten() {
                 let name = e.file_name().to_string_lossy().into_owned();
-                if !(name.starts_with('.') && name.ends_with(".tmp") && e.file_type().is_ok_and(|t| t.is_file())) {
+                if !(is_own_temp(&name, is_top) && e.file_type().is_ok_and(|t| t.is_file())) {
                     continue;
                 }
                 let Some(age) = e.metadata().ok().and_then(|m| m.modified().ok()).and_then(|t| now.duration_since(t).ok()) else {
@@ -126,9 +133,48 @@ impl DiskCache {
 
     /// Reads an entry whose outputs must match `decls`; any defect is a miss.
     pub fn get(&self, key: &Hash, decls: &[PortDecl], reg: &Registry) -> Option<CacheEntry> {
-        let bytes = std::fs::read(self.path_of(key)).ok()?;
+        let bytes = read_regular(&self.path_of(key))?;
         decode(&bytes, key, decls, reg)
     }
+}
+
+/// The bytes of `path` when it is a regular file, read up to the size it has; `None` for
+/// anything else. An entry replaced by a link to `/dev/zero` would otherwise be read until
+/// memory runs out, and a FIFO would block the run; the next write of that key replaces the
+/// link or FIFO itself (`write_atomic` renames over the name, never writes through it).
+fn read_regular(path: &Path) -> Option<Vec<u8>> {
+    use std::io::Read;
+    let named = std::fs::symlink_metadata(path).ok()?;
+    if !named.file_type().is_file() {
+        return None;
+    }
+    let f = std::fs::File::open(path).ok()?;
+    let opened = f.metadata().ok()?;
+    if !opened.file_type().is_file() {
+        return None;
+    }
+    let mut bytes = Vec::new();
+    f.take(opened.len()).read_to_end(&mut bytes).ok()?;
+    Some(bytes)
+}
+
+/// Whether `name` is a folder of entries: the first two hex digits of the keys in it.
+fn is_key_folder(name: &str) -> bool {
+    name.len() == 2 && name.bytes().all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
+}
+
+/// Whether `name` is one of relume's own temporary files: at the top of the cache the write
+/// probe's `.write-probe.PID.tmp`, in a key folder an entry's `.KEY.rlc.PID.N.tmp` (KEY 64 hex
+/// digits).
+fn is_own_temp(name: &str, at_top: bool) -> bool {
+    let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+    let Some(stem) = name.strip_prefix('.').and_then(|n| n.strip_suffix(".tmp")) else { return false };
+    if at_top {
+        return stem.strip_prefix("write-probe.").is_some_and(digits);
+    }
+    let parts: Vec<&str> = stem.split('.').collect();
+    matches!(parts.as_slice(), [key, "rlc", pid, n]
+        if key.len() == 64 && key.bytes().all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b)) && digits(pid) && digits(n))
 }
 
 /// The process id in a temporary file's name: `.NAME.PID.N.tmp` (`write_atomic`) or
@@ -230,7 +276,7 @@ mod tests {
 
     /// A temporary file named as `write_atomic` names them, for writer `pid`, `age` old.
     fn temp_file(dir: &Path, pid: u32, age: Duration) -> PathBuf {
-        let path = dir.join(format!(".abc.rlc.{pid}.{}.tmp", age.as_secs()));
+        let path = dir.join(format!(".{}.rlc.{pid}.{}.tmp", "ab".repeat(32), age.as_secs()));
         std::fs::write(&path, b"half an entry").unwrap();
         let f = std::fs::File::options().write(true).open(&path).unwrap();
         f.set_modified(SystemTime::now() - age).unwrap();
@@ -267,6 +313,62 @@ mod tests {
         }
         assert_eq!(writer_pid(".abc.rlc.4242.99.tmp"), Some(4242));
         assert_eq!(writer_pid(".write-probe.77.tmp"), Some(77));
+    }
+
+    #[test]
+    fn an_entry_that_is_not_a_regular_file_is_a_miss_and_is_never_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let cache = DiskCache::new(dir.path());
+        let reg = Registry::new();
+        let key = |b: u8| Hash([b; 32]);
+        let place = |k: &Hash| {
+            let p = cache.path_of(k);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            p
+        };
+        // A link to an endless device: read whole, it would fill memory.
+        std::os::unix::fs::symlink("/dev/zero", place(&key(1))).unwrap();
+        assert!(cache.get(&key(1), &[], &reg).is_none());
+        // A FIFO no one writes: opening it for reading would block forever.
+        let fifo = std::ffi::CString::new(place(&key(2)).into_os_string().into_encoded_bytes()).unwrap();
+        assert_eq!(unsafe { libc::mkfifo(fifo.as_ptr(), 0o600) }, 0);
+        assert!(cache.get(&key(2), &[], &reg).is_none());
+        // A link to a regular file is not an entry either: entries are written as files.
+        let elsewhere = dir.path().join("elsewhere.rlc");
+        std::fs::write(&elsewhere, b"RELUMEC3").unwrap();
+        std::os::unix::fs::symlink(&elsewhere, place(&key(3))).unwrap();
+        assert!(cache.get(&key(3), &[], &reg).is_none());
+        assert_eq!(read_regular(&elsewhere).as_deref(), Some(&b"RELUMEC3"[..]));
+    }
+
+    #[test]
+    fn other_programs_temporary_files_are_never_swept() {
+        let dir = tempfile::tempdir().unwrap();
+        let old = SystemTime::now() - STALE_TEMP_AGE * 4;
+        let key = "cd".repeat(32);
+        let make = |path: PathBuf| {
+            std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+            std::fs::write(&path, b"someone else's").unwrap();
+            std::fs::File::options().write(true).open(&path).unwrap().set_modified(old).unwrap();
+            path
+        };
+        // What `--cache .` or a shared scratch folder may hold besides relume's files.
+        let theirs = [
+            make(dir.path().join(".session.tmp")),
+            make(dir.path().join(".notes.txt.4242.7.tmp")),
+            make(dir.path().join(format!(".{key}.rlc.4242.7.tmp"))), // an entry's name, but not in a key folder
+            make(dir.path().join("build").join(".out.1.2.tmp")),
+            make(dir.path().join("xy").join(format!(".{key}.rlc.4242.7.tmp"))), // not a hex folder
+            make(dir.path().join("cd").join(".other.rlc.4242.7.tmp")),
+            make(dir.path().join("cd").join(format!(".{key}.rlc.x.7.tmp"))),
+        ];
+        let ours = make(dir.path().join("cd").join(format!(".{key}.rlc.4242.7.tmp")));
+        let probe = make(dir.path().join(".write-probe.4242.tmp"));
+        assert_eq!(DiskCache::new(dir.path()).sweep_stale_temp_files(SystemTime::now()), 0, "the first sweep ran on opening");
+        for p in &theirs {
+            assert!(p.exists(), "{} was swept", p.display());
+        }
+        assert!(!ours.exists() && !probe.exists(), "relume's own stale files are removed");
     }
 
     #[test]

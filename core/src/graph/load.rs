@@ -1,7 +1,7 @@
 //! From RON text to a `Graph` (structure only; `validate` checks it against the registry).
 
 use super::migrate::{upgrade, Migration, MIGRATIONS};
-use super::{is_valid_id, Edge, EditorSection, Graph, NodeDecl, Output, PortRef, FORMAT_VERSION};
+use super::{is_valid_id, Edge, EditorSection, Graph, NodeDecl, Output, PortRef, FORMAT_VERSION, MAX_NODES};
 use crate::error::{GraphError, GraphErrors};
 use crate::params::ParamValue;
 use crate::ron::{parse, Field, Ron, RonKind};
@@ -108,9 +108,22 @@ fn key_str<'a>(k: &'a Ron, what: &str, errs: &mut Vec<GraphError>) -> Option<&'a
 }
 
 fn read_nodes(v: &Ron, g: &mut Graph, errs: &mut Vec<GraphError>) {
-    for (k, body) in map_entries(v, "nodes", errs) {
+    let entries = map_entries(v, "nodes", errs);
+    if entries.len() > MAX_NODES {
+        errs.push(
+            GraphError::new(format!(
+                "the graph has {} nodes; relume reads at most {MAX_NODES} (a study of many variants is a sweep: `relume sweep --vary`)",
+                entries.len()
+            ))
+            .at(v.pos),
+        );
+        return;
+    }
+    let mut seen = std::collections::HashSet::with_capacity(entries.len());
+    for (k, body) in entries {
         let Some(id) = key_str(k, "node id", errs) else { continue };
-        if g.node(id).is_some() {
+        let errs_before = errs.len();
+        if !seen.insert(id) {
             errs.push(GraphError::new("node id used twice").at(k.pos).node(id));
             continue;
         }
@@ -153,7 +166,7 @@ fn read_nodes(v: &Ron, g: &mut Graph, errs: &mut Vec<GraphError>) {
                 other => errs.push(GraphError::new(format!("unknown field `{other}` (a node has: kind, params)")).at(f.pos).node(id)),
             }
         }
-        if decl.kind.is_empty() && !errs.iter().any(|e| e.node.as_deref() == Some(id)) {
+        if decl.kind.is_empty() && errs.len() == errs_before {
             errs.push(GraphError::new("the node has no `kind`").at(k.pos).node(id));
         }
         g.nodes.push(decl);
@@ -239,5 +252,27 @@ mod tests {
         let text = format!("Graph(version: 1, nodes: {{\n\"a\": (kind: \"TestPattern\", params: (size: {}))}})", "[".repeat(200_000));
         let e = Graph::parse(&text, Some(Path::new("deep.ron"))).unwrap_err().to_string();
         assert!(e.contains("deep.ron:2:") && e.contains("nest more than 128 levels"), "{e}");
+    }
+
+    fn chain(n: usize) -> String {
+        let nodes: String = (0..n).map(|i| format!("\"n{i}\": (kind: \"K\", params: ()),\n")).collect();
+        let edges: String = (1..n).map(|i| format!("(\"n{}.out\", \"n{i}.in\"),\n", i - 1)).collect();
+        format!("Graph(version: 1, nodes: {{\n{nodes}}}, edges: [\n{edges}])")
+    }
+
+    /// Loading looked every node up in the list of those read so far: 40,000 nodes took 14 s.
+    /// Past `MAX_NODES` a file is refused with the count; below, ids are checked through a set.
+    #[test]
+    fn a_graph_past_the_node_limit_is_refused_with_its_count_and_ids_stay_unique() {
+        let e = Graph::parse(&chain(MAX_NODES + 1), Some(Path::new("huge.ron"))).unwrap_err().to_string();
+        assert!(e.contains("huge.ron:1:") && e.contains(&format!("the graph has {} nodes", MAX_NODES + 1)), "{e}");
+        assert!(e.contains(&format!("at most {MAX_NODES}")), "{e}");
+        let g = Graph::parse(&chain(20_000), None).unwrap();
+        assert_eq!((g.nodes.len(), g.edges.len()), (20_000, 19_999));
+        assert_eq!(g.index()["n19999"], 19_999);
+        let twice = Graph::parse("Graph(version: 1, nodes: { \"a\": (kind: \"K\"), \"b\": (), \"a\": (kind: \"K\") })", None).unwrap_err();
+        let msgs: Vec<String> = twice.0.iter().map(|e| e.to_string()).collect();
+        assert!(msgs.iter().any(|m| m.contains("node id used twice") && m.contains("\"a\"")), "{msgs:?}");
+        assert!(msgs.iter().any(|m| m.contains("the node has no `kind`") && m.contains("\"b\"")), "{msgs:?}");
     }
 }

@@ -15,7 +15,13 @@ use crate::error::GraphError;
 use crate::params::ParamValue;
 use crate::registry::Registry;
 use crate::ron::Pos;
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+
+/// The most nodes a graph file may hold. Pipelines have tens; a generated graph of a study
+/// would have thousands at most. Past this a file is refused on loading, before any of the
+/// work that grows with its size.
+pub const MAX_NODES: usize = 100_000;
 
 /// The graph file format version this build writes.
 pub const FORMAT_VERSION: u32 = 1;
@@ -178,6 +184,17 @@ impl Graph {
                 node.param_pos.push(node.pos);
             }
         }
+    }
+
+    /// Node positions in `nodes` by id: built once where a pass looks many nodes up
+    /// (`node` walks the list).
+    pub fn index(&self) -> HashMap<&str, usize> {
+        self.nodes.iter().enumerate().map(|(i, n)| (n.id.as_str(), i)).collect()
+    }
+
+    /// Every edge by the input it feeds, (node id, port): what feeds an input, found at once.
+    pub fn feeds(&self) -> HashMap<(&str, &str), &Edge> {
+        self.edges.iter().map(|e| ((e.to.node.as_str(), e.to.port.as_str()), e)).collect()
     }
 
     /// Edges arriving at node `id`.

@@ -11,15 +11,16 @@ impl Graph {
     /// inputs fed twice, outputs naming nothing, cycles, layout for unknown nodes.
     pub fn validate(&self, reg: &Registry) -> Result<(), GraphErrors> {
         let mut errs = Vec::new();
+        let index = self.index();
         self.check_nodes(reg, &mut errs);
-        self.check_edges(reg, &mut errs);
-        self.check_outputs(reg, &mut errs);
+        self.check_edges(reg, &index, &mut errs);
+        self.check_outputs(reg, &index, &mut errs);
         if let Some(cycle) = self.find_cycle() {
             let first = self.node(&cycle[0]).map(|n| n.pos).unwrap_or_default();
             errs.push(GraphError::new(format!("the edges form a cycle: {} → {}", cycle.join(" → "), cycle[0])).at(first).node(&cycle[0]));
         }
         for (id, _) in &self.editor.positions {
-            if self.node(id).is_none() {
+            if !index.contains_key(id.as_str()) {
                 errs.push(GraphError::new("the editor section places a node that does not exist").node(id));
             }
         }
@@ -33,18 +34,23 @@ impl Graph {
 
     /// Inputs of node `id` that no edge feeds, as errors (needed before running it).
     pub fn unconnected_inputs(&self, reg: &Registry, id: &str) -> Vec<GraphError> {
-        let Some(n) = self.node(id) else { return vec![] };
-        let Some(kind) = reg.node(&n.kind) else { return vec![] };
-        kind.ports()
-            .inputs
-            .iter()
-            .filter(|p| !self.edges.iter().any(|e| e.to.node == id && e.to.port == p.name))
-            .map(|p| {
+        self.unconnected_inputs_of(reg, [id])
+    }
+
+    /// As `unconnected_inputs`, for each of the nodes `ids`, in one pass over the edges.
+    pub fn unconnected_inputs_of<'a>(&self, reg: &Registry, ids: impl IntoIterator<Item = &'a str>) -> Vec<GraphError> {
+        let (index, feeds) = (self.index(), self.feeds());
+        let mut errs = Vec::new();
+        for id in ids {
+            let Some(n) = index.get(id).map(|&i| &self.nodes[i]) else { continue };
+            let Some(kind) = reg.node(&n.kind) else { continue };
+            for p in kind.ports().inputs.iter().filter(|p| !feeds.contains_key(&(id, p.name))) {
                 let mut e = GraphError::new(format!("input `{}` ({}) is not connected", p.name, p.ty.name)).at(n.pos).node(id);
                 e.file = self.file.clone();
-                e
-            })
-            .collect()
+                errs.push(e);
+            }
+        }
+        errs
     }
 
     fn check_nodes(&self, reg: &Registry, errs: &mut Vec<GraphError>) {
@@ -89,11 +95,11 @@ impl Graph {
         }
     }
 
-    fn check_edges(&self, reg: &Registry, errs: &mut Vec<GraphError>) {
+    fn check_edges(&self, reg: &Registry, index: &HashMap<&str, usize>, errs: &mut Vec<GraphError>) {
         let mut fed: HashMap<(&str, &str), usize> = HashMap::new();
         for (i, e) in self.edges.iter().enumerate() {
-            let from = self.port_type(reg, &e.from.node, &e.from.port, false);
-            let to = self.port_type(reg, &e.to.node, &e.to.port, true);
+            let from = self.port_type(reg, index, &e.from.node, &e.from.port, false);
+            let to = self.port_type(reg, index, &e.to.node, &e.to.port, true);
             match (from, to) {
                 (Ok(Some(a)), Ok(Some(b))) if a != b => errs.push(
                     GraphError::new(format!(
@@ -117,17 +123,24 @@ impl Graph {
         }
     }
 
-    fn check_outputs(&self, reg: &Registry, errs: &mut Vec<GraphError>) {
+    fn check_outputs(&self, reg: &Registry, index: &HashMap<&str, usize>, errs: &mut Vec<GraphError>) {
         for o in &self.outputs {
-            if let Err(m) = self.port_type(reg, &o.port.node, &o.port.port, false) {
+            if let Err(m) = self.port_type(reg, index, &o.port.node, &o.port.port, false) {
                 errs.push(GraphError::new(format!("output \"{}\" names {}: {m}", o.name, o.port)).at(o.pos));
             }
         }
     }
 
     /// The type name of a port; `Ok(None)` when the node's kind is unknown (reported elsewhere).
-    fn port_type(&self, reg: &Registry, node: &str, port: &str, input: bool) -> Result<Option<&'static str>, String> {
-        let n = self.node(node).ok_or_else(|| format!("there is no node \"{node}\""))?;
+    fn port_type(
+        &self,
+        reg: &Registry,
+        index: &HashMap<&str, usize>,
+        node: &str,
+        port: &str,
+        input: bool,
+    ) -> Result<Option<&'static str>, String> {
+        let n = index.get(node).map(|&i| &self.nodes[i]).ok_or_else(|| format!("there is no node \"{node}\""))?;
         let Some(kind) = reg.node(&n.kind) else { return Ok(None) };
         let ports = if input { &kind.ports().inputs } else { &kind.ports().outputs };
         match ports.iter().find(|p| p.name == port) {
@@ -147,6 +160,7 @@ impl Graph {
     /// Whether an edge `from` → `to` may be added (the editor asks before connecting): both
     /// ports exist, their types agree, and the edge closes no cycle. The error is a sentence.
     pub fn check_connection(&self, reg: &Registry, from: &PortRef, to: &PortRef) -> Result<(), String> {
+        let index = self.index();
         let kind_known = |node: &str| self.node(node).and_then(|n| reg.node(&n.kind)).is_some();
         for (r, input) in [(from, false), (to, true)] {
             if !kind_known(&r.node) {
@@ -155,10 +169,10 @@ impl Graph {
                     None => format!("there is no node \"{}\"", r.node),
                 });
             }
-            self.port_type(reg, &r.node, &r.port, input)?;
+            self.port_type(reg, &index, &r.node, &r.port, input)?;
         }
-        let a = self.port_type(reg, &from.node, &from.port, false)?.unwrap_or_default();
-        let b = self.port_type(reg, &to.node, &to.port, true)?.unwrap_or_default();
+        let a = self.port_type(reg, &index, &from.node, &from.port, false)?.unwrap_or_default();
+        let b = self.port_type(reg, &index, &to.node, &to.port, true)?.unwrap_or_default();
         if a != b {
             return Err(format!("cannot connect {from} ({a}) to {to} ({b}): the port types differ"));
         }

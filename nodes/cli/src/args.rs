@@ -31,8 +31,9 @@ pub(crate) struct GraphArgs {
     /// machine's memory). A run whose estimate is larger is refused before anything runs.
     #[arg(long, value_name = "BYTES", value_parser = parse_budget)]
     pub(crate) memory_budget: Option<u64>,
-    /// Threads each node's inner loops may use (default: one per core).
-    #[arg(long, value_name = "N")]
+    /// Threads each node's inner loops may use (default: one per core; at most
+    /// `MAX_THREADS`).
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
     pub(crate) threads: Option<usize>,
     /// Let the graph's output-file parameters (SaveImage's `path`) write anywhere. Without
     /// it they may write only below the graph file's folder and the output folder (--out): a
@@ -135,7 +136,7 @@ impl GraphArgs {
         let Some((dir, from)) = self.cache_dir() else { return (engine, None) };
         let problem = engine.disk().map(|d| d.check_writable()).and_then(Result::err);
         let note = problem.map(|why| {
-            eprintln!(
+            say_err!(
                 "warning: the disk cache {} ({from}) cannot be written: {why}; results will not be kept on disk for later runs \
                  (point --cache or RELUME_CACHE at a writable folder, or pass --no-disk-cache)",
                 dir.display()
@@ -177,6 +178,26 @@ impl GraphArgs {
 
     pub(crate) fn requested(&self) -> Option<Vec<String>> {
         (!self.outputs.is_empty()).then(|| self.outputs.clone())
+    }
+}
+
+/// The most threads `--threads` takes: far past any machine's cores (threads beyond them
+/// only add start-up and scheduling), and few enough that starting them stays quick.
+pub(crate) const MAX_THREADS: usize = 1024;
+
+/// `--threads`: 1 to `MAX_THREADS`.
+fn parse_threads(s: &str) -> Result<usize, String> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    match s.trim().parse::<usize>() {
+        Ok(0) => Err("at least 1 thread".into()),
+        Ok(n) if n <= MAX_THREADS => Ok(n),
+        Ok(_) => {
+            Err(format!("at most {MAX_THREADS} threads (this machine has {cores} cores; more threads than cores make nothing faster)"))
+        }
+        Err(_) if !s.trim().is_empty() && s.trim().bytes().all(|b| b.is_ascii_digit()) => {
+            Err(format!("too large: at most {MAX_THREADS} threads (this machine has {cores} cores)"))
+        }
+        Err(_) => Err(format!("`{s}` is not a whole number of threads")),
     }
 }
 

@@ -9,7 +9,7 @@ pub(crate) fn print(reg: &Registry, kind: Option<&str>) -> Result<(), CliError> 
         return Err(CliError::graph(format!("no node kind \"{}\"", kind.unwrap_or_default())));
     }
     for n in nodes {
-        print!("{}", describe(n.as_ref()));
+        say_part!("{}", describe(n.as_ref()));
     }
     Ok(())
 }

@@ -26,15 +26,15 @@ fn on_interrupt() {
     let token = CURRENT.lock().map(|c| c.clone()).unwrap_or(None);
     match token {
         Some(t) if presses == 1 => {
-            eprintln!("\ninterrupted: cancelling… (press Ctrl-C again to quit at once)");
+            say_err!("\ninterrupted: cancelling… (press Ctrl-C again to quit at once)");
             t.cancel();
         }
         Some(_) => {
-            eprintln!("\ninterrupted again: exiting now");
+            say_err!("\ninterrupted again: exiting now");
             std::process::exit(EXIT_CODE);
         }
         None => {
-            eprintln!("\ninterrupted");
+            say_err!("\ninterrupted");
             std::process::exit(EXIT_CODE);
         }
     }

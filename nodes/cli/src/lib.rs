@@ -1,5 +1,8 @@
 //! The `relume` command line: run, plan, check, nodes, sweep, shard, slurm.
 
+#[macro_use]
+mod terminal;
+
 mod args;
 mod catalog;
 mod cluster;
@@ -96,11 +99,11 @@ where
     match result {
         Ok(()) => 0,
         Err(e) if e.code == interrupt::EXIT_CODE => {
-            eprintln!("{}", e.msg);
+            say_err!("{}", e.msg);
             e.code
         }
         Err(e) => {
-            eprintln!("error: {}", e.msg);
+            say_err!("error: {}", e.msg);
             e.code
         }
     }

@@ -43,7 +43,7 @@ pub(crate) fn write_outputs(dir: &Path, outputs: &[(String, Value)]) -> Result<V
             relume_core::graph::write_atomic(&json, text.as_bytes()).map_err(|e| format!("cannot write {}: {e}", json.display()))?;
             files.push(json);
         } else {
-            eprintln!("note: output \"{name}\" ({}) has no file format; not written", v.type_name());
+            say_err!("note: output \"{name}\" ({}) has no file format; not written", v.type_name());
         }
     }
     Ok(files)

@@ -38,7 +38,7 @@ impl Observer for Bars {
                             .unwrap()
                             .progress_chars("=> "),
                     );
-                    b.set_prefix(id.to_string());
+                    b.set_prefix(relume_core::printable(id).into_owned());
                     b
                 });
                 bar.set_position((fraction * 1000.0) as u64);

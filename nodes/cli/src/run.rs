@@ -58,7 +58,7 @@ pub(crate) fn run_graph(reg: &Registry, a: &RunArgs, peers: Option<&dyn ShardPee
     result.report.notes.extend(cache_note);
     if !writer {
         if !a.quiet {
-            print!("{}", result.report.table());
+            say_part!("{}", result.report.table());
         }
         return Ok(());
     }
@@ -76,12 +76,12 @@ pub(crate) fn run_graph(reg: &Registry, a: &RunArgs, peers: Option<&dyn ShardPee
         return Err(CliError::interrupted("interrupted: the run had finished; its outputs were written"));
     }
     if !a.quiet {
-        print!("{}", result.report.table());
+        say_part!("{}", result.report.table());
         for f in files {
-            println!("wrote {}", f.display());
+            say!("wrote {}", f.display());
         }
         if let Some(path) = &a.report {
-            println!("report {}", path.display());
+            say!("report {}", path.display());
         }
     }
     Ok(())
@@ -147,18 +147,15 @@ pub(crate) fn plan(reg: &Registry, a: &CheckArgs) -> Result<(), CliError> {
             }
             PlanAction::Skip => "skip",
         };
-        println!("{what:<7} {:<20} {:<16} {}", l.id, l.kind, l.reason);
+        say!("{what:<7} {:<20} {:<16} {}", l.id, l.kind, l.reason);
     }
-    println!("{run} to run, {cached} cached");
+    say!("{run} to run, {cached} cached");
     Ok(())
 }
 
 pub(crate) fn check(reg: &Registry, a: &CheckArgs) -> Result<(), CliError> {
     let graph = a.g.load(reg)?;
-    let mut errs = Vec::new();
-    for n in &graph.nodes {
-        errs.extend(graph.unconnected_inputs(reg, &n.id));
-    }
+    let mut errs = graph.unconnected_inputs_of(reg, graph.nodes.iter().map(|n| n.id.as_str()));
     errs.extend(write_refusals(reg, &graph, graph.nodes.iter().map(|n| n.id.as_str()), &a.g.write_policy(&a.out)));
     if !errs.is_empty() {
         errs.sort_by_key(|e| e.pos.map(|p| (p.line, p.col)).unwrap_or((u32::MAX, 0)));
@@ -167,6 +164,6 @@ pub(crate) fn check(reg: &Registry, a: &CheckArgs) -> Result<(), CliError> {
     // The memory model's refusal, as `run` would give it.
     a.g.engine(reg).plan(&graph, a.g.requested().as_deref()).map_err(CliError::graph)?;
     let outs: Vec<_> = graph.outputs.iter().map(|o| o.name.as_str()).collect();
-    println!("ok: {} nodes, {} edges, outputs: {}", graph.nodes.len(), graph.edges.len(), outs.join(", "));
+    say!("ok: {} nodes, {} edges, outputs: {}", graph.nodes.len(), graph.edges.len(), outs.join(", "));
     Ok(())
 }

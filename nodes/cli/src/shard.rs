@@ -109,7 +109,7 @@ pub(crate) fn shard(reg: &Registry, a: &ShardArgs) -> Result<(), CliError> {
     if !a.quiet {
         let node = result.report.node(&a.node).expect("the shard's node ran or was cached");
         match &node.shards {
-            Some(s) => println!(
+            Some(s) => say!(
                 "shard {index} of {count} of \"{}\": {} of {} chunks ({} cached, {} ran in {:.1} s) into {}",
                 a.node,
                 s.here,
@@ -119,7 +119,7 @@ pub(crate) fn shard(reg: &Registry, a: &ShardArgs) -> Result<(), CliError> {
                 s.ran_ms / 1e3,
                 cache_dir.display()
             ),
-            None => println!("\"{}\" is already in the cache {} whole: nothing to do", a.node, cache_dir.display()),
+            None => say!("\"{}\" is already in the cache {} whole: nothing to do", a.node, cache_dir.display()),
         }
     }
     Ok(())

@@ -99,32 +99,32 @@ pub(crate) fn slurm(reg: &Registry, a: &SlurmArgs) -> Result<(), CliError> {
             let (lo, hi) = (0..a.shards).map(|i| s.shard_chunks(i, a.shards).count()).fold((usize::MAX, 0), |(lo, hi), c| (lo.min(c), hi.max(c)));
             let each = if lo == hi { format!("{lo}") } else { format!("{lo} or {hi}") };
             let unit = if hi == 1 { "chunk" } else { "chunks" };
-            println!("node \"{}\": {} chunks; {} array tasks of {each} {unit} each", a.node, s.chunks(), a.shards);
+            say!("node \"{}\": {} chunks; {} array tasks of {each} {unit} each", a.node, s.chunks(), a.shards);
         }
-        None => println!(
+        None => say!(
             "node \"{}\": its chunks were not counted (a sharded node upstream of it would have to run here first); array tasks beyond its number of chunks have nothing to do and finish at once",
             a.node
         ),
     }
-    println!("the array tasks write into the cache {} (every compute node must see this folder)", paths.cache.display());
+    say!("the array tasks write into the cache {} (every compute node must see this folder)", paths.cache.display());
     prepare_out_dir("--out", &paths.out)?;
     prepare_out_dir("--script-dir", &paths.scripts)?;
     let jobs = scripts(a, &paths, spec);
     for (path, text) in [(&jobs.array_script, &jobs.array_text), (&jobs.gather_script, &jobs.gather_text)] {
         relume_core::graph::write_atomic(path, text.as_bytes())
             .map_err(|e| CliError::run(format!("cannot write {}: {e}", path.display())))?;
-        println!("wrote {}", path.display());
+        say!("wrote {}", path.display());
     }
     if !a.submit {
         let (arr, gat) = (shell_quote(&path_text(&jobs.array_script)?), shell_quote(&path_text(&jobs.gather_script)?));
-        println!("submit them with (or run this command again with --submit):");
-        println!("  ARRAY_JOB_ID=$(sbatch --parsable {arr} | cut -d';' -f1)");
-        println!("  sbatch --dependency=afterok:$ARRAY_JOB_ID {gat}");
-        println!("the gather job writes {} and its report.json", paths.out.display());
+        say!("submit them with (or run this command again with --submit):");
+        say!("  ARRAY_JOB_ID=$(sbatch --parsable {arr} | cut -d';' -f1)");
+        say!("  sbatch --dependency=afterok:$ARRAY_JOB_ID {gat}");
+        say!("the gather job writes {} and its report.json", paths.out.display());
         return Ok(());
     }
     let array_id = sbatch(&[], &jobs.array_script)?;
-    println!("submitted array job {array_id} ({} tasks)", a.shards);
+    say!("submitted array job {array_id} ({} tasks)", a.shards);
     let gather_id = sbatch(&[format!("--dependency=afterok:{array_id}")], &jobs.gather_script).map_err(|e| {
         CliError::run(format!(
             "{}\n(the array job {array_id} is submitted; submit the gather by hand with `sbatch --dependency=afterok:{array_id} {}`, or cancel it with `scancel {array_id}`)",
@@ -132,9 +132,9 @@ pub(crate) fn slurm(reg: &Registry, a: &SlurmArgs) -> Result<(), CliError> {
             jobs.gather_script.display()
         ))
     })?;
-    println!("submitted gather job {gather_id} (runs after every task of {array_id} succeeded; writes {})", paths.out.display());
-    println!("array job {array_id}");
-    println!("gather job {gather_id}");
+    say!("submitted gather job {gather_id} (runs after every task of {array_id} succeeded; writes {})", paths.out.display());
+    say!("array job {array_id}");
+    say!("gather job {gather_id}");
     Ok(())
 }
 
@@ -178,6 +178,17 @@ fn check_options(a: &SlurmArgs) -> Result<(), CliError> {
     )?;
     if a.cpus_per_task == Some(0) {
         return Err(CliError::graph("--cpus-per-task must be at least 1"));
+    }
+    // What the scripts echo besides paths (`path_text` refuses line breaks in those): a line
+    // break would end the header comment or the `#SBATCH` block and make the rest a command.
+    let echoed = a.g.sets.iter().map(|s| ("--set", s)).chain(a.g.outputs.iter().map(|o| ("--output", o))).chain([("--node", &a.node)]);
+    for (flag, v) in echoed {
+        if v.contains(['\n', '\r']) {
+            return Err(CliError::graph(format!(
+                "{flag} {}: the Slurm scripts repeat this value, and a line break in it would end their comment or `#SBATCH` lines and run the rest as a command; give it without line breaks",
+                v.escape_debug()
+            )));
+        }
     }
     if a.g.no_disk_cache {
         return Err(CliError::graph(

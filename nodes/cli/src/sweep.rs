@@ -168,7 +168,7 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
     let count = variants.len();
     for (i, v) in variants.into_iter().enumerate() {
         if !a.quiet {
-            eprintln!("sweep {}/{count}: {} {}", i + 1, v.series.as_str(), v.label);
+            say_err!("sweep {}/{count}: {} {}", i + 1, v.series.as_str(), v.label);
         }
         let bars = (!a.quiet).then(Bars::new);
         let opts = RunOptions {
@@ -236,18 +236,18 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
     let axes = Axes { title, x_label: x_axis.label(), y_label: format!("{}{} of node \"{error_node}\"", a.metric, unit_of(&a.metric)) };
     let warnings = plot_log_log(&plot_path, &axes, &curves).map_err(CliError::run)?;
     for w in warnings {
-        eprintln!("warning: {w}");
+        say_err!("warning: {w}");
     }
     if x_axis == axes::XAxis::Time(TimeAxis::Ran) && rows.iter().any(|r| r.time_ms <= 0.0) && !a.quiet {
-        eprintln!(
+        say_err!(
             "note: variants whose nodes all came from the cache cost 0 ms; to time every variant from scratch use --no-disk-cache or a fresh --cache folder"
         );
     }
 
     if !a.quiet {
-        print!("{}", table(&rows, &error_node, &a.metric));
-        println!("wrote {}", csv_path.display());
-        println!("wrote {}", plot_path.display());
+        say_part!("{}", table(&rows, &error_node, &a.metric));
+        say!("wrote {}", csv_path.display());
+        say!("wrote {}", plot_path.display());
     }
     Ok(())
 }

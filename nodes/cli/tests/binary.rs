@@ -350,3 +350,57 @@ fn a_second_ctrl_c_exits_at_once_while_a_step_that_cannot_stop_runs() {
     assert!(!dir.path().join("o/m.json").exists());
     eprintln!("exited {exited_in:.3} s after the second Ctrl-C");
 }
+
+#[test]
+fn a_thread_count_past_the_cap_is_refused_before_anything_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    let g = graphs().join("filters.ron");
+    let out = dir.path().join("o");
+    for (n, want) in [("100000", "at most 1024 threads"), ("0", "at least 1 thread"), ("99999999999999999999999", "too large")] {
+        let (code, err) = relume(&[os("run"), g.as_os_str(), os("--out"), out.as_os_str(), os("--no-disk-cache"), os("--threads"), os(n)]);
+        assert_eq!(code, Some(2), "--threads {n}: {err}");
+        assert!(err.contains(want), "--threads {n}: {err}");
+    }
+    assert!(!out.exists(), "nothing ran");
+}
+
+#[test]
+fn control_characters_in_a_graph_never_reach_the_terminal() {
+    let dir = tempfile::tempdir().unwrap();
+    let g = dir.path().join("hostile.ron");
+    // A node id and a kind that would clear the screen, set the window title and reverse the
+    // text if echoed raw.
+    std::fs::write(
+        &g,
+        "Graph(version: 1, nodes: { \"a\\u{1b}[2J\\u{1b}]0;pwned\\u{7}\": (kind: \"Test\\u{202e}Pattern\", params: ()) }, edges: [], outputs: {})",
+    )
+    .unwrap();
+    let (code, err) = relume(&[os("check"), g.as_os_str()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("Test\\u{202e}Pattern"), "the kind is named, escaped: {err}");
+    assert!(!err.chars().any(|c| c == '\u{1b}' || c == '\u{7}' || c == '\u{202e}'), "raw control characters: {err:?}");
+}
+
+#[test]
+fn a_line_break_in_a_value_the_slurm_scripts_repeat_is_refused_before_writing() {
+    let dir = tempfile::tempdir().unwrap();
+    let g = graphs().join("reference_cornell.ron");
+    let (cache, out) = (dir.path().join("c"), dir.path().join("o"));
+    let (code, err) = relume(&[
+        os("slurm"),
+        g.as_os_str(),
+        os("--node"),
+        os("reference"),
+        os("--shards"),
+        os("2"),
+        os("--set"),
+        os("scene.path=scenes/cornell.ron\ntouch PWNED"),
+        os("--cache"),
+        cache.as_os_str(),
+        os("--out"),
+        out.as_os_str(),
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--set scene.path=scenes/cornell.ron\\ntouch PWNED") && err.contains("line break"), "{err}");
+    assert!(!cache.exists() && !out.exists(), "nothing written");
+}

@@ -161,6 +161,20 @@ impl Builder {
             }
             let (p, bytes) = self.read_file(v)?;
             let img = decode_image(&p, &bytes).map_err(|e| at(v, e))?;
+            // As the environment map: a texel that is not finite and ≥ 0 would shade as NaN or
+            // infinity, or darken or drop samples with nothing said.
+            if let Some(i) = img.pixels.iter().position(|t| t.iter().any(|c| !c.is_finite() || *c < 0.0)) {
+                return Err(at(
+                    v,
+                    format!(
+                        "material \"{name}\": `{key}` {}: texel ({}, {}) is {:?}; a texture map's texels must be finite and ≥ 0",
+                        p.display(),
+                        i % img.width,
+                        i / img.width,
+                        img.pixels[i]
+                    ),
+                ));
+            }
             let tex = Texture::new(img.width, img.height, img.pixels.iter().map(|p| Vec3::from(*p)).collect())
                 .ok_or_else(|| at(v, format!("{}: an empty image", p.display())))?;
             *[&mut maps.kd, &mut maps.ks, &mut maps.exponent][k] = Some(tex);

@@ -35,7 +35,7 @@ pub(crate) fn launch(a: &RunArgs) -> Result<(), CliError> {
         match run_once(&exe, &args, n, shared, a.quiet)? {
             Outcome::Finished => {
                 if attempt > 0 && !a.quiet {
-                    eprintln!("relume: all {n} processes finished after {attempt} re-run(s)");
+                    say_err!("relume: all {n} processes finished after {attempt} re-run(s)");
                 }
                 return Ok(());
             }
@@ -45,7 +45,7 @@ pub(crate) fn launch(a: &RunArgs) -> Result<(), CliError> {
                     return Err(CliError::run(format!("{what}{tries}; chunks that finished are in the cache: the same command resumes")));
                 }
                 attempt += 1;
-                eprintln!(
+                say_err!(
                     "relume: {what}; timely stops every process when one dies: running all {n} again (re-run {attempt} of {}); \
                      chunks already in the cache are not computed again",
                     a.cluster.retries

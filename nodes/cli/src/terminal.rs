@@ -1,0 +1,20 @@
+//! What the command line prints: every line goes through these macros, which escape control
+//! and bidirectional characters (`relume_core::printable`), so that a node id, kind or path
+//! taken from a graph cannot act on the terminal.
+
+/// `println!`, escaped.
+macro_rules! say {
+    () => { println!() };
+    ($($t:tt)*) => { println!("{}", relume_core::printable(&format!($($t)*))) };
+}
+
+/// `print!`, escaped.
+macro_rules! say_part {
+    ($($t:tt)*) => { print!("{}", relume_core::printable(&format!($($t)*))) };
+}
+
+/// `eprintln!`, escaped.
+macro_rules! say_err {
+    () => { eprintln!() };
+    ($($t:tt)*) => { eprintln!("{}", relume_core::printable(&format!($($t)*))) };
+}
