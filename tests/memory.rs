@@ -10,7 +10,7 @@ const SIX_K: [(&str, &str); 4] = [("clean.width", "6000"), ("clean.height", "600
 #[test]
 fn filters_at_6000_squared_is_refused_under_a_4_gib_budget_before_any_node_runs() {
     let g = load_graph("filters.ron", &SIX_K);
-    let e = Engine::new(relume_cli::registry()).with_run_budget(4 << 30);
+    let e = Engine::new(relume_cli::registry()).with_run_budget(4 << 30, "the test");
     let plan = relume_core::make_plan(&g, e.registry(), None).unwrap();
     let est = e.estimate(&g, &plan);
     eprintln!("estimated peak {} bytes", est.peak);
@@ -26,17 +26,17 @@ fn filters_at_6000_squared_is_refused_under_a_4_gib_budget_before_any_node_runs(
     let planned = e.plan(&g, None).expect_err("plan refuses the same").to_string();
     assert_eq!(planned, msg, "check/plan give the refusal run gives");
     // The same graph fits a budget above the estimate (planned only: running it takes a minute).
-    assert!(Engine::new(relume_cli::registry()).with_run_budget(16 << 30).plan(&g, None).is_ok());
+    assert!(Engine::new(relume_cli::registry()).with_run_budget(16 << 30, "the test").plan(&g, None).is_ok());
 }
 
 #[test]
 fn a_budget_too_small_for_one_node_with_actual_inputs_is_refused_at_that_node() {
     // LoadImage's size is known from the file header; downstream estimates follow from it.
     let g = load_graph("image_error.ron", &[]);
-    let e = Engine::new(relume_cli::registry()).with_run_budget(1 << 20);
+    let e = Engine::new(relume_cli::registry()).with_run_budget(1 << 20, "the test");
     let msg = e.run(&g, &RunOptions::default()).err().expect("refused").to_string();
     assert!(msg.contains("over the memory budget of 1.0 MiB"), "{msg}");
-    let ok = Engine::new(relume_cli::registry()).with_run_budget(1 << 30).run(&g, &RunOptions::default());
+    let ok = Engine::new(relume_cli::registry()).with_run_budget(1 << 30, "the test").run(&g, &RunOptions::default());
     assert!(ok.is_ok(), "the same graph runs under 1 GiB");
 }
 
@@ -54,14 +54,14 @@ fn two_nodes_that_fit_the_budget_only_one_at_a_time_run_one_after_the_other() {
     .unwrap();
     // 600 + 8 bytes each: both fit 1000 bytes alone, not together (the static walk counts
     // them in turn, holding the first one's 8-byte output).
-    let e = Engine::new(reg.clone()).with_run_budget(1000).with_parallelism(2);
+    let e = Engine::new(reg.clone()).with_run_budget(1000, "the test").with_parallelism(2);
     assert!(e.plan(&g, None).is_ok(), "the static walk fits: one at a time");
     let r = e.run(&g, &RunOptions::default()).unwrap();
     assert_eq!(r.report.ran, 2);
     let spans = log.lock().unwrap().clone();
     assert!(spans[0].1 <= spans[1].0, "the second started after the first ended: {spans:?}");
     // A node that does not fit alone is refused, by name.
-    let msg = Engine::new(reg).with_run_budget(500).run(&g, &RunOptions::default()).err().unwrap().to_string();
+    let msg = Engine::new(reg).with_run_budget(500, "the test").run(&g, &RunOptions::default()).err().unwrap().to_string();
     assert!(msg.contains("\"a\" (Big)") || msg.contains("\"b\" (Big)"), "{msg}");
 }
 

@@ -71,9 +71,9 @@ pub fn estimate(registry: &Registry, graph: &Graph, plan: &Plan) -> RunEstimate 
 }
 
 impl RunEstimate {
-    /// The refusal, when the peak exceeds `budget`: the total, the node at the peak, and the
-    /// largest estimates per node.
-    pub fn refusal(&self, graph: &Graph, budget: u64) -> Option<String> {
+    /// The refusal, when the peak exceeds `budget` (set by `source`): the total, the node at
+    /// the peak, and the largest estimates per node.
+    pub fn refusal(&self, graph: &Graph, budget: u64, source: &str) -> Option<String> {
         (self.peak > budget).then(|| {
             let mut per: Vec<(u64, String)> = self
                 .nodes
@@ -90,7 +90,7 @@ impl RunEstimate {
             per.sort_by_key(|p| std::cmp::Reverse(p.0));
             let at = self.peak_node.map(|i| format!(" while \"{}\" runs", graph.nodes[i].id)).unwrap_or_default();
             format!(
-                "the run would hold about {} at once{at}, over the memory budget of {}; estimates: {}. Lower the resolution or sample counts, or raise the budget with --memory-budget",
+                "the run would hold about {} at once{at}, over the memory budget of {} ({source}); estimates: {}. Lower the resolution or sample counts, or raise the budget with --memory-budget",
                 fmt_bytes(self.peak),
                 fmt_bytes(budget),
                 per.iter().take(6).map(|p| p.1.as_str()).collect::<Vec<_>>().join("; ")

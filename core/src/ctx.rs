@@ -194,7 +194,7 @@ impl<'a> RunCtx<'a> {
             notes: Mutex::default(),
             deps: Mutex::default(),
             writes: WriteRoots::anywhere(),
-            memory_budget: crate::memory::default_budget(),
+            memory_budget: crate::limits::default_budget(),
             last_permille: AtomicU64::new(u64::MAX),
             span: AtomicU64::new(1000),
             outer: AtomicU64::new(1000),

@@ -29,6 +29,8 @@ pub struct Engine {
     pool: Option<Arc<rayon::ThreadPool>>,
     /// What one run may hold at once (the memory model, `memory.rs`).
     run_budget: u64,
+    /// What set `run_budget`, in words (messages and `relume plan`).
+    budget_source: String,
 }
 
 /// Which results an engine with a disk cache writes there.
@@ -124,7 +126,8 @@ impl Engine {
             disk_policy: DiskPolicy::default(),
             max_parallel: cores,
             pool: None,
-            run_budget: crate::memory::default_budget(),
+            run_budget: crate::limits::default_budget(),
+            budget_source: crate::limits::default_budget_source().source.clone(),
         }
     }
     pub fn with_memory_budget(mut self, bytes: usize) -> Self {
@@ -139,18 +142,24 @@ impl Engine {
         self.disk_policy = policy;
         self
     }
-    /// What one run may hold at once (default: 80 % of physical memory). A run whose estimate
-    /// exceeds it is refused before anything runs, with the estimate per node.
-    pub fn with_run_budget(mut self, bytes: u64) -> Self {
+    /// What one run may hold at once (default: 80 % of the smallest memory limit the process
+    /// runs under, `limits.rs`), given by `source` (e.g. "--memory-budget"). A run whose
+    /// estimate exceeds it is refused before anything runs, with the estimate per node.
+    pub fn with_run_budget(mut self, bytes: u64, source: &str) -> Self {
         self.run_budget = bytes;
+        self.budget_source = source.to_string();
         self
     }
     pub fn run_budget(&self) -> u64 {
         self.run_budget
     }
+    /// What set the run budget, in words.
+    pub fn budget_source(&self) -> &str {
+        &self.budget_source
+    }
     /// The plan's memory estimate against the budget: the refusal as a graph error.
     pub fn check_memory(&self, graph: &Graph, plan: &Plan) -> Result<(), GraphErrors> {
-        match self.estimate(graph, plan).refusal(graph, self.run_budget) {
+        match self.estimate(graph, plan).refusal(graph, self.run_budget, &self.budget_source) {
             Some(m) => Err(GraphErrors::one(GraphError::new(m)).with_file(&graph.file)),
             None => Ok(()),
         }
@@ -324,8 +333,8 @@ impl Engine {
                         }
                         let n = &graph.nodes[i];
                         let m = format!(
-                            "node \"{}\" ({}) would need about {} with {} already held, over the memory budget of {}; lower its resolution or sample counts, or raise the budget with --memory-budget",
-                            n.id, n.kind, crate::memory::fmt_bytes(need), crate::memory::fmt_bytes(held), crate::memory::fmt_bytes(self.run_budget)
+                            "node \"{}\" ({}) would need about {} with {} already held, over the memory budget of {} ({}); lower its resolution or sample counts, or raise the budget with --memory-budget",
+                            n.id, n.kind, crate::memory::fmt_bytes(need), crate::memory::fmt_bytes(held), crate::memory::fmt_bytes(self.run_budget), self.budget_source
                         );
                         first_error =
                             Some(RunError::Graph(GraphErrors::one(GraphError::new(m).at(n.pos).node(&n.id)).with_file(&graph.file)));

@@ -16,6 +16,7 @@ mod file_hash;
 pub mod graph;
 mod hash;
 mod input_file;
+pub mod limits;
 pub mod memory;
 mod node;
 mod params;

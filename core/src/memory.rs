@@ -62,23 +62,6 @@ pub fn fmt_bytes(b: u64) -> String {
     }
 }
 
-/// The default budget of a run: 80 % of the machine's physical memory (8 GiB where it cannot
-/// be read). Read once per process: every node run's context starts from it.
-pub fn default_budget() -> u64 {
-    static BUDGET: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
-    *BUDGET.get_or_init(read_default_budget)
-}
-
-fn read_default_budget() -> u64 {
-    let total_kib = std::fs::read_to_string("/proc/meminfo")
-        .ok()
-        .and_then(|t| t.lines().find(|l| l.starts_with("MemTotal:")).and_then(|l| l.split_whitespace().nth(1)?.parse::<u64>().ok()));
-    match total_kib {
-        Some(k) => k * 1024 / 10 * 8,
-        None => 8 << 30,
-    }
-}
-
 /// Parses `4G`, `512M`, `2GiB`, `1.5g` or a number of bytes (`--memory-budget`).
 pub fn parse_bytes(s: &str) -> Option<u64> {
     let t = s.trim().to_ascii_lowercase();
@@ -130,7 +113,6 @@ mod tests {
         assert_eq!(parse_bytes("lots"), None);
         assert_eq!(fmt_bytes(3 << 30), "3.00 GiB");
         assert_eq!(PortSize::image(2, 3).bytes, 2 * 3 * 12 + 16);
-        assert!(default_budget() > 0);
     }
 
     /// The advice changes how pages are backed, never what they hold: an array filled after

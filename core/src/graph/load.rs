@@ -16,6 +16,8 @@ impl Graph {
 
     /// As `parse`, with an explicit list of migrations.
     pub fn parse_with(text: &str, file: Option<&Path>, migrations: &[Migration]) -> Result<Graph, GraphErrors> {
+        // Some editors on Windows start a UTF-8 file with a byte-order mark: not part of the text.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let file_buf = file.map(Path::to_path_buf);
         let mut doc = parse(text)
             .map_err(|e| GraphErrors::one(GraphError::new(format!("malformed RON: {}", e.msg)).at(e.pos)).with_file(&file_buf))?;
@@ -258,6 +260,12 @@ mod tests {
         let nodes: String = (0..n).map(|i| format!("\"n{i}\": (kind: \"K\", params: ()),\n")).collect();
         let edges: String = (1..n).map(|i| format!("(\"n{}.out\", \"n{i}.in\"),\n", i - 1)).collect();
         format!("Graph(version: 1, nodes: {{\n{nodes}}}, edges: [\n{edges}])")
+    }
+
+    #[test]
+    fn a_byte_order_mark_at_the_start_is_not_part_of_the_graph() {
+        let g = Graph::parse("\u{feff}Graph(version: 1, nodes: { \"a\": (kind: \"K\") })", None).unwrap();
+        assert_eq!(g.nodes.len(), 1);
     }
 
     /// Loading looked every node up in the list of those read so far: 40,000 nodes took 14 s.

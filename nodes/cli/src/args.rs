@@ -28,7 +28,9 @@ pub(crate) struct GraphArgs {
     #[arg(long)]
     pub(crate) cache_all: bool,
     /// What one run may hold in memory at once, e.g. `8G` or `512M` (default: 80 % of the
-    /// machine's memory). A run whose estimate is larger is refused before anything runs.
+    /// smallest of physical memory, the cgroup's limit, `ulimit -v`/`-d` and Slurm's --mem;
+    /// `relume plan` says which). A run whose estimate is larger is refused before anything
+    /// runs.
     #[arg(long, value_name = "BYTES", value_parser = parse_budget)]
     pub(crate) memory_budget: Option<u64>,
     /// Threads each node's inner loops may use (default: one per core; at most
@@ -117,7 +119,7 @@ impl GraphArgs {
     pub(crate) fn engine(&self, reg: &Registry) -> relume_core::Engine {
         let mut engine = relume_core::Engine::new(reg.clone());
         if let Some(b) = self.memory_budget {
-            engine = engine.with_run_budget(b);
+            engine = engine.with_run_budget(b, "--memory-budget");
         }
         if let Some(t) = self.threads {
             engine = engine.with_threads(t);
@@ -151,7 +153,9 @@ impl GraphArgs {
         if self.no_disk_cache {
             return None;
         }
-        Some(match (&self.cache, std::env::var_os("RELUME_CACHE")) {
+        // Set but empty is unset: an empty folder name would put the cache's key folders in
+        // the current folder.
+        Some(match (&self.cache, std::env::var_os("RELUME_CACHE").filter(|d| !d.is_empty())) {
             (Some(d), _) => (d.clone(), "from --cache"),
             (None, Some(d)) => (PathBuf::from(d), "from RELUME_CACHE"),
             (None, None) => (Path::new(".relume-cache").to_path_buf(), "the default"),

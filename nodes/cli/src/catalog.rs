@@ -6,7 +6,9 @@ use relume_core::{DynNode, Registry};
 pub(crate) fn print(reg: &Registry, kind: Option<&str>) -> Result<(), CliError> {
     let nodes: Vec<_> = reg.nodes().filter(|n| kind.is_none_or(|k| n.kind() == k)).collect();
     if nodes.is_empty() {
-        return Err(CliError::graph(format!("no node kind \"{}\"", kind.unwrap_or_default())));
+        let k = kind.unwrap_or_default();
+        let hint = reg.suggest(k).map(|s| format!(" (did you mean \"{s}\"?)")).unwrap_or_default();
+        return Err(CliError::graph(format!("no node kind \"{k}\"{hint}; `relume nodes` lists them all")));
     }
     for n in nodes {
         say_part!("{}", describe(n.as_ref()));
@@ -49,6 +51,12 @@ pub fn describe(n: &dyn DynNode) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_unknown_kind_gets_the_closest_name() {
+        let e = print(&crate::registry(), Some("Tonemapp")).err().unwrap();
+        assert!(e.msg.contains("no node kind \"Tonemapp\" (did you mean \"Tonemap\"?)"), "{}", e.msg);
+    }
 
     #[test]
     fn the_entry_lists_ports_test_sizes_and_metrics() {

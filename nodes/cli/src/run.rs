@@ -26,6 +26,7 @@ pub(crate) fn sharded_nodes(reg: &Registry, graph: &Graph, outputs: Option<&[Str
 /// what they need, and write nothing).
 pub(crate) fn run_graph(reg: &Registry, a: &RunArgs, peers: Option<&dyn ShardPeers>) -> Result<(), CliError> {
     let graph = a.g.load(reg)?;
+    no_outputs(&graph)?;
     let writer = peers.is_none_or(|p| p.process() == 0);
     // Everything the run will write is checked before it runs: the output folder, the
     // report's folder, and where the graph's own output files go.
@@ -90,6 +91,19 @@ pub(crate) fn run_graph(reg: &Registry, a: &RunArgs, peers: Option<&dyn ShardPee
 /// The command-line error for a failed run: graph problems and requests over a limit are bad
 /// input (exit 2), a node failing is a failed run (exit 1), Ctrl-C exits 130. A node's error
 /// names the graph file and the line where the node is written.
+/// A graph with nodes but no outputs would run nothing (runs are demand-driven) and say
+/// nothing: refused, with what to add.
+fn no_outputs(graph: &Graph) -> Result<(), CliError> {
+    if graph.outputs.is_empty() && !graph.nodes.is_empty() {
+        let file = graph.file.as_ref().map(|f| format!("{}: ", f.display())).unwrap_or_default();
+        return Err(CliError::graph(format!(
+            "{file}the graph names no outputs, so nothing would run (a run computes what its outputs need); add e.g. `outputs: {{ \"image\": \"{}.image\" }}`",
+            graph.nodes.last().map(|n| n.id.as_str()).unwrap_or("node")
+        )));
+    }
+    Ok(())
+}
+
 pub(crate) fn run_error(graph: &Graph, e: RunError) -> CliError {
     match e {
         RunError::Graph(g) => CliError::graph(g),
@@ -150,6 +164,7 @@ pub(crate) fn plan(reg: &Registry, a: &CheckArgs) -> Result<(), CliError> {
         say!("{what:<7} {:<20} {:<16} {}", l.id, l.kind, l.reason);
     }
     say!("{run} to run, {cached} cached");
+    say!("memory budget {} ({})", relume_core::memory::fmt_bytes(engine.run_budget()), engine.budget_source());
     Ok(())
 }
 
@@ -161,6 +176,7 @@ pub(crate) fn check(reg: &Registry, a: &CheckArgs) -> Result<(), CliError> {
         errs.sort_by_key(|e| e.pos.map(|p| (p.line, p.col)).unwrap_or((u32::MAX, 0)));
         return Err(CliError::graph(GraphErrors(errs)));
     }
+    no_outputs(&graph)?;
     // The memory model's refusal, as `run` would give it.
     a.g.engine(reg).plan(&graph, a.g.requested().as_deref()).map_err(CliError::graph)?;
     let outs: Vec<_> = graph.outputs.iter().map(|o| o.name.as_str()).collect();

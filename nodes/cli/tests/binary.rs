@@ -284,8 +284,11 @@ fn a_stale_temp_file_in_the_cache_is_swept_when_a_run_opens_it() {
         std::fs::File::options().write(true).open(&p).unwrap().set_modified(t).unwrap();
         p
     };
-    let stale = plant(".abcd.rlc.4194399.1.tmp", 3600);
-    let live = plant(&format!(".abcd.rlc.{}.2.tmp", std::process::id()), 5);
+    // Named as relume names an entry's temporary file: the key (64 hex digits, the first two
+    // its folder's name), the writer's process id and a counter.
+    let key = format!("ab{}", "c".repeat(62));
+    let stale = plant(&format!(".{key}.rlc.4194399.1.tmp"), 3600);
+    let live = plant(&format!(".{key}.rlc.{}.2.tmp", std::process::id()), 5);
     let (code, err) = relume(&[
         os("run"),
         os(&graphs().join("filters.ron")),
@@ -367,18 +370,20 @@ fn a_thread_count_past_the_cap_is_refused_before_anything_starts() {
 #[test]
 fn control_characters_in_a_graph_never_reach_the_terminal() {
     let dir = tempfile::tempdir().unwrap();
-    let g = dir.path().join("hostile.ron");
     // A node id and a kind that would clear the screen, set the window title and reverse the
     // text if echoed raw.
-    std::fs::write(
-        &g,
-        "Graph(version: 1, nodes: { \"a\\u{1b}[2J\\u{1b}]0;pwned\\u{7}\": (kind: \"Test\\u{202e}Pattern\", params: ()) }, edges: [], outputs: {})",
-    )
-    .unwrap();
-    let (code, err) = relume(&[os("check"), g.as_os_str()]);
-    assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains("Test\\u{202e}Pattern"), "the kind is named, escaped: {err}");
-    assert!(!err.chars().any(|c| c == '\u{1b}' || c == '\u{7}' || c == '\u{202e}'), "raw control characters: {err:?}");
+    for (id, kind, echoed) in [
+        ("a\\u{1b}[2J\\u{1b}]0;pwned\\u{7}", "TestPattern", "a\\u{1b}[2J\\u{1b}]0;pwned\\u{7}"),
+        ("a", "Test\\u{202e}Pattern", "Test\\u{202e}Pattern"),
+    ] {
+        let g = dir.path().join("hostile.ron");
+        std::fs::write(&g, format!("Graph(version: 1, nodes: {{ \"{id}\": (kind: \"{kind}\", params: ()) }}, edges: [], outputs: {{}})"))
+            .unwrap();
+        let (code, err) = relume(&[os("check"), g.as_os_str()]);
+        assert_eq!(code, Some(2), "{err}");
+        assert!(err.contains(echoed), "named, escaped: {err}");
+        assert!(!err.chars().any(|c| c == '\u{1b}' || c == '\u{7}' || c == '\u{202e}'), "raw control characters: {err:?}");
+    }
 }
 
 #[test]
@@ -403,4 +408,66 @@ fn a_line_break_in_a_value_the_slurm_scripts_repeat_is_refused_before_writing() 
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("--set scene.path=scenes/cornell.ron\\ntouch PWNED") && err.contains("line break"), "{err}");
     assert!(!cache.exists() && !out.exists(), "nothing written");
+}
+
+/// `relume` under `ulimit -v 3000000` (2.86 GiB of address space), with `args`.
+fn relume_under_ulimit_v(args: &[&std::ffi::OsStr]) -> (Option<i32>, String, String) {
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -v 3000000 && exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_relume"))
+        .args(args)
+        .env_remove("RELUME_CACHE")
+        .output()
+        .unwrap();
+    (out.status.code(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+/// Under `ulimit -v` the filters graph at 6000² aborted on a failed allocation (SIGABRT): the
+/// budget knew only physical memory. It now comes from the smallest limit, here RLIMIT_AS, and
+/// the run is refused with the estimate before anything is allocated; `plan` names the limit.
+#[test]
+fn under_ulimit_v_a_run_past_the_limit_is_refused_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let g = graphs().join("filters.ron");
+    let out = dir.path().join("o");
+    let mut args = vec![os("run"), g.as_os_str(), os("--out"), out.as_os_str(), os("--no-disk-cache")];
+    for s in ["clean.width=6000", "clean.height=6000", "noisy.width=6000", "noisy.height=6000"] {
+        args.extend([os("--set"), os(s)]);
+    }
+    let (code, _, err) = relume_under_ulimit_v(&args);
+    assert_eq!(code, Some(2), "refused as bad input, not aborted: {err}");
+    assert!(err.contains("over the memory budget of 2.29 GiB (80 % of RLIMIT_AS (ulimit -v): 2.86 GiB)"), "{err}");
+    assert!(err.contains("\"error\" (ImageError)"), "the estimate per node: {err}");
+    assert!(!out.join("image.png").exists(), "nothing ran");
+    let (code, plan, err) = relume_under_ulimit_v(&[os("plan"), g.as_os_str(), os("--no-disk-cache")]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(plan.contains("memory budget 2.29 GiB (80 % of RLIMIT_AS (ulimit -v): 2.86 GiB)"), "{plan}");
+}
+
+#[test]
+fn an_empty_relume_cache_is_unset_not_the_current_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_relume"))
+        .current_dir(dir.path())
+        .env("RELUME_CACHE", "")
+        .args([os("run"), graphs().join("filters.ron").as_os_str(), os("--out"), os("o"), os("-q")])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let top: Vec<String> = std::fs::read_dir(dir.path()).unwrap().flatten().map(|e| e.file_name().to_string_lossy().into_owned()).collect();
+    assert!(top.iter().all(|n| n == "o" || n == ".relume-cache"), "cache folders in the current folder: {top:?}");
+    assert!(dir.path().join(".relume-cache").is_dir(), "the default cache: {top:?}");
+}
+
+#[test]
+fn a_graph_without_outputs_is_refused_instead_of_running_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let g = dir.path().join("no-outputs.ron");
+    std::fs::write(&g, "Graph(version: 1, nodes: { \"p\": (kind: \"TestPattern\", params: ()) }, edges: [], outputs: {})").unwrap();
+    for cmd in ["run", "check"] {
+        let (code, err) = relume(&[os(cmd), g.as_os_str(), os("--no-disk-cache")]);
+        assert_eq!(code, Some(2), "{cmd}: {err}");
+        assert!(err.contains("no-outputs.ron: the graph names no outputs") && err.contains("\"p.image\""), "{cmd}: {err}");
+    }
 }

@@ -398,7 +398,7 @@ impl TransferT0 {
     }
 
     fn shard(&self, i: &TransferT0In) -> Result<ShardSpec, NodeError> {
-        self.check(i, relume_core::memory::default_budget())?;
+        self.check(i, relume_core::limits::default_budget())?;
         Ok(ShardSpec::new(i.visibility.vertices() as u64, CHUNK))
     }
 

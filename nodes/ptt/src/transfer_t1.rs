@@ -83,7 +83,7 @@ impl TransferT1 {
 #[node(category = "ptt", sharded, metrics = ["rays", "raw_bytes", "compressed_bytes", "relative_error", "channels", "lighting_bases"])]
 impl TransferT1 {
     fn shard(&self, i: &TransferT1In) -> Result<ShardSpec, NodeError> {
-        self.check(i, relume_core::memory::default_budget())?;
+        self.check(i, relume_core::limits::default_budget())?;
         Ok(ShardSpec::new(i.plan.members.len() as u64, 1))
     }
 

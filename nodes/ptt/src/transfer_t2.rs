@@ -141,7 +141,7 @@ impl TransferT2 {
 #[node(category = "ptt", sharded, metrics = ["bytes", "channels", "lighting_bases"])]
 impl TransferT2 {
     fn shard(&self, i: &TransferT2In) -> Result<ShardSpec, NodeError> {
-        self.check(i, relume_core::memory::default_budget())?;
+        self.check(i, relume_core::limits::default_budget())?;
         Ok(ShardSpec::new(i.scene.positions.len() as u64, CHUNK))
     }
 

@@ -121,7 +121,7 @@ impl VertexVisibility {
     }
 
     fn shard(&self, i: &VertexVisibilityIn) -> Result<ShardSpec, NodeError> {
-        self.check(i.scene, relume_core::memory::default_budget())?;
+        self.check(i.scene, relume_core::limits::default_budget())?;
         Ok(ShardSpec::new(i.scene.positions.len() as u64, CHUNK))
     }
 

@@ -69,7 +69,7 @@ pub fn precompute_rows(
     rows: Range<usize>,
     cx: Option<&RunCtx>,
 ) -> Result<TransferRows, NodeError> {
-    let budget = cx.map_or_else(relume_core::memory::default_budget, |c| c.memory_budget());
+    let budget = cx.map_or_else(relume_core::limits::default_budget, |c| c.memory_budget());
     let set = terms_checked(scene, basis, budget)?;
     let (floats, stride) = floats_and_stride(&set.terms);
     let w = scene.camera.width;
@@ -173,7 +173,7 @@ impl TransferPrecompute {
     }
 
     fn shard(&self, i: &TransferPrecomputeIn) -> Result<ShardSpec, NodeError> {
-        terms_checked(i.scene, i.basis, relume_core::memory::default_budget())?;
+        terms_checked(i.scene, i.basis, relume_core::limits::default_budget())?;
         Ok(row_spec(i.scene.camera.width, i.scene.camera.height))
     }
 
