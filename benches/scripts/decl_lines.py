@@ -5,8 +5,9 @@ Counted: code lines (not blank, not comments or doc comments, not `use`, not lin
 only closing brackets) of
   - old API: the `node_doc!` block, the `XParams` struct and `impl Params`, the enums and
     constants that `impl Params` names, and `impl Node` up to the `fn run` line;
-  - new API: the `#[derive(Params)]` struct, `#[derive(ParamEnum)]` enums, `inputs!` /
-    `outputs!`, and the `#[node]` impl up to the `fn run` line;
+  - new API: the `params!` block or the `#[derive(Params)]` struct, `#[derive(ParamEnum)]`
+    enums, `inputs!` / `outputs!`, and the `#[node]` impl up to the `fn run` line, of which
+    `fn memory` counts its signature only (its body is computed, like `run`'s);
 plus the `pub mod` line that declares the node's file (registration is found by build.rs;
 before that, a `reg.add` line per node made it 2: `--rev` of an older commit counts 2).
 
@@ -43,9 +44,25 @@ def count_until_run(lines, a, b):
     """Lines of an impl block up to the `fn run` signature (for a sharded node, the first of
     `fn shard`, `fn run_items` and `fn gather`: its algorithm), plus the closing brace."""
     n = 0
-    for i in range(a, b + 1):
+    i = a
+    while i <= b:
         if is_code(lines[i]):
             n += 1
+        if re.search(r'\bfn memory\b', lines[i]):
+            # The estimate is computed, like `run`: its signature is declaration, its body
+            # is not.
+            j = i
+            while not lines[j].rstrip().endswith('{'):
+                j += 1
+                n += is_code(lines[j])
+            depth = 0
+            for k in range(j, b + 1):
+                l = strip_literals(lines[k].split('//')[0])
+                depth += l.count('{') - l.count('}')
+                if depth == 0:
+                    break
+            i = k + 1
+            continue
         if re.search(r'\bfn (run|shard|run_items|gather)\b', lines[i]):
             # the signature may wrap over several lines
             j = i
@@ -53,6 +70,7 @@ def count_until_run(lines, a, b):
                 j += 1
                 n += is_code(lines[j])
             return n
+        i += 1
     return n
 
 def measure(text, registration):
@@ -72,7 +90,7 @@ def measure(text, registration):
         t = body(a, b)
         code = sum(1 for l in lines[a:b + 1] if is_code(l))
         head = '\n'.join(l for l in lines[a:b + 1] if not l.lstrip().startswith('///'))
-        if 'node_doc!' in head or 'impl Params for' in head or 'derive(Params' in head or 'derive(Clone, Copy, Debug, PartialEq, ParamEnum' in head \
+        if 'node_doc!' in head or re.match(r'(pub )?params! \{', head.strip()) or 'impl Params for' in head or 'derive(Params' in head or 'derive(Clone, Copy, Debug, PartialEq, ParamEnum' in head \
                 or 'ParamEnum)' in head or re.match(r'\s*(pub )?(inputs|outputs)!', head.strip().split('\n')[0]):
             total += code
         elif re.search(r'impl Node for|#\[node', head):

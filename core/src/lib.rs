@@ -44,7 +44,7 @@ pub use params::{ParamEnum, ParamKind, ParamSpec, ParamValue, ParamValues, Param
 pub use plan::{make_plan, Plan};
 pub use port::{input_at, InputPorts, OutputPorts, PortDecl, PortTypeInfo, PortValue, Ports, Value};
 pub use printable::printable;
-pub use relume_macros::{node, ParamEnum, Params};
+pub use relume_macros::{node, params, ParamEnum, Params};
 
 // Lets the derive macros name `::relume_core` inside this crate's own tests.
 extern crate self as relume_core;

@@ -118,6 +118,7 @@ fn rlimits() -> Vec<(u64, String)> {
         let mut r = libc::rlimit { rlim_cur: 0, rlim_max: 0 };
         // SAFETY: getrlimit writes the struct it is given and nothing else.
         if unsafe { libc::getrlimit(res, &mut r) } == 0 && r.rlim_cur != libc::RLIM_INFINITY {
+            #[allow(clippy::unnecessary_cast)] // rlim_t is not u64 on every target
             out.push((r.rlim_cur as u64, what.to_string()));
         }
     }

@@ -1,4 +1,5 @@
-//! The node API end to end: `derive(Params)` (with test values and flattened groups),
+//! The node API end to end: `derive(Params)` and `params!` (with test values and flattened
+//! groups),
 //! `derive(ParamEnum)`, ports from `run`'s signature or from `inputs!`/`outputs!`, `#[node]`
 //! with its declared metrics, and parameter values normalised once into one cache key.
 
@@ -369,4 +370,64 @@ fn a_metric_the_node_does_not_declare_fails_the_run() {
         .unwrap();
     let err = Engine::new(reg).run(&g, &RunOptions::default()).err().unwrap().to_string();
     assert!(err.contains("recorded the metric `other`, which it does not declare") && err.contains("lists: declared"), "{err}");
+}
+
+relume_core::params! {
+    /// Combines two numbers with every kind of parameter.
+    #[derive(Clone, Debug)]
+    pub struct ApplyOneLine {
+        /// how to combine
+        pub op: Op = Add;
+        /// a scale
+        pub sigma: f32 = 2.0, range = 0.0..=64.0, unit = "px";
+        /// a count
+        pub n: u32 = 3, range = 1..=10;
+        /// a switch
+        pub on: bool = true;
+        /// a label
+        pub label: String = "x";
+        /// a colour
+        pub colour: [f32; 3] = (1.0, 0.5, 0.25), rgb, range = 0.0..=1.0;
+        /// a position
+        pub at: [f32; 3] = (0.0, -1.0, 2.0);
+        /// a file written
+        pub target: PathBuf = "out.txt", output;
+    }
+}
+
+relume_core::params! {
+    /// `Split`'s parameters, one line each; `spp` is required here.
+    pub struct SplitOneLine {
+        /// a scale
+        pub scale: f64 = 1.0, range = 0.0..=10.0, test = 0.5;
+        /// the shared group
+        pub counts: Counts, flatten;
+        /// required: no default
+        pub spp_too: u32, range = 1..=4
+    }
+}
+
+relume_core::params! {
+    /// No parameters.
+    pub struct NoneOneLine;
+}
+
+#[test]
+fn params_block_declares_the_same_schema_as_the_derive() {
+    use relume_core::Documented;
+    assert_eq!(ApplyOneLine::schema().0, Apply::schema().0);
+    assert_eq!(ApplyOneLine::DOC, Apply::DOC);
+    // The struct's own attributes pass through.
+    let v = relume_core::ParamValues::resolve(&ApplyOneLine::schema(), &[], std::path::Path::new(".")).unwrap();
+    let p = ApplyOneLine::from_values(&v).unwrap().clone();
+    assert_eq!((p.op, p.sigma, p.n, p.on, p.label.as_str(), p.colour), (Op::Add, 2.0, 3, true, "x", [1.0, 0.5, 0.25]));
+    // A flattened group, a test value, a required field, and a last field without `;`.
+    let s = SplitOneLine::schema();
+    let names: Vec<&str> = s.0.iter().map(|p| p.name).collect();
+    assert_eq!(names, ["scale", "spp", "seed", "spp_too"]);
+    assert_eq!(s.0[0].test, Some(ParamValue::Float(0.5)));
+    assert_eq!(s.0[3].default, None);
+    assert_eq!(s.0[3].kind, ParamKind::Int { min: 1, max: 4 });
+    assert!(NoneOneLine::schema().0.is_empty());
+    assert_eq!(NoneOneLine::DOC, " No parameters.");
 }

@@ -4,11 +4,15 @@
 //!   help text; `#[param(default = …, test = …, range = a..=b, unit = "…", rgb, output)]` the
 //!   rest; `#[param(flatten)]` takes in a group of parameters that derives `Params` itself), the
 //!   struct's doc comment is the node's doc (the editor tooltip).
+//! - `params! { pub struct X { pub name: Type = default, key = …; … } }`: the same struct with
+//!   each parameter on one line (`params_block`); it expands to the derive above.
 //! - `#[derive(ParamEnum)]` on an enum of unit variants: a choice parameter whose variants are
 //!   listed once; an unknown name is a load error, never a fallback.
 //! - `#[node(category = "…", outputs = [name, …], metrics = ["…", …], version = N,
 //!   caching = Never | Keyed, kind = "…")]` on `impl X { fn run … }`: turns the block into
 //!   `impl Node for X`, taking the ports from `run`'s signature.
+
+mod params_block;
 
 use proc_macro::TokenStream;
 use proc_macro2::{Span, TokenStream as Tokens};
@@ -260,6 +264,12 @@ fn params_impl(input: &DeriveInput) -> syn::Result<Tokens> {
             const DOC: &'static str = #doc;
         }
     })
+}
+
+/// `params! { … }`: a parameter struct with one line per parameter; see `params_block`.
+#[proc_macro]
+pub fn params(input: TokenStream) -> TokenStream {
+    params_block::expand(parse_macro_input!(input as params_block::Block)).into()
 }
 
 /// `#[derive(ParamEnum)]`: a choice parameter; variants are named once, in declaration order.

@@ -5,34 +5,31 @@ use glam::{DVec3, Vec3};
 use relume_base::math::kmeans::{KMeans, Metric};
 use relume_base::math::rng::mix64;
 use relume_base::types::{Cluster, Clusters};
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 
-/// Groups the receivers into clusters of similar position and normal, for the factorized
-/// gather ([P] 3.3.2). The image is cut into `tile` × `tile` pixel tiles and each tile's
-/// receivers are clustered on their own by k-means (k-means++ seeding where [P] picks random
-/// receivers, at most `iterations` Lloyd iterations, a random stream per tile from `seed`)
-/// with D = ‖p_c − p_x‖² + α‖n_c − n_x‖², α = the diagonal of the bounding box of the tile's
-/// receiver positions, as the spec and [P] set it. α is a length and the position term a
-/// squared length, so D is not scale-invariant: normals weigh more in small scenes (see
-/// `PositionNormal`). A cluster's centre is the mean position and the normalised summed
-/// normal of its members. A tile with no more receivers than k gets one cluster per
-/// receiver; no cluster is ever empty. The active receiver of a cluster is its member
-/// closest (by D) to the final centre. Same inputs and seed give the same clusters on any
-/// thread count.
-#[derive(Params)]
-pub struct ClusterReceivers {
-    /// side of the square image tiles clustered independently
-    #[param(default = 32, range = 1..=1024, unit = "px")]
-    pub tile: usize,
-    /// clusters per tile (a tile with fewer receivers gets one per receiver)
-    #[param(default = 100, range = 1..=4096, unit = "clusters")]
-    pub k: usize,
-    /// most k-means (Lloyd) iterations per tile; a tile stops earlier once nothing moves
-    #[param(default = 10, range = 1..=1000)]
-    pub iterations: usize,
-    /// random seed of the k-means++ seeding
-    #[param(default = 0, range = 0..=u32::MAX)]
-    pub seed: u64,
+params! {
+    /// Groups the receivers into clusters of similar position and normal, for the factorized
+    /// gather ([P] 3.3.2). The image is cut into `tile` × `tile` pixel tiles and each tile's
+    /// receivers are clustered on their own by k-means (k-means++ seeding where [P] picks random
+    /// receivers, at most `iterations` Lloyd iterations, a random stream per tile from `seed`)
+    /// with D = ‖p_c − p_x‖² + α‖n_c − n_x‖², α = the diagonal of the bounding box of the tile's
+    /// receiver positions, as the spec and [P] set it. α is a length and the position term a
+    /// squared length, so D is not scale-invariant: normals weigh more in small scenes (see
+    /// `PositionNormal`). A cluster's centre is the mean position and the normalised summed
+    /// normal of its members. A tile with no more receivers than k gets one cluster per
+    /// receiver; no cluster is ever empty. The active receiver of a cluster is its member
+    /// closest (by D) to the final centre. Same inputs and seed give the same clusters on any
+    /// thread count.
+    pub struct ClusterReceivers {
+        /// side of the square image tiles clustered independently
+        pub tile: usize = 32, range = 1..=1024, unit = "px";
+        /// clusters per tile (a tile with fewer receivers gets one per receiver)
+        pub k: usize = 100, range = 1..=4096, unit = "clusters";
+        /// most k-means (Lloyd) iterations per tile; a tile stops earlier once nothing moves
+        pub iterations: usize = 10, range = 1..=1000;
+        /// random seed of the k-means++ seeding
+        pub seed: u64 = 0, range = 0..=u32::MAX;
+    }
 }
 
 /// A receiver (or a cluster centre) as k-means sees it.

@@ -1,13 +1,13 @@
 use super::microbuffer::Microbuffer;
-use super::traversal::{count_metrics, microbuffer_params, tree_extent, GatherCounts, Traversal};
+use super::traversal::{count_metrics, tree_extent, GatherCounts, MicrobufferParams, Traversal};
 use crate::types::{PointTree, Receivers};
 use glam::Vec3;
 use relume_base::brdf;
 use relume_base::math::frame::Frame;
 use relume_base::types::{Clusters, Image, Metrics};
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 
-microbuffer_params! {
+params! {
     /// Factorised point-based gather ([P] 3.3.3–3.3.4, the FPBGI paper): per receiver cluster,
     /// the tree is traversed once from the cluster's active receiver. With γ = r_cluster / d
     /// (d from the active receiver to the node's centre), a node near the cluster (γ > ε, the
@@ -21,11 +21,10 @@ microbuffer_params! {
     /// the source's 10⁻² under this reading nearly every node is near. Measured on `cornell`
     /// at 256², 100,000 points, N = 16, ε = 1 (`cargo bench --bench pbgi`): 5.6× faster than
     /// PbgiGather, MSE between the two 1.6 × 10⁻⁶.
-    #[derive(Params)]
     pub struct FactorizedGather {
+        pub microbuffer: MicrobufferParams, flatten;
         /// near/far split: a node with r_cluster / d > epsilon is left to each receiver
-        #[param(default = 1.0, range = 1e-4..=10.0)]
-        pub epsilon: f32,
+        pub epsilon: f32 = 1.0, range = 1e-4..=10.0;
     }
 }
 
@@ -38,8 +37,8 @@ pub fn factorized_gather(
     extent: f32,
     cx: &RunCtx,
 ) -> Result<(Image, GatherCounts), NodeError> {
-    let t = Traversal::new(tree, p.threshold, 1e-5 * extent);
-    let blank = Microbuffer::new(p.resolution);
+    let t = Traversal::new(tree, p.microbuffer.threshold, 1e-5 * extent);
+    let blank = Microbuffer::new(p.microbuffer.resolution);
     let per_cluster: Vec<Vec<(u32, Vec3, GatherCounts)>> = cx.par_map(clusters.clusters.len(), |ci| {
         let c = &clusters.clusters[ci];
         let (mut shared, mut own, mut stack) = (blank.clone(), blank.clone(), Vec::new());
@@ -125,7 +124,8 @@ mod tests {
         let out =
             run_on::<FactorizedGather>(&[], vec![Value::new(tree.clone()), Value::new(r.clone()), Value::new(clusters.clone())]).unwrap();
         let img = out[0].get::<Image>().unwrap();
-        let plain = gather(&tree, &r, &PbgiGather { resolution: 16, threshold: 1.0 }, 4.0, &cx).unwrap().0;
+        let plain =
+            gather(&tree, &r, &PbgiGather { microbuffer: MicrobufferParams { resolution: 16, threshold: 1.0 } }, 4.0, &cx).unwrap().0;
         let mse = relume_base::image::image_error::error_metrics(img, &plain, 1.0, 0.01).get("mse").unwrap();
         assert!(mse < 1e-4, "{mse}");
         let mut fewer = r.clone();
@@ -144,7 +144,7 @@ mod tests {
         let cancel = CancelToken::new();
         let cx = RunCtx::new("t", &cancel, None);
         let (tree, r, clusters) = pbgi_setup::tree_receivers_clusters();
-        let p = FactorizedGather { resolution: 8, threshold: 1.0, epsilon: 1.0 };
+        let p = FactorizedGather { microbuffer: MicrobufferParams { resolution: 8, threshold: 1.0 }, epsilon: 1.0 };
         let run = |threads| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             let (img, c) = pool.install(|| factorized_gather(&tree, &r, &clusters, &p, 4.0, &cx).unwrap());

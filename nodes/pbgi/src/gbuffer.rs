@@ -3,18 +3,18 @@ use relume_base::render::camera::CameraRays;
 use relume_base::render::surface::Surface;
 use relume_base::types::accel::Accel;
 use relume_base::types::{Material, Scene};
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 
-/// The camera's primary hits at pixel centres, as receivers: pixel, position, shading normal
-/// turned toward the camera, direction to the camera, object and material. Pixels that see
-/// the background or the back of a one-sided surface get no receiver, nor do those that
-/// see a smooth dielectric unless `dielectrics` is on (only `WaveletGather` shades them,
-/// through its spherical microbuffer; the other gathers leave them black).
-#[derive(Params)]
-pub struct GBuffer {
-    /// make receivers of the pixels that see a smooth dielectric (glass) too
-    #[param(default = false)]
-    pub dielectrics: bool,
+params! {
+    /// The camera's primary hits at pixel centres, as receivers: pixel, position, shading normal
+    /// turned toward the camera, direction to the camera, object and material. Pixels that see
+    /// the background or the back of a one-sided surface get no receiver, nor do those that
+    /// see a smooth dielectric unless `dielectrics` is on (only `WaveletGather` shades them,
+    /// through its spherical microbuffer; the other gathers leave them black).
+    pub struct GBuffer {
+        /// make receivers of the pixels that see a smooth dielectric (glass) too
+        pub dielectrics: bool = false;
+    }
 }
 
 /// Receivers of every pixel centre, row by row in parallel.

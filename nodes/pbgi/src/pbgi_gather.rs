@@ -1,11 +1,11 @@
 use super::gather::gather_with;
 use super::microbuffer::Microbuffer;
-use super::traversal::{count_metrics, microbuffer_params, tree_extent, GatherCounts, Traversal};
+use super::traversal::{count_metrics, tree_extent, GatherCounts, MicrobufferParams, Traversal};
 use crate::types::{PointTree, Receivers};
 use relume_base::types::{Image, Metrics};
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 
-microbuffer_params! {
+params! {
     /// Point-based gather of one bounce of indirect light ([P] 2.2, eq. 2.1). For each receiver
     /// the point tree is traversed from the root: a node whose solid angle A/d² is at most
     /// `threshold` × one microbuffer pixel's is rasterised into the receiver's microbuffer
@@ -15,13 +15,14 @@ microbuffer_params! {
     /// hemisphere in the Nusselt mapping (equal projected solid angle per pixel; a cube map is
     /// not implemented), then convolved with the receiver's BRDF and cosine. Outputs the
     /// indirect image and per-receiver counts (nodes visited, rasterised, near leaves).
-    #[derive(Params)]
-    pub struct PbgiGather {}
+    pub struct PbgiGather {
+        pub microbuffer: MicrobufferParams, flatten;
+    }
 }
 
 /// Indirect radiance toward the camera for every receiver (`extent` sets the traversal's ε).
 pub fn gather(tree: &PointTree, r: &Receivers, p: &PbgiGather, extent: f32, cx: &RunCtx) -> Result<(Image, GatherCounts), NodeError> {
-    gather_with(&Traversal::new(tree, p.threshold, 1e-5 * extent), r, Microbuffer::new(p.resolution), cx)
+    gather_with(&Traversal::new(tree, p.microbuffer.threshold, 1e-5 * extent), r, Microbuffer::new(p.microbuffer.resolution), cx)
 }
 
 #[node(category = "pbgi", metrics = ["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver"], outputs = [indirect, stats])]
@@ -81,7 +82,7 @@ mod tests {
     #[test]
     fn the_gather_gives_the_same_bytes_on_one_and_four_threads() {
         let (tree, r) = pbgi_setup::tree_and_receivers();
-        let p = PbgiGather { resolution: 8, threshold: 1.0 };
+        let p = PbgiGather { microbuffer: MicrobufferParams { resolution: 8, threshold: 1.0 } };
         let cancel = relume_core::CancelToken::new();
         let cx = RunCtx::new("t", &cancel, None);
         let run = |threads| {

@@ -3,26 +3,25 @@ use super::wavelet_radiance::WaveletSource;
 use crate::types::{CodedWavelets, PointTree, Receivers};
 use glam::Vec3;
 use relume_base::types::{Image, Metrics};
-use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, params, MemoryEstimate, NodeError, PortSize, RunCtx};
 
-/// A fast preview of what the coded point tree sends toward the camera ([P] 5.4): the tree's
-/// nodes at level `level` (and leaves above it) are splatted over the G-buffer. A receiver
-/// pixel at x within `radius` × a node's bound of its centre adds w·L to a radiance buffer
-/// and w to a weight buffer, L being the node's radiance toward the camera (its coded J over
-/// its projected area, `WaveletSource`) and w = (1 − (d / R)²)² × max(0, n_x · a)², which
-/// falls to 0 at the kernel's edge and across creases (a: the node's cone axis); the image
-/// is the radiance over the weight. No microbuffer, one descent to level ε per pixel. The
-/// tree holds what the points send (direct light, plus the bounces a `ViewTree` added), so
-/// the preview shows that, smoothed over groups; light sources' own emission is not in it.
-/// Pixels no node reaches stay black and are counted in the report.
-#[derive(Params)]
-pub struct PreviewSplat {
-    /// tree level whose nodes are splatted (leaves above it too)
-    #[param(default = 12, range = 0..=64, unit = "levels")]
-    pub level: u32,
-    /// kernel radius, in node bounds
-    #[param(default = 1.5, range = 1.0..=10.0)]
-    pub radius: f32,
+params! {
+    /// A fast preview of what the coded point tree sends toward the camera ([P] 5.4): the tree's
+    /// nodes at level `level` (and leaves above it) are splatted over the G-buffer. A receiver
+    /// pixel at x within `radius` × a node's bound of its centre adds w·L to a radiance buffer
+    /// and w to a weight buffer, L being the node's radiance toward the camera (its coded J over
+    /// its projected area, `WaveletSource`) and w = (1 − (d / R)²)² × max(0, n_x · a)², which
+    /// falls to 0 at the kernel's edge and across creases (a: the node's cone axis); the image
+    /// is the radiance over the weight. No microbuffer, one descent to level ε per pixel. The
+    /// tree holds what the points send (direct light, plus the bounces a `ViewTree` added), so
+    /// the preview shows that, smoothed over groups; light sources' own emission is not in it.
+    /// Pixels no node reaches stay black and are counted in the report.
+    pub struct PreviewSplat {
+        /// tree level whose nodes are splatted (leaves above it too)
+        pub level: u32 = 12, range = 0..=64, unit = "levels";
+        /// kernel radius, in node bounds
+        pub radius: f32 = 1.5, range = 1.0..=10.0;
+    }
 }
 
 /// Receivers per unit of parallel work.

@@ -4,22 +4,21 @@ use glam::Vec3;
 use relume_base::brdf::diffuse_albedo;
 use relume_base::types::accel::Accel;
 use relume_base::types::{Scene, SurfacePoints};
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 use std::f32::consts::FRAC_1_PI;
 
-/// Direct lighting of every surface point, as outgoing diffuse radiance B = kd/π · E:
-/// point, spot and directional lights exactly (one shadow ray each), area lights and the
-/// environment with `samples` light samples per point (seeded). Points that no light can
-/// reach (facing away from every delta light, and no area light or environment) and
-/// points with kd = 0 get B = 0 without tracing; the report counts them.
-#[derive(Params)]
-pub struct ShadeDirect {
-    /// light samples per point for area lights and the environment
-    #[param(default = 16, range = 1..=4096, unit = "samples/point")]
-    pub samples: u32,
-    /// random seed
-    #[param(default = 0, range = 0..=u32::MAX)]
-    pub seed: u64,
+params! {
+    /// Direct lighting of every surface point, as outgoing diffuse radiance B = kd/π · E:
+    /// point, spot and directional lights exactly (one shadow ray each), area lights and the
+    /// environment with `samples` light samples per point (seeded). Points that no light can
+    /// reach (facing away from every delta light, and no area light or environment) and
+    /// points with kd = 0 get B = 0 without tracing; the report counts them.
+    pub struct ShadeDirect {
+        /// light samples per point for area lights and the environment
+        pub samples: u32 = 16, range = 1..=4096, unit = "samples/point";
+        /// random seed
+        pub seed: u64 = 0, range = 0..=u32::MAX;
+    }
 }
 
 /// Points shaded as one unit of parallel work and of progress.

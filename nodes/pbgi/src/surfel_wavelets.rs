@@ -6,42 +6,38 @@ use relume_base::brdf;
 use relume_base::math::cube_haar::{CubeHaar, SparseCubeHaar};
 use relume_base::types::accel::Accel;
 use relume_base::types::{Material, Scene, SurfacePoints};
-use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, params, MemoryEstimate, NodeError, PortSize, RunCtx};
 
-/// Each surface point's outgoing radiance as wavelets (wavelet PBGI, [P] 4.4): the direct
-/// light reaching the point, drawn exactly as `ShadeDirect` draws it (same samples for the
-/// same `samples` and `seed`), weighed by the point's BRDF toward every texel of a cube map
-/// of side `resolution` and by the cosine to its normal (the intensity per unit area that
-/// the point tree averages: see `wavelet_radiance::outgoing_intensity`), then the
-/// non-standard Haar transform per face. Coefficients with every channel below `threshold`
-/// are dropped ([P]: 0.002), and at most `max_terms` kept per point (the largest; the
-/// report counts the points capped). Points no light reaches and black points keep no
-/// terms. A point on a smooth dielectric sends toward its front the light reflected from
-/// its front and refracted through from behind, each Dirac lobe into one texel
-/// (`wavelet_radiance::interface_intensity`; `TwinDielectrics` gives it a twin for the other
-/// side). Lobes narrower than
-/// the map resolves are widened to it, and a map that would send out more than the point
-/// receives is scaled down (`wavelet_radiance::band_limited`, `outgoing_intensity`: narrow
-/// lobes and grazing light, docs/QUALITY.md §2). The output holds at
-/// most points × max_terms × 16 B: over the memory budget it is refused before anything is
-/// drawn.
-#[derive(Params)]
-pub struct SurfelWavelets {
-    /// cube-map side per face (a power of two; [P]: 32, 128 for the ring's caustic)
-    #[param(default = 32, range = 2..=128, unit = "texels", test = 16)]
-    pub resolution: usize,
-    /// light samples per point for area lights and the environment
-    #[param(default = 16, range = 1..=4096, unit = "samples/point")]
-    pub samples: u32,
-    /// random seed (the same as `ShadeDirect`'s draws the same light)
-    #[param(default = 0, range = 0..=u32::MAX)]
-    pub seed: u64,
-    /// drop coefficients whose every channel is below this
-    #[param(default = 0.002, range = 0.0..=10.0)]
-    pub threshold: f32,
-    /// most coefficients kept per point (bounds the output's memory)
-    #[param(default = 4096, range = 1..=98304, unit = "terms/point")]
-    pub max_terms: usize,
+params! {
+    /// Each surface point's outgoing radiance as wavelets (wavelet PBGI, [P] 4.4): the direct
+    /// light reaching the point, drawn exactly as `ShadeDirect` draws it (same samples for the
+    /// same `samples` and `seed`), weighed by the point's BRDF toward every texel of a cube map
+    /// of side `resolution` and by the cosine to its normal (the intensity per unit area that
+    /// the point tree averages: see `wavelet_radiance::outgoing_intensity`), then the
+    /// non-standard Haar transform per face. Coefficients with every channel below `threshold`
+    /// are dropped ([P]: 0.002), and at most `max_terms` kept per point (the largest; the
+    /// report counts the points capped). Points no light reaches and black points keep no
+    /// terms. A point on a smooth dielectric sends toward its front the light reflected from
+    /// its front and refracted through from behind, each Dirac lobe into one texel
+    /// (`wavelet_radiance::interface_intensity`; `TwinDielectrics` gives it a twin for the other
+    /// side). Lobes narrower than
+    /// the map resolves are widened to it, and a map that would send out more than the point
+    /// receives is scaled down (`wavelet_radiance::band_limited`, `outgoing_intensity`: narrow
+    /// lobes and grazing light, docs/QUALITY.md §2). The output holds at
+    /// most points × max_terms × 16 B: over the memory budget it is refused before anything is
+    /// drawn.
+    pub struct SurfelWavelets {
+        /// cube-map side per face (a power of two; [P]: 32, 128 for the ring's caustic)
+        pub resolution: usize = 32, range = 2..=128, unit = "texels", test = 16;
+        /// light samples per point for area lights and the environment
+        pub samples: u32 = 16, range = 1..=4096, unit = "samples/point";
+        /// random seed (the same as `ShadeDirect`'s draws the same light)
+        pub seed: u64 = 0, range = 0..=u32::MAX;
+        /// drop coefficients whose every channel is below this
+        pub threshold: f32 = 0.002, range = 0.0..=10.0;
+        /// most coefficients kept per point (bounds the output's memory)
+        pub max_terms: usize = 4096, range = 1..=98304, unit = "terms/point";
+    }
 }
 
 /// What one point came to, for the report.

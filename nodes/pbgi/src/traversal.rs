@@ -6,33 +6,19 @@ use crate::types::PointTree;
 use glam::Vec3;
 use relume_base::math::frame::Frame;
 use relume_base::types::Metrics;
+use relume_core::params;
 
-/// Declares a gather node's struct with the microbuffer parameters both gathers share
-/// (`resolution`, `threshold`: first, flat in the graph file, declared once here), followed by
-/// the node's own fields:
-///
-/// ```ignore
-/// microbuffer_params! {
-///     /// The node's doc comment.
-///     #[derive(Params)]
-///     pub struct MyGather { /* more parameters */ }
-/// }
-/// ```
-macro_rules! microbuffer_params {
-    ($(#[$m:meta])* pub struct $name:ident { $($rest:tt)* }) => {
-        $(#[$m])*
-        pub struct $name {
-            /// microbuffer side (N × N pixels over the hemisphere)
-            #[param(default = 16, range = 1..=256, unit = "px")]
-            pub resolution: usize,
-            /// largest solid angle of a rasterised node, in microbuffer pixels
-            #[param(default = 1.0, range = 0.01..=100.0, unit = "pixels")]
-            pub threshold: f32,
-            $($rest)*
-        }
-    };
+params! {
+    /// The microbuffer parameters the gathers share, first in their schemas and flat in the
+    /// graph file (a flattened group).
+    #[derive(Clone, Copy, Debug)]
+    pub struct MicrobufferParams {
+        /// microbuffer side (N × N pixels over the hemisphere)
+        pub resolution: usize = 16, range = 1..=256, unit = "px";
+        /// largest solid angle of a rasterised node, in microbuffer pixels
+        pub threshold: f32 = 1.0, range = 0.01..=100.0, unit = "pixels";
+    }
 }
-pub(crate) use microbuffer_params;
 
 /// Counts of one receiver's traversal.
 #[derive(Clone, Copy, Debug, Default)]

@@ -13,7 +13,7 @@ use relume_base::math::frame::Frame;
 use relume_base::math::tree_coding::Threshold;
 use relume_base::types::{Material, Metrics, SurfacePoints};
 use relume_core::memory::fmt_bytes;
-use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, params, NodeError, ParamEnum, RunCtx};
 
 /// How every point gathers.
 #[derive(ParamEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -24,52 +24,43 @@ pub enum Walk {
     PerReceiver,
 }
 
-/// More bounces of glossy light through the point tree (view-tree PBGI, [P] 5.3): every
-/// point gathers the light the tree's points send (`view_walk`: receiver and sender nodes
-/// paired from the root, view-cone culling, one buffer for a group whose normals agree),
-/// reflects it through its BRDF (`brdf_wavelets`: the wavelet radiance product on the
-/// microbuffer's grid, resampled into the world cube as J, [P] 5.3.1 scheme 2; Lambert
-/// points send albedo/π × irradiance) and adds it to what it sends of the direct light
-/// (`SurfelWavelets`); the points' maps are coded along the tree again (post-order,
-/// `WaveletTree`'s coding with `split` and `threshold`), and the next bounce gathers from
-/// that. `bounces` = 0 codes the direct light alone (the input of a one-bounce gather);
-/// each bounce adds one to the light a final `WaveletGather` shows. Points on smooth
-/// dielectrics (with their twins, `TwinDielectrics`) gather the whole sphere on their own
-/// (`spherical_microbuffer`) and send what their reflected and refracted lobes read.
-/// A reused group buffer stands for its points' own frames (within `reuse_angle`).
-/// Memory: known only from the inputs' content; `run` checks it before each bounce.
-#[derive(Params)]
-pub struct ViewTree {
-    /// bounces of light between the points (0: the direct light, coded)
-    #[param(default = 1, range = 0..=8, unit = "bounces")]
-    pub bounces: u32,
-    /// microbuffer side (a power of two: the BRDF's Haar grid)
-    #[param(default = 16, range = 2..=64, unit = "px")]
-    pub resolution: usize,
-    /// largest solid angle of a rasterised node, in microbuffer pixels
-    #[param(default = 1.0, range = 0.01..=100.0, unit = "pixels")]
-    pub threshold: f32,
-    /// largest solid angle of a receiver group seen from its sender ([P]: 0.005)
-    #[param(default = 0.005, range = 0.0..=12.6, unit = "sr")]
-    pub view_threshold: f32,
-    /// widest normal cone of a group whose points share one buffer
-    #[param(default = 5.0, range = 0.0..=90.0, unit = "°")]
-    pub reuse_angle: f32,
-    /// drop BRDF wavelet coefficients below this (the product's own approximation)
-    #[param(default = 0.001, range = 0.0..=10.0)]
-    pub brdf_threshold: f32,
-    /// drop point and tree coefficients below this ([P]: 0.002)
-    #[param(default = 0.002, range = 0.0..=10.0)]
-    pub wavelet_threshold: f32,
-    /// split level ε of the coding (`WaveletTree`'s)
-    #[param(default = 20, range = 0..=64, unit = "levels")]
-    pub split: u32,
-    /// most coefficients kept per point
-    #[param(default = 4096, range = 1..=98304, unit = "terms/point")]
-    pub max_terms: usize,
-    /// the view tree, or each point on its own
-    #[param(default = ViewTree)]
-    pub walk: Walk,
+params! {
+    /// More bounces of glossy light through the point tree (view-tree PBGI, [P] 5.3): every
+    /// point gathers the light the tree's points send (`view_walk`: receiver and sender nodes
+    /// paired from the root, view-cone culling, one buffer for a group whose normals agree),
+    /// reflects it through its BRDF (`brdf_wavelets`: the wavelet radiance product on the
+    /// microbuffer's grid, resampled into the world cube as J, [P] 5.3.1 scheme 2; Lambert
+    /// points send albedo/π × irradiance) and adds it to what it sends of the direct light
+    /// (`SurfelWavelets`); the points' maps are coded along the tree again (post-order,
+    /// `WaveletTree`'s coding with `split` and `threshold`), and the next bounce gathers from
+    /// that. `bounces` = 0 codes the direct light alone (the input of a one-bounce gather);
+    /// each bounce adds one to the light a final `WaveletGather` shows. Points on smooth
+    /// dielectrics (with their twins, `TwinDielectrics`) gather the whole sphere on their own
+    /// (`spherical_microbuffer`) and send what their reflected and refracted lobes read.
+    /// A reused group buffer stands for its points' own frames (within `reuse_angle`).
+    /// Memory: known only from the inputs' content; `run` checks it before each bounce.
+    pub struct ViewTree {
+        /// bounces of light between the points (0: the direct light, coded)
+        pub bounces: u32 = 1, range = 0..=8, unit = "bounces";
+        /// microbuffer side (a power of two: the BRDF's Haar grid)
+        pub resolution: usize = 16, range = 2..=64, unit = "px";
+        /// largest solid angle of a rasterised node, in microbuffer pixels
+        pub threshold: f32 = 1.0, range = 0.01..=100.0, unit = "pixels";
+        /// largest solid angle of a receiver group seen from its sender ([P]: 0.005)
+        pub view_threshold: f32 = 0.005, range = 0.0..=12.6, unit = "sr";
+        /// widest normal cone of a group whose points share one buffer
+        pub reuse_angle: f32 = 5.0, range = 0.0..=90.0, unit = "°";
+        /// drop BRDF wavelet coefficients below this (the product's own approximation)
+        pub brdf_threshold: f32 = 0.001, range = 0.0..=10.0;
+        /// drop point and tree coefficients below this ([P]: 0.002)
+        pub wavelet_threshold: f32 = 0.002, range = 0.0..=10.0;
+        /// split level ε of the coding (`WaveletTree`'s)
+        pub split: u32 = 20, range = 0..=64, unit = "levels";
+        /// most coefficients kept per point
+        pub max_terms: usize = 4096, range = 1..=98304, unit = "terms/point";
+        /// the view tree, or each point on its own
+        pub walk: Walk = ViewTree;
+    }
 }
 
 /// What a point reflects with: Lambert's constant, the BRDF's wavelets, a smooth

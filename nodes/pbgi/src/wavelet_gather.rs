@@ -1,13 +1,13 @@
 use super::adaptive_microbuffer::AdaptiveMicrobuffer;
 use super::gather::gather_with;
 use super::spherical_microbuffer::SphericalMicrobuffer;
-use super::traversal::{count_metrics, microbuffer_params, tree_extent, Traversal};
+use super::traversal::{count_metrics, tree_extent, MicrobufferParams, Traversal};
 use super::wavelet_radiance::WaveletSource;
 use crate::types::{CodedWavelets, PointTree, Receivers};
 use relume_base::types::{Image, Metrics};
-use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, params, MemoryEstimate, NodeError, PortSize, RunCtx};
 
-microbuffer_params! {
+params! {
     /// One bounce of glossy light gathered from the wavelet point tree (wavelet PBGI, [P]
     /// 4.6): `PbgiGather`'s traversal and microbuffer, but each rasterised node sends what its
     /// coded wavelets say toward the receiver (its radiant intensity at that direction's
@@ -28,17 +28,14 @@ microbuffer_params! {
     /// both hemispheres, nothing culled under the horizon) and read it along their
     /// reflected and refracted directions; the adaptive buffer leaves them black. Outputs
     /// the indirect image and per-receiver counts.
-    #[derive(Params)]
     pub struct WaveletGather {
+        pub microbuffer: MicrobufferParams, flatten;
         /// adaptive microbuffer: most 2 × 2 splits of a pixel (0: the uniform microbuffer)
-        #[param(default = 0, range = 0..=4, unit = "levels")]
-        pub max_level: u32,
+        pub max_level: u32 = 0, range = 0..=4, unit = "levels";
         /// adaptive microbuffer: radiance above which a node splits its pixel (γ; [P] gives none)
-        #[param(default = 1.0, range = 0.0..=1.0e6, unit = "W/(m² sr)")]
-        pub gamma: f32,
+        pub gamma: f32 = 1.0, range = 0.0..=1.0e6, unit = "W/(m² sr)";
         /// adaptive microbuffer: choose nodes against the base pixels' size (finer pixels take larger nodes as cones) rather than each pixel's own (the thesis'); cheaper at equal error on ring and cornell-bunny
-        #[param(default = true)]
-        pub coarse_cut: bool,
+        pub coarse_cut: bool = true;
     }
 }
 
@@ -53,17 +50,17 @@ impl WaveletGather {
 
     fn run(&self, tree: &PointTree, coded: &CodedWavelets, receivers: &Receivers, cx: &RunCtx) -> Result<(Image, Metrics), NodeError> {
         let source = WaveletSource::checked(tree, coded)?;
-        let t = Traversal::with_source(tree, &source, self.threshold, 1e-5 * tree_extent(tree));
+        let t = Traversal::with_source(tree, &source, self.microbuffer.threshold, 1e-5 * tree_extent(tree));
         let (img, counts) = if self.max_level == 0 {
-            gather_with(&t, receivers, SphericalMicrobuffer::new(self.resolution), cx)?
+            gather_with(&t, receivers, SphericalMicrobuffer::new(self.microbuffer.resolution), cx)?
         } else {
-            if self.resolution < 2 {
+            if self.microbuffer.resolution < 2 {
                 return Err(NodeError::param("resolution", "the adaptive microbuffer starts at 2 × 2 or more"));
             }
             gather_with(
                 &t,
                 receivers,
-                AdaptiveMicrobuffer::new(self.resolution, self.max_level, self.gamma).with_coarse_cut(self.coarse_cut),
+                AdaptiveMicrobuffer::new(self.microbuffer.resolution, self.max_level, self.gamma).with_coarse_cut(self.coarse_cut),
                 cx,
             )?
         };
@@ -100,7 +97,9 @@ mod tests {
         let (tree, coded, r) = setup(Material::Lambert { albedo: Vec3::splat(0.6) });
         let cancel = CancelToken::new();
         let cx = RunCtx::new("t", &cancel, None);
-        let (diffuse, _) = gather(&tree, &r, &PbgiGather { resolution: 16, threshold: 1.0 }, tree_extent(&tree), &cx).unwrap();
+        let (diffuse, _) =
+            gather(&tree, &r, &PbgiGather { microbuffer: MicrobufferParams { resolution: 16, threshold: 1.0 } }, tree_extent(&tree), &cx)
+                .unwrap();
         let out = run_on::<WaveletGather>(&[], vec![Value::new(tree.clone()), Value::new(coded), Value::new(r)]).unwrap();
         let wavelet: Image = first(&out);
         let (a, b) = (mean(&diffuse), mean(&wavelet));
@@ -135,7 +134,9 @@ mod tests {
         let (tree, coded, r) = setup(glossy);
         let cancel = CancelToken::new();
         let cx = RunCtx::new("t", &cancel, None);
-        let (diffuse, _) = gather(&tree, &r, &PbgiGather { resolution: 16, threshold: 1.0 }, tree_extent(&tree), &cx).unwrap();
+        let (diffuse, _) =
+            gather(&tree, &r, &PbgiGather { microbuffer: MicrobufferParams { resolution: 16, threshold: 1.0 } }, tree_extent(&tree), &cx)
+                .unwrap();
         let wavelet: Image = first(&run_on::<WaveletGather>(&[], vec![Value::new(tree), Value::new(coded), Value::new(r)]).unwrap());
         let (a, b) = (mean(&diffuse), mean(&wavelet));
         // Measured: 0.00602 against 0.00903 (1.50×).

@@ -1,7 +1,7 @@
 use super::wavelet_radiance::code_tree;
 use crate::types::{CodedWavelets, PointTree, PointWavelets};
 use relume_base::math::tree_coding::Threshold;
-use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, params, NodeError, ParamEnum, RunCtx};
 
 /// How small stored coefficients are dropped.
 #[derive(ParamEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -12,28 +12,25 @@ pub enum Rule {
     Vector,
 }
 
-/// The points' wavelets coded along the point tree ([P] 4.5; `math::tree_coding`): every
-/// node's vector is the area-weighted average G of its children's (the thesis averages
-/// unweighted, which biases groups of unequal area; the module says why), nodes above level
-/// `split` keep G, nodes at `split` G and the detail H = (G_l − G_r) / 2, nodes below H
-/// only; stored vectors are thresholded by `rule`. One post-order pass holding at most
-/// depth + 2 uncompressed vectors. The report gives the coded bytes against every node
-/// keeping its average (the uncoded tree, measured by coding it so) and the vectors held.
-/// Memory: known only from the inputs' content; `run` checks the coded bound before coding.
-#[derive(Params)]
-pub struct WaveletTree {
-    /// split level ε: nodes above keep averages, below details ([P]: 20)
-    #[param(default = 20, range = 0..=64, unit = "levels")]
-    pub split: u32,
-    /// drop stored coefficients (or detail vectors) below this ([P]: 0.002)
-    #[param(default = 0.002, range = 0.0..=10.0)]
-    pub threshold: f32,
-    /// what the threshold drops
-    #[param(default = Coefficient)]
-    pub rule: Rule,
-    /// also code the uncoded tree for the report's bytes ratio (a second pass)
-    #[param(default = true)]
-    pub report_uncoded: bool,
+params! {
+    /// The points' wavelets coded along the point tree ([P] 4.5; `math::tree_coding`): every
+    /// node's vector is the area-weighted average G of its children's (the thesis averages
+    /// unweighted, which biases groups of unequal area; the module says why), nodes above level
+    /// `split` keep G, nodes at `split` G and the detail H = (G_l − G_r) / 2, nodes below H
+    /// only; stored vectors are thresholded by `rule`. One post-order pass holding at most
+    /// depth + 2 uncompressed vectors. The report gives the coded bytes against every node
+    /// keeping its average (the uncoded tree, measured by coding it so) and the vectors held.
+    /// Memory: known only from the inputs' content; `run` checks the coded bound before coding.
+    pub struct WaveletTree {
+        /// split level ε: nodes above keep averages, below details ([P]: 20)
+        pub split: u32 = 20, range = 0..=64, unit = "levels";
+        /// drop stored coefficients (or detail vectors) below this ([P]: 0.002)
+        pub threshold: f32 = 0.002, range = 0.0..=10.0;
+        /// what the threshold drops
+        pub rule: Rule = Coefficient;
+        /// also code the uncoded tree for the report's bytes ratio (a second pass)
+        pub report_uncoded: bool = true;
+    }
 }
 
 impl WaveletTree {

@@ -5,62 +5,58 @@ use relume_base::render::camera::CameraRays;
 use relume_base::render::zbuffer::{slots_per_pixel, BandHits, Projection, Rasterizer, BAND_ROWS, MAX_SIDE, MISS, SKIP, SLOT_BYTES};
 use relume_base::types::{Camera, Scene, TrianglePlanes};
 use relume_core::memory::fmt_bytes;
-use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, params, MemoryEstimate, NodeError, PortSize, RunCtx};
 use std::mem::MaybeUninit;
 use std::ops::Range;
 
-/// What the camera sees of the scene's mesh, as weights on its vertices ([S] chapter 5
-/// shades vertices and lets the rasteriser interpolate them): `spp` samples per pixel at
-/// fixed positions (a rotated Hammersley set, the same in every pixel; `seed` rotates it),
-/// each finding its nearest triangle by z-buffer rasterisation (`render::zbuffer`: near
-/// clipping, perspective-correct barycentrics, both faces, the same hits as camera rays up
-/// to ties on shared edges) and adding its triangle's corners, weighted by its barycentrics
-/// over `spp`, to its pixel; for the samples that hit nothing it keeps their fraction and
-/// the direction through their mean position, where `RasterizeVertexColors` reads the
-/// environment once per pixel (the sky does not change across a pixel as geometry does).
-///
-/// With `adaptive` on (as a GPU's antialiasing spends its samples), one sample at each
-/// pixel's centre is drawn first, and the `spp` samples only in the pixels at an edge:
-/// where the centre of the pixel or of one of its eight neighbours sees another object,
-/// nothing, or a depth more than `depth_step` (relative) away. Elsewhere the pixel is its
-/// centre sample: across one smooth surface the vertices' interpolated colour is nearly
-/// linear over a pixel, and its value at the centre is the pixel's mean. A feature thinner
-/// than a pixel that no centre sample meets is missed, as such schemes miss it.
-///
-/// With `cull_back_faces` on, triangles whose corners turn clockwise on screen (the back
-/// faces of counter-clockwise meshes) are left out before they are set up: exact where every
-/// mesh is closed, or open only where the camera cannot look in (on envlit, 25,402 triangles
-/// drawn at the centres instead of 44,467). Those whose plane passes clearly behind the eye
-/// are turned away by the scene's triangle planes (found on the first run, kept with the
-/// scene) before their corners are read.
-///
-/// Only the geometry and the camera reach it: wire the scene as loaded, not the turned
-/// sky, and a sky edit leaves it alone. Runs when the camera or the geometry changes, not
-/// when the colours do: `RasterizeVertexColors` then costs one weighted sum per pixel, and
-/// `PttRelight` shades only the vertices listed as seen. The bytes are the same on any
-/// thread count (bands of rows, triangles in index order, nearest then lowest index).
-///
-/// Metrics: samples per pixel, triangles drawn with `spp` samples (after clipping; adaptive,
-/// those that reach an edge pixel) and, adaptive, at the centres, the fraction of the image
-/// that hits geometry, the fraction of pixels drawn with `spp` samples, vertices seen,
-/// weights per pixel.
-#[derive(Params)]
-pub struct CameraHits {
-    /// samples per pixel (box filter), in every pixel or, adaptive, at edges
-    #[param(default = 16, range = 1..=1024, unit = "samples/pixel", test = 2)]
-    pub spp: u32,
-    /// rotates the in-pixel sample pattern
-    #[param(default = 0, range = 0..=u32::MAX)]
-    pub seed: u64,
-    /// `spp` samples only where the pixels' centres see an edge; one sample elsewhere
-    #[param(default = false)]
-    pub adaptive: bool,
-    /// adaptive: the relative step in depth between neighbouring centres that is an edge
-    #[param(default = 0.02, range = 0.0..=1.0)]
-    pub depth_step: f64,
-    /// leave out the triangles facing away (exact for closed meshes seen from outside)
-    #[param(default = false)]
-    pub cull_back_faces: bool,
+params! {
+    /// What the camera sees of the scene's mesh, as weights on its vertices ([S] chapter 5
+    /// shades vertices and lets the rasteriser interpolate them): `spp` samples per pixel at
+    /// fixed positions (a rotated Hammersley set, the same in every pixel; `seed` rotates it),
+    /// each finding its nearest triangle by z-buffer rasterisation (`render::zbuffer`: near
+    /// clipping, perspective-correct barycentrics, both faces, the same hits as camera rays up
+    /// to ties on shared edges) and adding its triangle's corners, weighted by its barycentrics
+    /// over `spp`, to its pixel; for the samples that hit nothing it keeps their fraction and
+    /// the direction through their mean position, where `RasterizeVertexColors` reads the
+    /// environment once per pixel (the sky does not change across a pixel as geometry does).
+    ///
+    /// With `adaptive` on (as a GPU's antialiasing spends its samples), one sample at each
+    /// pixel's centre is drawn first, and the `spp` samples only in the pixels at an edge:
+    /// where the centre of the pixel or of one of its eight neighbours sees another object,
+    /// nothing, or a depth more than `depth_step` (relative) away. Elsewhere the pixel is its
+    /// centre sample: across one smooth surface the vertices' interpolated colour is nearly
+    /// linear over a pixel, and its value at the centre is the pixel's mean. A feature thinner
+    /// than a pixel that no centre sample meets is missed, as such schemes miss it.
+    ///
+    /// With `cull_back_faces` on, triangles whose corners turn clockwise on screen (the back
+    /// faces of counter-clockwise meshes) are left out before they are set up: exact where every
+    /// mesh is closed, or open only where the camera cannot look in (on envlit, 25,402 triangles
+    /// drawn at the centres instead of 44,467). Those whose plane passes clearly behind the eye
+    /// are turned away by the scene's triangle planes (found on the first run, kept with the
+    /// scene) before their corners are read.
+    ///
+    /// Only the geometry and the camera reach it: wire the scene as loaded, not the turned
+    /// sky, and a sky edit leaves it alone. Runs when the camera or the geometry changes, not
+    /// when the colours do: `RasterizeVertexColors` then costs one weighted sum per pixel, and
+    /// `PttRelight` shades only the vertices listed as seen. The bytes are the same on any
+    /// thread count (bands of rows, triangles in index order, nearest then lowest index).
+    ///
+    /// Metrics: samples per pixel, triangles drawn with `spp` samples (after clipping; adaptive,
+    /// those that reach an edge pixel) and, adaptive, at the centres, the fraction of the image
+    /// that hits geometry, the fraction of pixels drawn with `spp` samples, vertices seen,
+    /// weights per pixel.
+    pub struct CameraHits {
+        /// samples per pixel (box filter), in every pixel or, adaptive, at edges
+        pub spp: u32 = 16, range = 1..=1024, unit = "samples/pixel", test = 2;
+        /// rotates the in-pixel sample pattern
+        pub seed: u64 = 0, range = 0..=u32::MAX;
+        /// `spp` samples only where the pixels' centres see an edge; one sample elsewhere
+        pub adaptive: bool = false;
+        /// adaptive: the relative step in depth between neighbouring centres that is an edge
+        pub depth_step: f64 = 0.02, range = 0.0..=1.0;
+        /// leave out the triangles facing away (exact for closed meshes seen from outside)
+        pub cull_back_faces: bool = false;
+    }
 }
 
 /// One band's pixels, laid out as `ScreenHits`' arrays are (so that joining the bands

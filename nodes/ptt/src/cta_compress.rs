@@ -2,43 +2,37 @@ use super::types::{CtaPlan, Visibility};
 use relume_base::math::cpca::Cpca;
 use relume_base::types::Scene;
 use relume_core::memory::fmt_bytes;
-use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, params, MemoryEstimate, NodeError, PortSize, RunCtx};
 
-/// Plans the clustered tensor approximation (CTA) of the bounce transfer ([S] 5.3.3.4, after
-/// Tsai & Shih 2006; defaults [S]: 32 eigenvectors, lighting 64): clusters the vertices by
-/// clustered PCA (`math::cpca`, seeded, deterministic) and fixes the ranks that `TransferT1`
-/// cuts each cluster's tensor (vertex × lighting × channel·SH) to as soon as the cluster's raw
-/// transfer is traced — so the raw transfer, several GB on `envlit`, is never held whole.
-///
-/// Deviation, stated: [S] clusters on the transfer itself; holding it whole to cluster it is
-/// what the memory rule forbids, so the vertices are clustered on what shapes their bounce and
-/// is already known: their coarse cosine-weighted sky visibility (6 × 8 × 8 values), normal and
-/// position, each group scaled to unit total variance so that none dominates by its length.
-/// The clusters, the eigenvectors and the lighting rank are what `relume sweep` varies for the
-/// error-against-compression report ([S] figure 5-9).
-#[derive(Params)]
-pub struct CtaCompress {
-    /// vertex clusters ([S]: 13–62 per scene)
-    #[param(default = 32, range = 1..=4096, test = 64)]
-    pub clusters: usize,
-    /// eigenvectors kept over a cluster's vertices ([S]: 16 or 32)
-    #[param(default = 32, range = 1..=1024, test = 8)]
-    pub eigenvectors: usize,
-    /// rank kept over the lighting bases ([S]: 64)
-    #[param(default = 64, range = 1..=6144, test = 8)]
-    pub lighting: usize,
-    /// HOOI rounds after the HOSVD start
-    #[param(default = 1, range = 0..=20)]
-    pub sweeps: usize,
-    /// principal directions per cluster in the clustering
-    #[param(default = 4, range = 0..=64)]
-    pub cpca_components: usize,
-    /// iterations of the clustering
-    #[param(default = 10, range = 0..=200, test = 2)]
-    pub cpca_iterations: usize,
-    /// random seed of the clustering's start
-    #[param(default = 1, range = 0..=u32::MAX)]
-    pub seed: u64,
+params! {
+    /// Plans the clustered tensor approximation (CTA) of the bounce transfer ([S] 5.3.3.4, after
+    /// Tsai & Shih 2006; defaults [S]: 32 eigenvectors, lighting 64): clusters the vertices by
+    /// clustered PCA (`math::cpca`, seeded, deterministic) and fixes the ranks that `TransferT1`
+    /// cuts each cluster's tensor (vertex × lighting × channel·SH) to as soon as the cluster's raw
+    /// transfer is traced — so the raw transfer, several GB on `envlit`, is never held whole.
+    ///
+    /// Deviation, stated: [S] clusters on the transfer itself; holding it whole to cluster it is
+    /// what the memory rule forbids, so the vertices are clustered on what shapes their bounce and
+    /// is already known: their coarse cosine-weighted sky visibility (6 × 8 × 8 values), normal and
+    /// position, each group scaled to unit total variance so that none dominates by its length.
+    /// The clusters, the eigenvectors and the lighting rank are what `relume sweep` varies for the
+    /// error-against-compression report ([S] figure 5-9).
+    pub struct CtaCompress {
+        /// vertex clusters ([S]: 13–62 per scene)
+        pub clusters: usize = 32, range = 1..=4096, test = 64;
+        /// eigenvectors kept over a cluster's vertices ([S]: 16 or 32)
+        pub eigenvectors: usize = 32, range = 1..=1024, test = 8;
+        /// rank kept over the lighting bases ([S]: 64)
+        pub lighting: usize = 64, range = 1..=6144, test = 8;
+        /// HOOI rounds after the HOSVD start
+        pub sweeps: usize = 1, range = 0..=20;
+        /// principal directions per cluster in the clustering
+        pub cpca_components: usize = 4, range = 0..=64;
+        /// iterations of the clustering
+        pub cpca_iterations: usize = 10, range = 0..=200, test = 2;
+        /// random seed of the clustering's start
+        pub seed: u64 = 1, range = 0..=u32::MAX;
+    }
 }
 
 /// The clustering features of every vertex (see the node doc), row-major.

@@ -5,38 +5,35 @@ use relume_base::math::cube_haar::CubeHaar;
 use relume_base::math::cubemap::CubeMap;
 use relume_base::types::{Environment, Metrics, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, params, MemoryEstimate, NodeError, PortSize, RunCtx};
 
-/// The scene's environment as the transfer-tensor renderer reads it ([S] 5.2.3, 5.3.3.3): a
-/// cube map of 6 × `side` × `side` texels (each the solid-angle-weighted mean of
-/// `supersample`² sub-texels of the lat-long map, so a sun smaller than a texel keeps its
-/// energy; turn or scale the sky with `TurnEnvironment` upstream, so the reference sees it
-/// too); its Haar
-/// coefficients C^L (`math::cube_haar`: non-standard Haar per face, then one orthonormal step
-/// over the faces' six scaling terms, so a constant environment is one coefficient); and, for
-/// the specular lobes of widths `lobe_step_deg` × 1 … `lobes` ([S] 5-13: 7°, 14°, 21°; the
-/// 0° lobe reads the map itself), the environment convolved with each normalised Gaussian
-/// lobe (`CubeMap::gaussian_prefilter`, on a box-filtered copy whose texels are at most half
-/// the lobe's σ wide). All coefficients are kept: each transfer keeps its own largest terms.
-/// Turning or swapping the environment re-runs this node and the relighting only.
-///
-/// Metrics: the largest texel radiance and the luminance integral ∫ L dω (sr-weighted sum),
-/// the number of non-zero Haar coefficients and the share of the coefficients' energy the 96
-/// largest area-weighted ones hold (how sparse the sky is), bytes.
-#[derive(Params)]
-pub struct EnvLighting {
-    /// texels along a cube face ([S]: 64)
-    #[param(default = 64, range = 4..=512, test = 8)]
-    pub side: usize,
-    /// sub-texels per texel side averaged from the lat-long map
-    #[param(default = 4, range = 1..=16, test = 2)]
-    pub supersample: usize,
-    /// angular standard deviation of the first specular lobe; lobe k has k times it
-    #[param(default = 7.0, range = 0.1..=60.0, unit = "°")]
-    pub lobe_step_deg: f64,
-    /// prefiltered environments for the lobes of non-zero width ([S]: 3)
-    #[param(default = 3, range = 0..=8)]
-    pub lobes: usize,
+params! {
+    /// The scene's environment as the transfer-tensor renderer reads it ([S] 5.2.3, 5.3.3.3): a
+    /// cube map of 6 × `side` × `side` texels (each the solid-angle-weighted mean of
+    /// `supersample`² sub-texels of the lat-long map, so a sun smaller than a texel keeps its
+    /// energy; turn or scale the sky with `TurnEnvironment` upstream, so the reference sees it
+    /// too); its Haar
+    /// coefficients C^L (`math::cube_haar`: non-standard Haar per face, then one orthonormal step
+    /// over the faces' six scaling terms, so a constant environment is one coefficient); and, for
+    /// the specular lobes of widths `lobe_step_deg` × 1 … `lobes` ([S] 5-13: 7°, 14°, 21°; the
+    /// 0° lobe reads the map itself), the environment convolved with each normalised Gaussian
+    /// lobe (`CubeMap::gaussian_prefilter`, on a box-filtered copy whose texels are at most half
+    /// the lobe's σ wide). All coefficients are kept: each transfer keeps its own largest terms.
+    /// Turning or swapping the environment re-runs this node and the relighting only.
+    ///
+    /// Metrics: the largest texel radiance and the luminance integral ∫ L dω (sr-weighted sum),
+    /// the number of non-zero Haar coefficients and the share of the coefficients' energy the 96
+    /// largest area-weighted ones hold (how sparse the sky is), bytes.
+    pub struct EnvLighting {
+        /// texels along a cube face ([S]: 64)
+        pub side: usize = 64, range = 4..=512, test = 8;
+        /// sub-texels per texel side averaged from the lat-long map
+        pub supersample: usize = 4, range = 1..=16, test = 2;
+        /// angular standard deviation of the first specular lobe; lobe k has k times it
+        pub lobe_step_deg: f64 = 7.0, range = 0.1..=60.0, unit = "°";
+        /// prefiltered environments for the lobes of non-zero width ([S]: 3)
+        pub lobes: usize = 3, range = 0..=8;
+    }
 }
 
 impl EnvLighting {

@@ -9,7 +9,7 @@ use relume_base::math::sh::sh_basis_into;
 use relume_base::math::sh_rotation::ShRotation;
 use relume_base::types::Scene;
 use relume_core::memory::fmt_bytes;
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 
 /// Per scene vertex, the object it belongs to (the first triangle that uses it), if any.
 pub fn vertex_objects(scene: &Scene) -> Vec<Option<u32>> {
@@ -45,23 +45,23 @@ pub fn local_projection(brdf: &TuckerBrdf, side: usize) -> Vec<f64> {
     p
 }
 
-/// The projection of the BRDF tensor's incoming factor for the one- and two-bounce light
-/// ([S] 5-5: U^I = U^{I0} + U^{I1} + U^{I2}, the bounces' incident light arriving in 4-band
-/// SH in world axes): per vertex of a dynamic object, each column k of U^ωi times the
-/// cosine, in the vertex frame (`vertex_frame`), projected on SH in the local frame once by
-/// quadrature over a cube map of side `quadrature_side` (bilinear U^ωi over the disk), then
-/// turned into world axes per vertex (`math::sh_rotation`, exact per band). Dotted with the
-/// bounce's SH coefficients it gives ∫ I U^ωi (ω · n)⁺ dω exactly for the 4-band incident
-/// light. Fixed objects (diffuse, shaded by their irradiance alone) get no slot: what the
-/// scene does not need is left out. Runs once per geometry and BRDF tensor; material,
-/// lighting and view edits do not reach it.
-///
-/// Metrics: slots (vertices shaded with the tensor), columns, bytes.
-#[derive(Params)]
-pub struct IncidentProjection {
-    /// texels along a face of the quadrature cube map (local frame)
-    #[param(default = 32, range = 4..=256)]
-    pub quadrature_side: usize,
+params! {
+    /// The projection of the BRDF tensor's incoming factor for the one- and two-bounce light
+    /// ([S] 5-5: U^I = U^{I0} + U^{I1} + U^{I2}, the bounces' incident light arriving in 4-band
+    /// SH in world axes): per vertex of a dynamic object, each column k of U^ωi times the
+    /// cosine, in the vertex frame (`vertex_frame`), projected on SH in the local frame once by
+    /// quadrature over a cube map of side `quadrature_side` (bilinear U^ωi over the disk), then
+    /// turned into world axes per vertex (`math::sh_rotation`, exact per band). Dotted with the
+    /// bounce's SH coefficients it gives ∫ I U^ωi (ω · n)⁺ dω exactly for the 4-band incident
+    /// light. Fixed objects (diffuse, shaded by their irradiance alone) get no slot: what the
+    /// scene does not need is left out. Runs once per geometry and BRDF tensor; material,
+    /// lighting and view edits do not reach it.
+    ///
+    /// Metrics: slots (vertices shaded with the tensor), columns, bytes.
+    pub struct IncidentProjection {
+        /// texels along a face of the quadrature cube map (local frame)
+        pub quadrature_side: usize = 32, range = 4..=256;
+    }
 }
 
 #[node(category = "ptt", version = 2, metrics = ["slots", "columns", "bytes"], outputs = [projection])]

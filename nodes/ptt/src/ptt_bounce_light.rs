@@ -8,7 +8,7 @@ use crate::types::{BounceLight, LitCore};
 use glam::Vec3;
 use relume_base::math::cubemap::CubeView;
 use relume_core::memory::fmt_bytes;
-use relume_core::{node, NodeError, Params, PortValue, RunCtx};
+use relume_core::{node, params, NodeError, PortValue, RunCtx};
 
 /// The environment at side `m` as box-basis weights per colour (`CubeMap::box_downsample`).
 fn box_light(env: &EnvLight, m: usize) -> Result<Vec<Vec3>, NodeError> {
@@ -33,22 +33,22 @@ fn slot_of_channels(t: &BounceTransfer) -> Vec<(usize, Vec3)> {
 /// Vertices per task of the two-bounce contraction.
 const CHUNK: usize = 1024;
 
-/// The bounced light under the current environment ([S] 5-5, 5-6; the lighting half of the
-/// bounces, which a material edit does not re-run): the environment box-averaged to
-/// `TransferT1`'s lighting bases (`CubeMap::box_downsample`) contracted with each cluster's
-/// compressed transfer (its lighting factor, then its core), and, with `bounces` = 2, box-averaged to
-/// `TransferT2`'s bases and contracted with every vertex's two-bounce transfer. The fixed
-/// objects' channels are folded into one reflector slot on the way (their reflectance is
-/// known); the dynamic objects' channels stay apart for `PttIncident` to weigh by the
-/// materials' basis coefficients. With `bounces` 0 it holds nothing, with 1 no pairs: what
-/// is not asked for is not computed.
-///
-/// Metrics: bounces, clusters, reflector slots, bytes.
-#[derive(Params)]
-pub struct PttBounceLight {
-    /// reflections carried: 0 direct only, 1 one bounce, 2 two bounces ([S] 5-5)
-    #[param(default = 2, range = 0..=2)]
-    pub bounces: usize,
+params! {
+    /// The bounced light under the current environment ([S] 5-5, 5-6; the lighting half of the
+    /// bounces, which a material edit does not re-run): the environment box-averaged to
+    /// `TransferT1`'s lighting bases (`CubeMap::box_downsample`) contracted with each cluster's
+    /// compressed transfer (its lighting factor, then its core), and, with `bounces` = 2, box-averaged to
+    /// `TransferT2`'s bases and contracted with every vertex's two-bounce transfer. The fixed
+    /// objects' channels are folded into one reflector slot on the way (their reflectance is
+    /// known); the dynamic objects' channels stay apart for `PttIncident` to weigh by the
+    /// materials' basis coefficients. With `bounces` 0 it holds nothing, with 1 no pairs: what
+    /// is not asked for is not computed.
+    ///
+    /// Metrics: bounces, clusters, reflector slots, bytes.
+    pub struct PttBounceLight {
+        /// reflections carried: 0 direct only, 1 one bounce, 2 two bounces ([S] 5-5)
+        pub bounces: usize = 2, range = 0..=2;
+    }
 }
 
 #[node(category = "ptt", caching = Keyed, metrics = ["bounces", "clusters", "slots", "bytes"], outputs = [light])]

@@ -3,28 +3,28 @@ use super::types::VertexColors;
 use glam::Vec3;
 use relume_base::types::{Image, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{node, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, params, NodeError, PortSize, RunCtx};
 
-/// Renders per-vertex radiance to an image ([S] chapter 5: the transfer tensors relight the
-/// vertices, and each pixel interpolates them): each pixel is the environment of `scene`
-/// seen where its missing samples look, times their fraction (black with `background`
-/// off; a band's sky directions are turned into lat-long coordinates together, through a
-/// polynomial atan2 within 3.2e-7 rad of the library's, which halved this node's time on
-/// envlit), plus the vertices' colours weighted as `CameraHits` found them (the samples'
-/// barycentrics over the samples per pixel, antialiased with its box filter), summed in the
-/// hits' order: the same bytes on any thread count. The camera and the samples live in
-/// `hits`, so a colour or sky edit re-runs only this weighted sum (wire the turned sky's
-/// scene here, the loaded one into `CameraHits`). Shading per vertex is the thesis' choice; what
-/// interpolation loses across shadow edges on coarse meshes is part of the method's error,
-/// measured against a vertex-sampled reference elsewhere. The image's bytes are checked
-/// against the budget before it is allocated.
-///
-/// Metrics: the vertex weights summed.
-#[derive(Params)]
-pub struct RasterizeVertexColors {
-    /// samples that miss the geometry see the environment (else black)
-    #[param(default = true)]
-    pub background: bool,
+params! {
+    /// Renders per-vertex radiance to an image ([S] chapter 5: the transfer tensors relight the
+    /// vertices, and each pixel interpolates them): each pixel is the environment of `scene`
+    /// seen where its missing samples look, times their fraction (black with `background`
+    /// off; a band's sky directions are turned into lat-long coordinates together, through a
+    /// polynomial atan2 within 3.2e-7 rad of the library's, which halved this node's time on
+    /// envlit), plus the vertices' colours weighted as `CameraHits` found them (the samples'
+    /// barycentrics over the samples per pixel, antialiased with its box filter), summed in the
+    /// hits' order: the same bytes on any thread count. The camera and the samples live in
+    /// `hits`, so a colour or sky edit re-runs only this weighted sum (wire the turned sky's
+    /// scene here, the loaded one into `CameraHits`). Shading per vertex is the thesis' choice; what
+    /// interpolation loses across shadow edges on coarse meshes is part of the method's error,
+    /// measured against a vertex-sampled reference elsewhere. The image's bytes are checked
+    /// against the budget before it is allocated.
+    ///
+    /// Metrics: the vertex weights summed.
+    pub struct RasterizeVertexColors {
+        /// samples that miss the geometry see the environment (else black)
+        pub background: bool = true;
+    }
 }
 
 #[node(category = "ptt", version = 3, caching = Keyed, metrics = ["weights"], outputs = [image])]

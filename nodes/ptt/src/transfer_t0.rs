@@ -13,7 +13,7 @@ use relume_base::math::cubemap::CubeMap;
 use relume_base::math::frame::Frame;
 use relume_core::codec::pod_vec;
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, PortValue, RunCtx, ShardSpec};
+use relume_core::{inputs, node, outputs, params, MemoryEstimate, NodeError, PortSize, PortValue, RunCtx, ShardSpec};
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
 
@@ -268,45 +268,44 @@ fn u_i_into(brdf: &TuckerBrdf, w: Vec3, acc: &mut [f64], out: &mut [f32]) {
 
 // ---- the node ------------------------------------------------------------------------------
 
-/// The direct-light transfer T̃⁰ per vertex ([S] 5-7, 5.3.3.3): for each column k of the BRDF
-/// tensor's incoming factor U^ωi, plus one column of the cosine alone for the diffuse term
-/// ([S] 5.3.3.1), the cube map (the visibility's side; [S]: 6 × 64 × 64) of
-/// U^ωi(F⁻¹ω, k) (ω · n)⁺ V(ω) Ω(ω) in the vertex frame F (`vertex_frame`), Haar-transformed
-/// (`math::cube_haar`) with the `terms` largest coefficients kept ([S]: n_L = 96). The texel
-/// solid angle Ω is folded in, so the environment's plain coefficients C^L give the integral
-/// as a dot product (`DirectTransfer::apply`, what the relighting runs per lighting change).
-///
-/// Ranking: by |c| × the solid angle of the coefficient's support (`CubeHaar::keep_largest`,
-/// [S] "area-weighted Haar"), although Ω is already inside T̃: measured on the floor-and-roof
-/// test scene (81 floor vertices, side 64, 96 terms) under graphs/assets/envlit/sky.exr, the
-/// relative error against the dense sum, mean over vertices, is for the diffuse column 3.19 %
-/// area-weighted against 3.27 % by |c| alone, for the tensor columns 10.0 % against 11.3 %,
-/// and for the shaded f_r (Blinn-Phong s = 30, one view) 6.3 % against 9.0 %
-/// (`ranking_by_area_weighted_magnitude_is_closer_under_the_sky`): the sky's energy sits in
-/// coarse coefficients, so coarse terms of the transfer meet more of it.
-///
-/// Second output: per vertex, for each specular lobe of non-zero width (`SpecularLobes`
-/// input; [S] 7°, 14°, 21°), the visible fraction of the lobe around each mirror direction d
-/// on a cube map of side `lobe_side`, vis_σ(d) = Σ g_σ(∠(d, ω)) V(ω) Ω / Σ g_σ Ω with g an
-/// un-normalised Gaussian cut at 4σ like `CubeMap::gaussian_prefilter`, over the whole
-/// sphere (below the tangent plane is hidden), quantised to u8 (error ≤ 1/510). It is summed
-/// from the bitsets box-filtered to fractional visibility at the side `EnvLighting` gives
-/// the lobe's prefiltered environment (texels at most σ/2 wide: 32 for 7°, 16 for 14° and
-/// 21° at side 64), so the blur resolves σ and costs a few hundred multiply-adds per texel.
-///
-/// Sharded over vertices; the same bytes on any thread count and any sharding. The held
-/// bytes are checked against the budget before anything is allocated.
-///
-/// Metrics: vertices, columns, the mean terms kept per column, the share of T̃'s squared
-/// coefficient energy the kept terms hold, lobe maps per vertex, bytes.
-#[derive(Params)]
-pub struct TransferT0 {
-    /// Haar terms kept per column ([S]: n_L = 96)
-    #[param(default = 96, range = 1..=4096, test = 16)]
-    pub terms: usize,
-    /// texels along a face of each lobe's visible-fraction map
-    #[param(default = 8, range = 1..=64, test = 2)]
-    pub lobe_side: usize,
+params! {
+    /// The direct-light transfer T̃⁰ per vertex ([S] 5-7, 5.3.3.3): for each column k of the BRDF
+    /// tensor's incoming factor U^ωi, plus one column of the cosine alone for the diffuse term
+    /// ([S] 5.3.3.1), the cube map (the visibility's side; [S]: 6 × 64 × 64) of
+    /// U^ωi(F⁻¹ω, k) (ω · n)⁺ V(ω) Ω(ω) in the vertex frame F (`vertex_frame`), Haar-transformed
+    /// (`math::cube_haar`) with the `terms` largest coefficients kept ([S]: n_L = 96). The texel
+    /// solid angle Ω is folded in, so the environment's plain coefficients C^L give the integral
+    /// as a dot product (`DirectTransfer::apply`, what the relighting runs per lighting change).
+    ///
+    /// Ranking: by |c| × the solid angle of the coefficient's support (`CubeHaar::keep_largest`,
+    /// [S] "area-weighted Haar"), although Ω is already inside T̃: measured on the floor-and-roof
+    /// test scene (81 floor vertices, side 64, 96 terms) under graphs/assets/envlit/sky.exr, the
+    /// relative error against the dense sum, mean over vertices, is for the diffuse column 3.19 %
+    /// area-weighted against 3.27 % by |c| alone, for the tensor columns 10.0 % against 11.3 %,
+    /// and for the shaded f_r (Blinn-Phong s = 30, one view) 6.3 % against 9.0 %
+    /// (`ranking_by_area_weighted_magnitude_is_closer_under_the_sky`): the sky's energy sits in
+    /// coarse coefficients, so coarse terms of the transfer meet more of it.
+    ///
+    /// Second output: per vertex, for each specular lobe of non-zero width (`SpecularLobes`
+    /// input; [S] 7°, 14°, 21°), the visible fraction of the lobe around each mirror direction d
+    /// on a cube map of side `lobe_side`, vis_σ(d) = Σ g_σ(∠(d, ω)) V(ω) Ω / Σ g_σ Ω with g an
+    /// un-normalised Gaussian cut at 4σ like `CubeMap::gaussian_prefilter`, over the whole
+    /// sphere (below the tangent plane is hidden), quantised to u8 (error ≤ 1/510). It is summed
+    /// from the bitsets box-filtered to fractional visibility at the side `EnvLighting` gives
+    /// the lobe's prefiltered environment (texels at most σ/2 wide: 32 for 7°, 16 for 14° and
+    /// 21° at side 64), so the blur resolves σ and costs a few hundred multiply-adds per texel.
+    ///
+    /// Sharded over vertices; the same bytes on any thread count and any sharding. The held
+    /// bytes are checked against the budget before anything is allocated.
+    ///
+    /// Metrics: vertices, columns, the mean terms kept per column, the share of T̃'s squared
+    /// coefficient energy the kept terms hold, lobe maps per vertex, bytes.
+    pub struct TransferT0 {
+        /// Haar terms kept per column ([S]: n_L = 96)
+        pub terms: usize = 96, range = 1..=4096, test = 16;
+        /// texels along a face of each lobe's visible-fraction map
+        pub lobe_side: usize = 8, range = 1..=64, test = 2;
+    }
 }
 
 inputs!(pub TransferT0In { visibility: Visibility, brdf: TuckerBrdf, lobes: SpecularLobes });

@@ -5,31 +5,31 @@ use crate::types::BounceTransfer;
 use relume_base::math::cta::{compress, ClusterTensor};
 use relume_base::types::{Accel, BrdfBasis, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, NodeError, Params, PortValue, RunCtx, ShardSpec};
+use relume_core::{inputs, node, outputs, params, NodeError, PortValue, RunCtx, ShardSpec};
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
 
-/// The one-bounce transfer tensor T¹(l, c, s) of every vertex ([S] 5-8, 5-9, 5.3.3.4,
-/// 5.3.3.6), compressed cluster by cluster as it is traced: for each cluster of the
-/// `CtaPlan`, each member's raw transfer (`ptt::bounce`: rays through the centres of a
-/// 6 × `rays_side`² cube map above the vertex; at a hit, the box lighting bases' direct light
-/// interpolated from the hit triangle's vertex visibility, reflected by the fixed object's
-/// BRDF or each basis BRDF of a dynamic object, projected on 4-band SH in the vertex frame),
-/// then the cluster's tensor approximation (`math::cta`) at the plan's ranks. Only one
-/// cluster's raw tensor is held at a time; its bytes are checked against the budget before
-/// tracing. Sharded over clusters (`relume shard`, `--processes`): the same bytes on any
-/// sharding and thread count.
-///
-/// Metrics: rays, the raw transfer's bytes (what holding it whole would take) and the
-/// compressed bytes, the approximation's relative error ‖T − T̂‖ / ‖T‖ over all clusters, the
-/// channels (fixed ones first) and the lighting bases.
-/// Memory: the channels and cluster sizes come with the inputs, so `run` checks its bytes
-/// itself before allocating.
-#[derive(Params)]
-pub struct TransferT1 {
-    /// texels along a face of the cube map whose centres the bounce rays go through
-    #[param(default = 16, range = 2..=128, test = 2)]
-    pub rays_side: usize,
+params! {
+    /// The one-bounce transfer tensor T¹(l, c, s) of every vertex ([S] 5-8, 5-9, 5.3.3.4,
+    /// 5.3.3.6), compressed cluster by cluster as it is traced: for each cluster of the
+    /// `CtaPlan`, each member's raw transfer (`ptt::bounce`: rays through the centres of a
+    /// 6 × `rays_side`² cube map above the vertex; at a hit, the box lighting bases' direct light
+    /// interpolated from the hit triangle's vertex visibility, reflected by the fixed object's
+    /// BRDF or each basis BRDF of a dynamic object, projected on 4-band SH in the vertex frame),
+    /// then the cluster's tensor approximation (`math::cta`) at the plan's ranks. Only one
+    /// cluster's raw tensor is held at a time; its bytes are checked against the budget before
+    /// tracing. Sharded over clusters (`relume shard`, `--processes`): the same bytes on any
+    /// sharding and thread count.
+    ///
+    /// Metrics: rays, the raw transfer's bytes (what holding it whole would take) and the
+    /// compressed bytes, the approximation's relative error ‖T − T̂‖ / ‖T‖ over all clusters, the
+    /// channels (fixed ones first) and the lighting bases.
+    /// Memory: the channels and cluster sizes come with the inputs, so `run` checks its bytes
+    /// itself before allocating.
+    pub struct TransferT1 {
+        /// texels along a face of the cube map whose centres the bounce rays go through
+        pub rays_side: usize = 16, range = 2..=128, test = 2;
+    }
 }
 
 inputs!(pub TransferT1In { scene: Scene, accel: Accel, visibility: Visibility, basis: BrdfBasis, plan: CtaPlan });

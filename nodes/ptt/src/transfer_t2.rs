@@ -9,33 +9,32 @@ use relume_base::math::cubemap::CubeMap;
 use relume_base::math::sh::{sh_basis_into, sh_clamped_cosine};
 use relume_base::types::{Accel, BrdfBasis, BrdfGrid, Material, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, NodeError, Params, PortValue, RunCtx, ShardSpec};
+use relume_core::{inputs, node, outputs, params, NodeError, PortValue, RunCtx, ShardSpec};
 use std::f32::consts::PI;
 use std::ops::Range;
 
-/// The two-bounce transfer T²(l, c₁, c₂) of every vertex ([S] 5-10, 5-11, 5.3.3.5): a scalar
-/// per box lighting basis l of a coarse 6 × `side`² cube map (box sums of `TransferT1`'s
-/// bases, [S]: 6 × 2 × 2), first reflector channel c₁ and second reflector channel c₂: the
-/// incident radiance after two reflections, taken as uniform over the hemisphere ([S]: "假设
-/// …均匀分布"), i.e. (1/π) ∫ I² cos dω. Rays leave each vertex through the centres of a
-/// 6 × `rays_side`² cube map above its tangent plane; at a hit y, the one-bounce transfer of
-/// the hit triangle's vertices (rebuilt from their clusters at the coarse lighting,
-/// interpolated barycentrically: [S] 5.3.3.6, "T¹ speeds up T²") is reflected toward the
-/// vertex by y's channel: exactly for diffuse ones (the clamped cosine in SH), and for a
-/// basis BRDF's specular part by its directional albedo times the incident light at the
-/// mirror direction (the one-bounce light is 4-band SH, far smoother than the lobes; stated
-/// approximation). Fixed objects must be Lambertian here (others are refused, not guessed).
-/// Sharded over vertices; the same bytes on any sharding and thread count.
-///
-/// Metrics: bytes, channels, lighting bases.
-#[derive(Params)]
-pub struct TransferT2 {
-    /// texels along a face of the coarse lighting map ([S]: 2); must divide T¹'s side
-    #[param(default = 2, range = 1..=64, test = 1)]
-    pub side: usize,
-    /// texels along a face of the cube map whose centres the rays go through
-    #[param(default = 8, range = 2..=64, test = 2)]
-    pub rays_side: usize,
+params! {
+    /// The two-bounce transfer T²(l, c₁, c₂) of every vertex ([S] 5-10, 5-11, 5.3.3.5): a scalar
+    /// per box lighting basis l of a coarse 6 × `side`² cube map (box sums of `TransferT1`'s
+    /// bases, [S]: 6 × 2 × 2), first reflector channel c₁ and second reflector channel c₂: the
+    /// incident radiance after two reflections, taken as uniform over the hemisphere ([S]: "假设
+    /// …均匀分布"), i.e. (1/π) ∫ I² cos dω. Rays leave each vertex through the centres of a
+    /// 6 × `rays_side`² cube map above its tangent plane; at a hit y, the one-bounce transfer of
+    /// the hit triangle's vertices (rebuilt from their clusters at the coarse lighting,
+    /// interpolated barycentrically: [S] 5.3.3.6, "T¹ speeds up T²") is reflected toward the
+    /// vertex by y's channel: exactly for diffuse ones (the clamped cosine in SH), and for a
+    /// basis BRDF's specular part by its directional albedo times the incident light at the
+    /// mirror direction (the one-bounce light is 4-band SH, far smoother than the lobes; stated
+    /// approximation). Fixed objects must be Lambertian here (others are refused, not guessed).
+    /// Sharded over vertices; the same bytes on any sharding and thread count.
+    ///
+    /// Metrics: bytes, channels, lighting bases.
+    pub struct TransferT2 {
+        /// texels along a face of the coarse lighting map ([S]: 2); must divide T¹'s side
+        pub side: usize = 2, range = 1..=64, test = 1;
+        /// texels along a face of the cube map whose centres the rays go through
+        pub rays_side: usize = 8, range = 2..=64, test = 2;
+    }
 }
 
 inputs!(pub TransferT2In { scene: Scene, accel: Accel, visibility: Visibility, basis: BrdfBasis, bounce: BounceTransfer });

@@ -2,35 +2,32 @@ use super::types::VertexColors;
 use glam::Vec3;
 use relume_base::render::integrator::{Counts, Settings, Tracer};
 use relume_base::types::{Accel, Scene};
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 
-/// The reference path tracer's radiance leaving every vertex toward the scene's camera: the
-/// vertex-sampled reference of per-vertex relighting ([S] chapter 5). Rasterised like the
-/// relit colours (`RasterizeVertexColors`), it has the same interpolation across triangles
-/// and none of the method's approximations, so its error against the pixel reference is what
-/// interpolation costs (a shadow edge across a coarse ground), and the relit image's error
-/// against it is the method's own. Per vertex, `spp` paths of the reference integrator
-/// (`PathTrace`'s, same `max_depth` meaning: the first segment is the short one arriving at
-/// the vertex) start 10⁻³ of the scene's extent in front of the vertex toward the camera and
-/// aim at it (a thousandth of the way into its first triangle, not at the vertex itself, which
-/// rays can slip past between triangles). Vertices no triangle uses are black. Each vertex's mean depends only on (seed,
-/// vertex, sample): the same bytes on any thread count.
-///
-/// Metrics: vertices, rays traced.
-#[derive(Params)]
-pub struct VertexPathTrace {
-    /// paths per vertex
-    #[param(default = 256, range = 1..=(1 << 20), unit = "samples/vertex", test = 4)]
-    pub spp: u32,
-    /// maximum path segments (Mitsuba's meaning); -1 = unbounded
-    #[param(default = 4, range = -1..=1024)]
-    pub max_depth: i32,
-    /// depth at which Russian roulette starts
-    #[param(default = 5, range = 1..=1024)]
-    pub rr_depth: u32,
-    /// random seed
-    #[param(default = 0, range = 0..=u32::MAX)]
-    pub seed: u64,
+params! {
+    /// The reference path tracer's radiance leaving every vertex toward the scene's camera: the
+    /// vertex-sampled reference of per-vertex relighting ([S] chapter 5). Rasterised like the
+    /// relit colours (`RasterizeVertexColors`), it has the same interpolation across triangles
+    /// and none of the method's approximations, so its error against the pixel reference is what
+    /// interpolation costs (a shadow edge across a coarse ground), and the relit image's error
+    /// against it is the method's own. Per vertex, `spp` paths of the reference integrator
+    /// (`PathTrace`'s, same `max_depth` meaning: the first segment is the short one arriving at
+    /// the vertex) start 10⁻³ of the scene's extent in front of the vertex toward the camera and
+    /// aim at it (a thousandth of the way into its first triangle, not at the vertex itself, which
+    /// rays can slip past between triangles). Vertices no triangle uses are black. Each vertex's mean depends only on (seed,
+    /// vertex, sample): the same bytes on any thread count.
+    ///
+    /// Metrics: vertices, rays traced.
+    pub struct VertexPathTrace {
+        /// paths per vertex
+        pub spp: u32 = 256, range = 1..=(1 << 20), unit = "samples/vertex", test = 4;
+        /// maximum path segments (Mitsuba's meaning); -1 = unbounded
+        pub max_depth: i32 = 4, range = -1..=1024;
+        /// depth at which Russian roulette starts
+        pub rr_depth: u32 = 5, range = 1..=1024;
+        /// random seed
+        pub seed: u64 = 0, range = 0..=u32::MAX;
+    }
 }
 
 #[node(category = "ptt", metrics = ["vertices", "rays"], outputs = [colors])]

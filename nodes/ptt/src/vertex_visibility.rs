@@ -4,30 +4,29 @@ use glam::Vec3;
 use relume_base::math::cubemap::CubeMap;
 use relume_base::types::{Accel, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx, ShardSpec};
+use relume_core::{inputs, node, outputs, params, MemoryEstimate, NodeError, PortSize, RunCtx, ShardSpec};
 use std::ops::Range;
 
-/// Per vertex, the binary visibility of the environment ([S] 5.2.3.1, 5.3.3.3: T⁰, the
-/// visibility function over the 6 × 64 × 64 cube-map directions, stored losslessly as
-/// bitsets): one shadow ray through each texel's centre above the vertex's tangent plane,
-/// from the vertex lifted 10⁻⁴ of the scene's extent along its shading normal; texels below
-/// the plane are not visible (no ray). With it, per texel of a coarse `coarse`² cube map, the
-/// visible cosine-weighted solid angle Σ V (ω · n) Ω over the fine texels it covers: a hit
-/// point's direct light from each box lighting basis, interpolated from its triangle's
-/// vertices ([S] 5.3.3.6). Sharded over vertices (`relume shard`, `--processes`); the same
-/// bytes on any thread count and any sharding. The held bytes are checked against the budget
-/// before anything is allocated.
-///
-/// Metrics: vertices, rays traced, the mean visible fraction of the upper hemisphere's
-/// texels, bytes.
-#[derive(Params)]
-pub struct VertexVisibility {
-    /// texels along a cube face ([S]: 64)
-    #[param(default = 64, range = 4..=256, test = 8)]
-    pub side: usize,
-    /// texels along a face of the coarse map of the bounce lighting bases ([S] 5.3.3.4: 8)
-    #[param(default = 8, range = 1..=64, test = 2)]
-    pub coarse: usize,
+params! {
+    /// Per vertex, the binary visibility of the environment ([S] 5.2.3.1, 5.3.3.3: T⁰, the
+    /// visibility function over the 6 × 64 × 64 cube-map directions, stored losslessly as
+    /// bitsets): one shadow ray through each texel's centre above the vertex's tangent plane,
+    /// from the vertex lifted 10⁻⁴ of the scene's extent along its shading normal; texels below
+    /// the plane are not visible (no ray). With it, per texel of a coarse `coarse`² cube map, the
+    /// visible cosine-weighted solid angle Σ V (ω · n) Ω over the fine texels it covers: a hit
+    /// point's direct light from each box lighting basis, interpolated from its triangle's
+    /// vertices ([S] 5.3.3.6). Sharded over vertices (`relume shard`, `--processes`); the same
+    /// bytes on any thread count and any sharding. The held bytes are checked against the budget
+    /// before anything is allocated.
+    ///
+    /// Metrics: vertices, rays traced, the mean visible fraction of the upper hemisphere's
+    /// texels, bytes.
+    pub struct VertexVisibility {
+        /// texels along a cube face ([S]: 64)
+        pub side: usize = 64, range = 4..=256, test = 8;
+        /// texels along a face of the coarse map of the bounce lighting bases ([S] 5.3.3.4: 8)
+        pub coarse: usize = 8, range = 1..=64, test = 2;
+    }
 }
 
 inputs!(pub VertexVisibilityIn { scene: Scene, accel: Accel });

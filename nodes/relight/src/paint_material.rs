@@ -1,40 +1,33 @@
 use glam::Vec3;
 use relume_base::types::{ObjectMaterials, Texture};
-use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, params, NodeError, ParamEnum, RunCtx};
 
-/// One brush stroke on a dynamic object's material texture ([S] 4.2.3: materials are edited
-/// as Kd, Ks and s maps): the texels within `radius` (in UV units) of (`u`, `v`) move toward
-/// `value` by `strength` × a smooth falloff (1 − (d / radius)²)². A map the object lacks is
-/// first made white (the object's own parameter everywhere) at `size`². Maps multiply the
-/// object's Kd, Ks or s (the exponent map reads its first channel). Chain one node per stroke:
-/// each stroke is a parameter set, saved with the graph and undone with it; a stroke re-runs
-/// only what reads the materials (`SvRelight`, and the reference through `ApplyMaterials`).
-#[derive(Params)]
-pub struct PaintMaterial {
-    /// the dynamic object to paint (empty: paint none)
-    #[param(default = "")]
-    pub object: String,
-    /// which map the stroke paints
-    #[param(default = Kd)]
-    pub map: PaintedMap,
-    /// centre of the stroke, U
-    #[param(default = 0.5, range = -4.0..=4.0)]
-    pub u: f32,
-    /// centre of the stroke, V
-    #[param(default = 0.5, range = -4.0..=4.0)]
-    pub v: f32,
-    /// radius of the stroke in UV units
-    #[param(default = 0.1, range = 0.0001..=2.0)]
-    pub radius: f32,
-    /// the map's value the stroke paints toward (a multiplier of Kd, Ks or s)
-    #[param(rgb, default = (1.0, 0.2, 0.2), range = 0.0..=1000.0)]
-    pub value: [f32; 3],
-    /// how far the texels under the brush's centre move toward the value
-    #[param(default = 1.0, range = 0.0..=1.0)]
-    pub strength: f32,
-    /// side of a map made for the stroke when the object has none
-    #[param(default = 256, range = 1..=4096, unit = "texels")]
-    pub size: u32,
+params! {
+    /// One brush stroke on a dynamic object's material texture ([S] 4.2.3: materials are edited
+    /// as Kd, Ks and s maps): the texels within `radius` (in UV units) of (`u`, `v`) move toward
+    /// `value` by `strength` × a smooth falloff (1 − (d / radius)²)². A map the object lacks is
+    /// first made white (the object's own parameter everywhere) at `size`². Maps multiply the
+    /// object's Kd, Ks or s (the exponent map reads its first channel). Chain one node per stroke:
+    /// each stroke is a parameter set, saved with the graph and undone with it; a stroke re-runs
+    /// only what reads the materials (`SvRelight`, and the reference through `ApplyMaterials`).
+    pub struct PaintMaterial {
+        /// the dynamic object to paint (empty: paint none)
+        pub object: String = "";
+        /// which map the stroke paints
+        pub map: PaintedMap = Kd;
+        /// centre of the stroke, U
+        pub u: f32 = 0.5, range = -4.0..=4.0;
+        /// centre of the stroke, V
+        pub v: f32 = 0.5, range = -4.0..=4.0;
+        /// radius of the stroke in UV units
+        pub radius: f32 = 0.1, range = 0.0001..=2.0;
+        /// the map's value the stroke paints toward (a multiplier of Kd, Ks or s)
+        pub value: [f32; 3] = (1.0, 0.2, 0.2), rgb, range = 0.0..=1000.0;
+        /// how far the texels under the brush's centre move toward the value
+        pub strength: f32 = 1.0, range = 0.0..=1.0;
+        /// side of a map made for the stroke when the object has none
+        pub size: u32 = 256, range = 1..=4096, unit = "texels";
+    }
 }
 
 /// The material map a stroke paints.

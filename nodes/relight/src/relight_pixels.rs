@@ -165,7 +165,7 @@ impl Relight {
     }
 
     fn run(&self, transfer: &Transfer, materials: &ObjectMaterials, cx: &RunCtx) -> Result<Image, NodeError> {
-        Ok(relight(transfer, materials, Some(cx))?)
+        relight(transfer, materials, Some(cx))
     }
 }
 

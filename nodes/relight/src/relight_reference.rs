@@ -4,24 +4,24 @@ use crate::types::PathCounts;
 use relume_base::render::film::{per_pixel_layers, with_ctx};
 use relume_base::types::accel::Accel;
 use relume_base::types::{gather_rows, row_spec, BrdfBasis, Image, ImageRows, ObjectMaterials, Scene};
-use relume_core::{inputs, node, outputs, NodeError, ParamEnum, Params, RunCtx, ShardSpec};
+use relume_core::{inputs, node, outputs, params, NodeError, ParamEnum, RunCtx, ShardSpec};
 use std::ops::Range;
 
-/// The same-seed render of pixel relighting: exactly the paths the precompute traced (`paths`:
-/// the sample counts and seed of `TransferPrecompute` or `SvTransferPrecompute`), weighted with
-/// one material per object instead of every basis. With `Analytic` BRDFs (texture maps read at
-/// every hit) its difference to `Relight` is the basis error alone, no Monte Carlo noise — the
-/// figure [S] 4.1.5 reports (figures 4-3, 4-4); to `SvRelight`, the basis, the sub-region and
-/// the compression errors together. With `Tabulated` BRDFs
-/// (each dynamic material as Σ c_k ρ̃_k on the basis) it equals `Relight` to float precision:
-/// the test that the stored images and the combine are right. Also the variance of its mean
-/// over the camera samples: `Relight`'s image has the same paths, so this is its variance too
-/// (to the basis error), what a z-test against the path tracer needs. Sharded over image rows.
-#[derive(Params)]
-pub struct RelightReference {
-    /// the dynamic objects' BRDFs: the analytic Blinn-Phong, or its projection on the basis
-    #[param(default = Analytic)]
-    pub brdf: ReferenceBrdf,
+params! {
+    /// The same-seed render of pixel relighting: exactly the paths the precompute traced (`paths`:
+    /// the sample counts and seed of `TransferPrecompute` or `SvTransferPrecompute`), weighted with
+    /// one material per object instead of every basis. With `Analytic` BRDFs (texture maps read at
+    /// every hit) its difference to `Relight` is the basis error alone, no Monte Carlo noise — the
+    /// figure [S] 4.1.5 reports (figures 4-3, 4-4); to `SvRelight`, the basis, the sub-region and
+    /// the compression errors together. With `Tabulated` BRDFs
+    /// (each dynamic material as Σ c_k ρ̃_k on the basis) it equals `Relight` to float precision:
+    /// the test that the stored images and the combine are right. Also the variance of its mean
+    /// over the camera samples: `Relight`'s image has the same paths, so this is its variance too
+    /// (to the basis error), what a z-test against the path tracer needs. Sharded over image rows.
+    pub struct RelightReference {
+        /// the dynamic objects' BRDFs: the analytic Blinn-Phong, or its projection on the basis
+        pub brdf: ReferenceBrdf = Analytic;
+    }
 }
 
 /// How `RelightReference` evaluates the dynamic materials.

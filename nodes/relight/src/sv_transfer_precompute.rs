@@ -4,44 +4,39 @@ use crate::types::{PathCounts, SvTransfer};
 use relume_base::types::accel::Accel;
 use relume_base::types::{BrdfBasis, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 
-/// The precompute of spatially varying pixel relighting ([S] 4.2.1–4.2.2): the paths of
-/// `TransferPrecompute`, but each dynamic object is split into n × n sub-regions of its UV
-/// square and the one-bounce images gain the sub-region r1 of x″. Direct light keeps every
-/// basis (N_b direct, the basis' size); the bounce uses the first `indirect_bases` and drops
-/// specular-to-specular inter-reflection (4-36), which leaves 2·N_b,indirect − 1 groups of n²
-/// images per dynamic object. Streamed (see `relight::sv_precompute`): the direct images are
-/// kept whole; each group is compressed as the thesis orders it — uncentred PCA along the
-/// sub-regions (keep `pca_keep`), a median filter per basis image that never mixes objects,
-/// 2-D Haar per basis image padded to a power-of-two square (keep `haar_keep`) — from Gram
-/// matrices filled in a first pass and projections of the same seeded paths in a second, so
-/// the uncompressed blocks (21 GiB in the thesis' setting) are never held. What it would hold
-/// is checked against the memory budget before anything is allocated. Every dynamic object
-/// needs UVs; its texture maps may be anything (`SvRelight` reads them per edit). Seeded:
-/// the same bytes on any thread count; `paths` gives the path counts to a same-seed render
-/// (`RelightReference`, which reads the texture maps at every hit). Not sharded: the second pass needs every pixel's
-/// Gram sums first.
-#[derive(Params)]
-pub struct SvTransferPrecompute {
-    /// the path counts and the seed (shared with the other precompute)
-    #[param(flatten)]
-    pub paths: PathCounts,
-    /// sub-regions per side of each dynamic object's UV square ([S]: 32, 1024 in all)
-    #[param(default = 32, range = 1..=64, test = 4)]
-    pub sub_regions: u32,
-    /// bases of the bounce (the first of the basis; [S]: 4 of 6)
-    #[param(default = 4, range = 1..=64)]
-    pub indirect_bases: u32,
-    /// fraction of the PCA components along the sub-regions kept per group ([S]: 12.5 %)
-    #[param(default = 0.125, range = 0.0001..=1.0)]
-    pub pca_keep: f64,
-    /// fraction of Haar coefficients kept per basis image ([S]: 13.3 %)
-    #[param(default = 0.133, range = 0.0001..=1.0)]
-    pub haar_keep: f64,
-    /// radius of the median filter on each basis image (0: none; 1: 3 × 3)
-    #[param(default = 1, range = 0..=8, unit = "pixels")]
-    pub median_radius: u32,
+params! {
+    /// The precompute of spatially varying pixel relighting ([S] 4.2.1–4.2.2): the paths of
+    /// `TransferPrecompute`, but each dynamic object is split into n × n sub-regions of its UV
+    /// square and the one-bounce images gain the sub-region r1 of x″. Direct light keeps every
+    /// basis (N_b direct, the basis' size); the bounce uses the first `indirect_bases` and drops
+    /// specular-to-specular inter-reflection (4-36), which leaves 2·N_b,indirect − 1 groups of n²
+    /// images per dynamic object. Streamed (see `relight::sv_precompute`): the direct images are
+    /// kept whole; each group is compressed as the thesis orders it — uncentred PCA along the
+    /// sub-regions (keep `pca_keep`), a median filter per basis image that never mixes objects,
+    /// 2-D Haar per basis image padded to a power-of-two square (keep `haar_keep`) — from Gram
+    /// matrices filled in a first pass and projections of the same seeded paths in a second, so
+    /// the uncompressed blocks (21 GiB in the thesis' setting) are never held. What it would hold
+    /// is checked against the memory budget before anything is allocated. Every dynamic object
+    /// needs UVs; its texture maps may be anything (`SvRelight` reads them per edit). Seeded:
+    /// the same bytes on any thread count; `paths` gives the path counts to a same-seed render
+    /// (`RelightReference`, which reads the texture maps at every hit). Not sharded: the second pass needs every pixel's
+    /// Gram sums first.
+    pub struct SvTransferPrecompute {
+        /// the path counts and the seed (shared with the other precompute)
+        pub paths: PathCounts, flatten;
+        /// sub-regions per side of each dynamic object's UV square ([S]: 32, 1024 in all)
+        pub sub_regions: u32 = 32, range = 1..=64, test = 4;
+        /// bases of the bounce (the first of the basis; [S]: 4 of 6)
+        pub indirect_bases: u32 = 4, range = 1..=64;
+        /// fraction of the PCA components along the sub-regions kept per group ([S]: 12.5 %)
+        pub pca_keep: f64 = 0.125, range = 0.0001..=1.0;
+        /// fraction of Haar coefficients kept per basis image ([S]: 13.3 %)
+        pub haar_keep: f64 = 0.133, range = 0.0001..=1.0;
+        /// radius of the median filter on each basis image (0: none; 1: 3 × 3)
+        pub median_radius: u32 = 1, range = 0..=8, unit = "pixels";
+    }
 }
 
 impl SvTransferPrecompute {

@@ -6,29 +6,29 @@ use relume_base::render::film::with_ctx;
 use relume_base::types::accel::Accel;
 use relume_base::types::{row_spec, BrdfBasis, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx, ShardSpec};
+use relume_core::{inputs, node, outputs, params, NodeError, RunCtx, ShardSpec};
 use std::ops::Range;
 
-/// Pixel relighting's precompute ([S] 4.1.1, 4.1.3, table 4-1): per pixel, ONE set of paths
-/// fills every transfer image the scene needs — direct light at the first hit x′ with each basis
-/// BRDF (I(P0, ρ′)) and one bounce through uniform hemisphere rays to x″ with direct light there,
-/// with each basis at x″ and at x′ (I(P1, ρ′, R1, ρ1)); fixed-material objects use their own
-/// BRDF. Which images exist, and which are grey, follows the scene (`relight::terms`; the report
-/// counts them and says what was left out). Basis BRDFs are signed: nothing is clamped,
-/// rouletted or importance-sampled by them. Camera samples are jittered over the pixel (the
-/// reference's box filter); a pixel takes the object most of its samples hit (the object-id
-/// image) and drops the reflected light of the others (counted: `dropped_samples`,
-/// `mixed_pixels`). Light seen directly (emitters, the environment) has an image of its own
-/// (`images_emitted`) averaged over every camera sample, so a light's edge is antialiased as in
-/// the reference. Seeded: the same bytes on any thread count and
-/// any sharding (sharded over image rows for `relume shard` / `--processes`); `paths` gives
-/// the path counts to a same-seed render (`RelightReference`). The held bytes
-/// (images × pixels × 4) are checked against the limit before anything is allocated.
-#[derive(Params)]
-pub struct TransferPrecompute {
-    /// the path counts and the seed (shared with the other precompute)
-    #[param(flatten)]
-    pub paths: PathCounts,
+params! {
+    /// Pixel relighting's precompute ([S] 4.1.1, 4.1.3, table 4-1): per pixel, ONE set of paths
+    /// fills every transfer image the scene needs — direct light at the first hit x′ with each basis
+    /// BRDF (I(P0, ρ′)) and one bounce through uniform hemisphere rays to x″ with direct light there,
+    /// with each basis at x″ and at x′ (I(P1, ρ′, R1, ρ1)); fixed-material objects use their own
+    /// BRDF. Which images exist, and which are grey, follows the scene (`relight::terms`; the report
+    /// counts them and says what was left out). Basis BRDFs are signed: nothing is clamped,
+    /// rouletted or importance-sampled by them. Camera samples are jittered over the pixel (the
+    /// reference's box filter); a pixel takes the object most of its samples hit (the object-id
+    /// image) and drops the reflected light of the others (counted: `dropped_samples`,
+    /// `mixed_pixels`). Light seen directly (emitters, the environment) has an image of its own
+    /// (`images_emitted`) averaged over every camera sample, so a light's edge is antialiased as in
+    /// the reference. Seeded: the same bytes on any thread count and
+    /// any sharding (sharded over image rows for `relume shard` / `--processes`); `paths` gives
+    /// the path counts to a same-seed render (`RelightReference`). The held bytes
+    /// (images × pixels × 4) are checked against the limit before anything is allocated.
+    pub struct TransferPrecompute {
+        /// the path counts and the seed (shared with the other precompute)
+        pub paths: PathCounts, flatten;
+    }
 }
 
 inputs!(pub TransferPrecomputeIn { scene: Scene, accel: Accel, basis: BrdfBasis });

@@ -6,38 +6,35 @@ use glam::Vec3;
 use relume_base::render::camera::CameraRays;
 use relume_base::types::{Accel, Camera};
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{inputs, node, outputs, params, NodeError, RunCtx};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-/// The camera's curved rays through a medium ([S] 6.3.5, the half of the eikonal render that
-/// does not depend on the light): per pixel `samples`² stratified rays go straight to the
-/// medium's box, then follow the ray equation through it with a fixed step (`step`, 1 voxel)
-/// — Störmer–Verlet or the thesis' Euler step x += Δs v / n, v += Δs ∇n (`integrator`, as
-/// `MarchPhotons`), |v| = n kept — or, with `adaptive`, the octree's step (`step` the least)
-/// inside clear leaves (κ = 0 all through: nothing to gather, the index flat within ε′) and,
-/// where nothing absorbs anywhere, straight on across uniform leaves to the first voxel that
-/// may bend the ray. Each step through scattering medium (σ > 0) keeps an in-scattering
-/// sample: its midpoint, direction and weight σ × ∫ transmittance (e^{−κΔs} falling along the
-/// path). The path ends on the straight segment it leaves the box along, or at a surface inside
-/// the box (from `accel`: wire a BVH of what does not move with the light, so that a light
-/// edit leaves the paths as they are; `EikonalRender` checks it sees the same surfaces
-/// there). The camera is an input of its own: orbiting re-runs this node and the shading.
-/// Rows in parallel, the same bytes on any thread count; the paths' bytes are counted as they
-/// grow and a trace that would pass the memory budget stops with the estimate.
-#[derive(Params)]
-pub struct EikonalPaths {
-    /// rays per pixel side (stratified): samples² rays per pixel
-    #[param(default = 1, range = 1..=16)]
-    pub samples: u32,
-    /// the marching step through the medium
-    #[param(default = 1.0, range = 0.05..=16.0, unit = "voxels")]
-    pub step: f32,
-    /// take the octree's longer steps through clear leaves ([S] 6.3.5 steps fixed everywhere)
-    #[param(default = true)]
-    pub adaptive: bool,
-    /// how the ray equation is stepped
-    #[param(default = Verlet)]
-    pub integrator: Integrator,
+params! {
+    /// The camera's curved rays through a medium ([S] 6.3.5, the half of the eikonal render that
+    /// does not depend on the light): per pixel `samples`² stratified rays go straight to the
+    /// medium's box, then follow the ray equation through it with a fixed step (`step`, 1 voxel)
+    /// — Störmer–Verlet or the thesis' Euler step x += Δs v / n, v += Δs ∇n (`integrator`, as
+    /// `MarchPhotons`), |v| = n kept — or, with `adaptive`, the octree's step (`step` the least)
+    /// inside clear leaves (κ = 0 all through: nothing to gather, the index flat within ε′) and,
+    /// where nothing absorbs anywhere, straight on across uniform leaves to the first voxel that
+    /// may bend the ray. Each step through scattering medium (σ > 0) keeps an in-scattering
+    /// sample: its midpoint, direction and weight σ × ∫ transmittance (e^{−κΔs} falling along the
+    /// path). The path ends on the straight segment it leaves the box along, or at a surface inside
+    /// the box (from `accel`: wire a BVH of what does not move with the light, so that a light
+    /// edit leaves the paths as they are; `EikonalRender` checks it sees the same surfaces
+    /// there). The camera is an input of its own: orbiting re-runs this node and the shading.
+    /// Rows in parallel, the same bytes on any thread count; the paths' bytes are counted as they
+    /// grow and a trace that would pass the memory budget stops with the estimate.
+    pub struct EikonalPaths {
+        /// rays per pixel side (stratified): samples² rays per pixel
+        pub samples: u32 = 1, range = 1..=16;
+        /// the marching step through the medium
+        pub step: f32 = 1.0, range = 0.05..=16.0, unit = "voxels";
+        /// take the octree's longer steps through clear leaves ([S] 6.3.5 steps fixed everywhere)
+        pub adaptive: bool = true;
+        /// how the ray equation is stepped
+        pub integrator: Integrator = Verlet;
+    }
 }
 
 inputs!(pub EikonalPathsIn { accel: Accel, medium: Volume, octree: Volume, camera: Camera });

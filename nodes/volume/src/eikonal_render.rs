@@ -9,29 +9,29 @@ use relume_base::render::integrator::Counts;
 use relume_base::render::lights::delta_sample;
 use relume_base::render::surface::Surface;
 use relume_base::types::{Accel, Image, Material, Scene};
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx};
+use relume_core::{inputs, node, outputs, params, NodeError, RunCtx};
 use std::f32::consts::PI;
 
-/// The picture of a medium and its surroundings ([S] 6.3.5), shaded along the camera's curved
-/// rays `EikonalPaths` traced (so that a light edit re-shades them and does not trace them
-/// again): per camera sample, a surface in front of the medium's box is shaded directly;
-/// otherwise the path gathers the in-scattered light at its samples, σ × fluence × phase ×
-/// transmittance (the fluence and mean light direction `MarchPhotons` stored; phase
-/// Henyey–Greenstein of `g` about that direction, blended toward isotropic as the stored light
-/// is less directed; `g` = 0 is isotropic), and takes the light from where it leaves: a surface
-/// it meets is shaded by its BSDF under each light (the pipeline's point lights, shadowed by the
-/// scene and by the medium's transmittance along the straight shadow ray; a shadow ray crossing
-/// voxels where rays bend gets nothing, that light arriving as photons), plus the caustic map's
-/// irradiance × its diffuse albedo; with no surface, the environment. Pixels average their
-/// samples. The surfaces inside the medium's box must be those the paths met (`accel` with
-/// the same triangles there), else an error says so. Biases by construction: no reflection at
-/// the object's interface (no Fresnel split), an interface blurred over the voxelisation's
-/// Gaussian, single scattering only. Rows in parallel, the same bytes on any thread count.
-#[derive(Params)]
-pub struct EikonalRender {
-    /// Henyey–Greenstein asymmetry of the medium (0: isotropic)
-    #[param(default = 0.0, range = -0.99..=0.99)]
-    pub g: f32,
+params! {
+    /// The picture of a medium and its surroundings ([S] 6.3.5), shaded along the camera's curved
+    /// rays `EikonalPaths` traced (so that a light edit re-shades them and does not trace them
+    /// again): per camera sample, a surface in front of the medium's box is shaded directly;
+    /// otherwise the path gathers the in-scattered light at its samples, σ × fluence × phase ×
+    /// transmittance (the fluence and mean light direction `MarchPhotons` stored; phase
+    /// Henyey–Greenstein of `g` about that direction, blended toward isotropic as the stored light
+    /// is less directed; `g` = 0 is isotropic), and takes the light from where it leaves: a surface
+    /// it meets is shaded by its BSDF under each light (the pipeline's point lights, shadowed by the
+    /// scene and by the medium's transmittance along the straight shadow ray; a shadow ray crossing
+    /// voxels where rays bend gets nothing, that light arriving as photons), plus the caustic map's
+    /// irradiance × its diffuse albedo; with no surface, the environment. Pixels average their
+    /// samples. The surfaces inside the medium's box must be those the paths met (`accel` with
+    /// the same triangles there), else an error says so. Biases by construction: no reflection at
+    /// the object's interface (no Fresnel split), an interface blurred over the voxelisation's
+    /// Gaussian, single scattering only. Rows in parallel, the same bytes on any thread count.
+    pub struct EikonalRender {
+        /// Henyey–Greenstein asymmetry of the medium (0: isotropic)
+        pub g: f32 = 0.0, range = -0.99..=0.99;
+    }
 }
 
 inputs!(pub EikonalRenderIn { scene: Scene, accel: Accel, medium: Volume, octree: Volume, radiance: Volume, caustics: CausticMap, paths: ViewPaths });

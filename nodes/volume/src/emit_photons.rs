@@ -5,30 +5,28 @@ use relume_base::math::cubemap::rect_solid_angle;
 use relume_base::math::rng::uniform;
 use relume_base::types::{Accel, Light, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, params, NodeError, ParamEnum, RunCtx};
 
-/// Photons from every light into a medium's box, shadow-map style ([S] 6.3.3): each light
-/// looks at the proxy through a `resolution`² image (a frustum around the proxy's bounding
-/// sphere for point and spot lights, a square across it for directional ones); every texel
-/// whose ray (jittered inside the texel, seeded) reaches the proxy unoccluded emits one photon
-/// at the entry point. Power: the light's intensity along the ray × the texel's exact solid
-/// angle (point, spot), or the irradiance × the texel's area (directional) — so an empty
-/// volume under a directional light holds fluence E. Emissive objects become point lights of
-/// the same power at their centroids (`optics::photon_lights`). The proxy is the box of the
-/// voxels that differ from empty space (n ≠ 1 or κ > 0), one voxel wider (`Active`: photons
-/// through the rest would go straight and deposit nothing), or the whole box. A light inside
-/// the proxy is an error. Rows in parallel, the same photons on any thread count.
-#[derive(Params)]
-pub struct EmitPhotons {
-    /// texels across the light's view of the proxy (photons ≤ resolution² per light)
-    #[param(default = 1024, range = 1..=8192, unit = "texels", test = 64)]
-    pub resolution: u32,
-    /// where photons enter: the active part of the medium or its whole box
-    #[param(default = Active)]
-    pub proxy: Proxy,
-    /// seed of the jitter inside texels
-    #[param(default = 1, range = 0..=1000000)]
-    pub seed: u32,
+params! {
+    /// Photons from every light into a medium's box, shadow-map style ([S] 6.3.3): each light
+    /// looks at the proxy through a `resolution`² image (a frustum around the proxy's bounding
+    /// sphere for point and spot lights, a square across it for directional ones); every texel
+    /// whose ray (jittered inside the texel, seeded) reaches the proxy unoccluded emits one photon
+    /// at the entry point. Power: the light's intensity along the ray × the texel's exact solid
+    /// angle (point, spot), or the irradiance × the texel's area (directional) — so an empty
+    /// volume under a directional light holds fluence E. Emissive objects become point lights of
+    /// the same power at their centroids (`optics::photon_lights`). The proxy is the box of the
+    /// voxels that differ from empty space (n ≠ 1 or κ > 0), one voxel wider (`Active`: photons
+    /// through the rest would go straight and deposit nothing), or the whole box. A light inside
+    /// the proxy is an error. Rows in parallel, the same photons on any thread count.
+    pub struct EmitPhotons {
+        /// texels across the light's view of the proxy (photons ≤ resolution² per light)
+        pub resolution: u32 = 1024, range = 1..=8192, unit = "texels", test = 64;
+        /// where photons enter: the active part of the medium or its whole box
+        pub proxy: Proxy = Active;
+        /// seed of the jitter inside texels
+        pub seed: u32 = 1, range = 0..=1000000;
+    }
 }
 
 /// What the lights aim photons at.

@@ -7,71 +7,63 @@ use rayon::prelude::*;
 use relume_base::math::morton::morton3;
 use relume_base::types::{Accel, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx, ShardSpec};
+use relume_core::{inputs, node, outputs, params, NodeError, RunCtx, ShardSpec};
 use std::ops::Range;
 use std::sync::atomic::{AtomicI64, Ordering};
 use std::sync::OnceLock;
 
-/// Photons through a refractive, absorbing and scattering medium ([S] 6.3.4, 6-1 … 6-6):
-/// each photon follows the ray equation v = n dx/ds, dv/ds = ∇n, with |v| = n restored every
-/// step — by Störmer–Verlet steps (`integrator`; the thesis' Euler step x += Δs v / n,
-/// v += Δs ∇n is the other choice: it lets totally reflected light leak, see
-/// `optics::Integrator`; steps longer than Δs_min, through leaves flat within ε′, are
-/// explicit midpoint steps either way); its power falls as e^{−κΔs}. The step
-/// Δs is the distance to the boundary of the photon's octree leaf along its direction,
-/// at least `min_step` (Δs_min) and at most the leaf's Δs_max (`Octree`); in a uniform leaf
-/// (Δs_max unbounded) where no ray bends, the photon flies straight on across leaves to the
-/// first voxel that may bend it, in one step (the octree's clearance: the trilinear gradient
-/// is below 10⁻⁶ per voxel all the way, so the stepped ray would go as straight). Along every step the
-/// photon deposits its power × the length it travels in each voxel it crosses (where σ > 0)
-/// and its luminance × length × direction; those sums over the voxel's volume are the fluence
-/// (W/unit²) and the mean light direction `EikonalRender` reads, after a 3³ Gaussian
-/// (`blur_sigma`). Photons leave the box (then fly straight on), fall below `cutoff` of their
-/// power, or hit a surface; marching stops when fewer than `stop_fraction` of a chunk's photons
-/// remain ([S]: 1/1000; counted every 8 steps: photons in Morton order of their first voxel,
-/// in groups of 64 neighbours that take 8 steps in turn, a step of each photon of the group
-/// after the other — independent work the processor overlaps, on voxels in cache) or after
-/// `max_steps` steps. Caustics: the light is split by straight
-/// lines. A photon whose straight line crosses no voxel where rays may bend (`Octree`'s
-/// clearance 0) would go exactly straight: its light reaches surfaces as the render's direct light
-/// (straight, attenuated by the medium's transmittance), so it adds nothing to the map (and
-/// is not marched at all where nothing absorbs or scatters). Every other photon is marched
-/// and adds its power where it lands on the planar `receiver`, where the render's shadow rays
-/// — crossing the same voxels — give no direct light. The map is in W/unit²,
-/// blurred by a Gaussian of `map_blur` texels. Sums are fixed-point integers (2⁻⁴⁰ of the
-/// largest deposit), so threads and shards give the same bytes in any order. Sharded over
-/// photons in chunks of 2¹⁸; the 1/1000 rule applies per chunk. Output `radiance`: 6 channels
-/// (fluence RGB, light direction xyz) on the medium's grid, or one empty voxel when nothing
-/// scatters (σ = 0 everywhere: nothing to store).
-#[derive(Params)]
-pub struct MarchPhotons {
-    /// Δs_min, the smallest step
-    #[param(default = 1.0, range = 0.05..=16.0, unit = "voxels")]
-    pub min_step: f32,
-    /// how the ray equation is stepped
-    #[param(default = Verlet)]
-    pub integrator: Integrator,
-    /// a photon is dropped below this fraction of its initial power
-    #[param(default = 0.001, range = 0.0..=1.0)]
-    pub cutoff: f32,
-    /// marching stops when fewer than this fraction of a chunk's photons remain
-    #[param(default = 0.001, range = 0.0..=1.0)]
-    pub stop_fraction: f32,
-    /// the most steps a photon takes
-    #[param(default = 20000, range = 1..=10000000)]
-    pub max_steps: u32,
-    /// the planar object caustics land on ("": none)
-    #[param(default = "floor")]
-    pub receiver: String,
-    /// caustic-map texels along the receiver's longer side
-    #[param(default = 256, range = 1..=8192, unit = "texels")]
-    pub map_resolution: u32,
-    /// standard deviation of the 3³ Gaussian on the stored radiance (0: none)
-    #[param(default = 1.0, range = 0.0..=4.0, unit = "voxels")]
-    pub blur_sigma: f32,
-    /// radius of the Gaussian on the caustic map (σ = radius; 0: none)
-    #[param(default = 1, range = 0..=8, unit = "texels")]
-    pub map_blur: u32,
+params! {
+    /// Photons through a refractive, absorbing and scattering medium ([S] 6.3.4, 6-1 … 6-6):
+    /// each photon follows the ray equation v = n dx/ds, dv/ds = ∇n, with |v| = n restored every
+    /// step — by Störmer–Verlet steps (`integrator`; the thesis' Euler step x += Δs v / n,
+    /// v += Δs ∇n is the other choice: it lets totally reflected light leak, see
+    /// `optics::Integrator`; steps longer than Δs_min, through leaves flat within ε′, are
+    /// explicit midpoint steps either way); its power falls as e^{−κΔs}. The step
+    /// Δs is the distance to the boundary of the photon's octree leaf along its direction,
+    /// at least `min_step` (Δs_min) and at most the leaf's Δs_max (`Octree`); in a uniform leaf
+    /// (Δs_max unbounded) where no ray bends, the photon flies straight on across leaves to the
+    /// first voxel that may bend it, in one step (the octree's clearance: the trilinear gradient
+    /// is below 10⁻⁶ per voxel all the way, so the stepped ray would go as straight). Along every step the
+    /// photon deposits its power × the length it travels in each voxel it crosses (where σ > 0)
+    /// and its luminance × length × direction; those sums over the voxel's volume are the fluence
+    /// (W/unit²) and the mean light direction `EikonalRender` reads, after a 3³ Gaussian
+    /// (`blur_sigma`). Photons leave the box (then fly straight on), fall below `cutoff` of their
+    /// power, or hit a surface; marching stops when fewer than `stop_fraction` of a chunk's photons
+    /// remain ([S]: 1/1000; counted every 8 steps: photons in Morton order of their first voxel,
+    /// in groups of 64 neighbours that take 8 steps in turn, a step of each photon of the group
+    /// after the other — independent work the processor overlaps, on voxels in cache) or after
+    /// `max_steps` steps. Caustics: the light is split by straight
+    /// lines. A photon whose straight line crosses no voxel where rays may bend (`Octree`'s
+    /// clearance 0) would go exactly straight: its light reaches surfaces as the render's direct light
+    /// (straight, attenuated by the medium's transmittance), so it adds nothing to the map (and
+    /// is not marched at all where nothing absorbs or scatters). Every other photon is marched
+    /// and adds its power where it lands on the planar `receiver`, where the render's shadow rays
+    /// — crossing the same voxels — give no direct light. The map is in W/unit²,
+    /// blurred by a Gaussian of `map_blur` texels. Sums are fixed-point integers (2⁻⁴⁰ of the
+    /// largest deposit), so threads and shards give the same bytes in any order. Sharded over
+    /// photons in chunks of 2¹⁸; the 1/1000 rule applies per chunk. Output `radiance`: 6 channels
+    /// (fluence RGB, light direction xyz) on the medium's grid, or one empty voxel when nothing
+    /// scatters (σ = 0 everywhere: nothing to store).
+    pub struct MarchPhotons {
+        /// Δs_min, the smallest step
+        pub min_step: f32 = 1.0, range = 0.05..=16.0, unit = "voxels";
+        /// how the ray equation is stepped
+        pub integrator: Integrator = Verlet;
+        /// a photon is dropped below this fraction of its initial power
+        pub cutoff: f32 = 0.001, range = 0.0..=1.0;
+        /// marching stops when fewer than this fraction of a chunk's photons remain
+        pub stop_fraction: f32 = 0.001, range = 0.0..=1.0;
+        /// the most steps a photon takes
+        pub max_steps: u32 = 20000, range = 1..=10000000;
+        /// the planar object caustics land on ("": none)
+        pub receiver: String = "floor";
+        /// caustic-map texels along the receiver's longer side
+        pub map_resolution: u32 = 256, range = 1..=8192, unit = "texels";
+        /// standard deviation of the 3³ Gaussian on the stored radiance (0: none)
+        pub blur_sigma: f32 = 1.0, range = 0.0..=4.0, unit = "voxels";
+        /// radius of the Gaussian on the caustic map (σ = radius; 0: none)
+        pub map_blur: u32 = 1, range = 0..=8, unit = "texels";
+    }
 }
 
 inputs!(pub MarchPhotonsIn { scene: Scene, accel: Accel, medium: Volume, octree: Volume, photons: Photons });

@@ -3,41 +3,39 @@ use super::pyramid::MinMaxPyramid;
 use crate::types::Volume;
 use glam::Vec3;
 use rayon::prelude::*;
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 
-/// The adaptive step of photon marching ([S] 6.3.2, 6.4.3, figure 6-4), per voxel of the
-/// refractive index (channel 0 of `medium`): from the min/max pyramid (a cell spans its
-/// voxels and their upper neighbours, what trilinear sampling blends), the voxel's leaf is the
-/// largest aligned cell whose index range is below ε′ (`flat`, 0.02); the largest step
-/// Δs_max is unbounded where the leaf's range is below ε (`uniform`, 0.005), `step` voxels (8)
-/// where it is between, and 0 — the marcher's minimum step — where even the voxel's own cell
-/// spans ε′ or more. This is the reading docs/PIPELINES.md gives: read literally (leaves built with
-/// ε, then "8 voxels below ε′") the ε′ rule never fires. Extinction does not shape the leaves ([S] 6.3.2 found it mattered little: the
-/// marcher integrates it exactly voxel by voxel); instead each voxel records whether its
-/// leaf is clear (κ = 0 all through it), where the eikonal render may take the leaf's steps
-/// too, having nothing to gather there. Output, 8 channels on the same grid: the leaf level
-/// (cell side 2^level voxels, aligned to multiples of it), Δs_max in voxels (+∞ for
-/// unbounded), clear (1 or 0), the clearance (0 where the voxel or a neighbour has
-/// |∇n| × voxel > 10⁻⁶: where a ray's trilinear gradient can be non-zero, "bends"; elsewhere
-/// the L∞ distance in voxels to the nearest such voxel, at most 16), then n (the
-/// medium's own) and ∇n (central differences one voxel apart, replicated at the faces:
-/// trilinear sampling of these is the central difference of the trilinear index, what
-/// `Volume::gradient` computes) side by side, so that a ray step reads both in one lookup. A
-/// straight line that crosses no voxel that bends is a ray the medium leaves exactly straight:
-/// the photons and the render's shadow rays split the light by it, and a ray in a voxel of
-/// clearance c may fly c − 1 voxels (along the axis it moves fastest along) straight on
-/// without a lookup (`optics::straight_run`).
-#[derive(Params)]
-pub struct Octree {
-    /// ε: an index range below this is uniform (unbounded steps)
-    #[param(default = 0.005, range = 0.0..=1.0)]
-    pub uniform: f32,
-    /// ε′: an index range below this is flat enough for a leaf
-    #[param(default = 0.02, range = 0.0..=1.0)]
-    pub flat: f32,
-    /// Δs_max inside leaves that are flat but not uniform
-    #[param(default = 8.0, range = 1.0..=1024.0, unit = "voxels")]
-    pub step: f32,
+params! {
+    /// The adaptive step of photon marching ([S] 6.3.2, 6.4.3, figure 6-4), per voxel of the
+    /// refractive index (channel 0 of `medium`): from the min/max pyramid (a cell spans its
+    /// voxels and their upper neighbours, what trilinear sampling blends), the voxel's leaf is the
+    /// largest aligned cell whose index range is below ε′ (`flat`, 0.02); the largest step
+    /// Δs_max is unbounded where the leaf's range is below ε (`uniform`, 0.005), `step` voxels (8)
+    /// where it is between, and 0 — the marcher's minimum step — where even the voxel's own cell
+    /// spans ε′ or more. This is the reading docs/PIPELINES.md gives: read literally (leaves built with
+    /// ε, then "8 voxels below ε′") the ε′ rule never fires. Extinction does not shape the leaves ([S] 6.3.2 found it mattered little: the
+    /// marcher integrates it exactly voxel by voxel); instead each voxel records whether its
+    /// leaf is clear (κ = 0 all through it), where the eikonal render may take the leaf's steps
+    /// too, having nothing to gather there. Output, 8 channels on the same grid: the leaf level
+    /// (cell side 2^level voxels, aligned to multiples of it), Δs_max in voxels (+∞ for
+    /// unbounded), clear (1 or 0), the clearance (0 where the voxel or a neighbour has
+    /// |∇n| × voxel > 10⁻⁶: where a ray's trilinear gradient can be non-zero, "bends"; elsewhere
+    /// the L∞ distance in voxels to the nearest such voxel, at most 16), then n (the
+    /// medium's own) and ∇n (central differences one voxel apart, replicated at the faces:
+    /// trilinear sampling of these is the central difference of the trilinear index, what
+    /// `Volume::gradient` computes) side by side, so that a ray step reads both in one lookup. A
+    /// straight line that crosses no voxel that bends is a ray the medium leaves exactly straight:
+    /// the photons and the render's shadow rays split the light by it, and a ray in a voxel of
+    /// clearance c may fly c − 1 voxels (along the axis it moves fastest along) straight on
+    /// without a lookup (`optics::straight_run`).
+    pub struct Octree {
+        /// ε: an index range below this is uniform (unbounded steps)
+        pub uniform: f32 = 0.005, range = 0.0..=1.0;
+        /// ε′: an index range below this is flat enough for a leaf
+        pub flat: f32 = 0.02, range = 0.0..=1.0;
+        /// Δs_max inside leaves that are flat but not uniform
+        pub step: f32 = 8.0, range = 1.0..=1024.0, unit = "voxels";
+    }
 }
 
 /// The octree of channel 0 of `v` (see the node's doc) and the voxel counts per step class

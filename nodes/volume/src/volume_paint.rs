@@ -1,37 +1,31 @@
 use crate::types::Volume;
 use glam::{EulerRot, Quat, Vec3};
-use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, params, NodeError, ParamEnum, RunCtx};
 
-/// One brush stroke in a medium ([S] 6.5.2.1, volume painting): a brush pattern placed at
-/// `centre`, scaled by `radius` × `stretch` along its own axes and turned by `rotation` (Euler
-/// angles in degrees, about x, then y, then z), adds `weight` × the pattern (0 … 1) to one
-/// channel — the refractive index, the extinction κ or the scattering σ. Chain one node per
-/// stroke: strokes are parameters, saved with the graph and undone with it, and a stroke
-/// re-runs only what reads the medium (the octree onward, never `Voxelize`). Afterwards n ≥ 1,
-/// κ ≥ 0 and 0 ≤ σ ≤ κ hold (painting σ above κ raises κ with it: scattering is extinction).
-#[derive(Params)]
-pub struct VolumePaint {
-    /// the property painted
-    #[param(default = Index)]
-    pub channel: PaintChannel,
-    /// the brush's pattern
-    #[param(default = Ball)]
-    pub brush: Brush,
-    /// centre of the stroke (scene units)
-    #[param(default = (0.0, 0.6, 0.0))]
-    pub centre: Vec3,
-    /// size of the brush (scene units)
-    #[param(default = 0.2, range = 1e-6..=1e6)]
-    pub radius: f32,
-    /// the brush's relative size along its own x, y, z
-    #[param(default = (1.0, 1.0, 1.0))]
-    pub stretch: Vec3,
-    /// the brush's turn: Euler angles about x, y, z (degrees)
-    #[param(default = (0.0, 0.0, 0.0))]
-    pub rotation: Vec3,
-    /// what the pattern's full strength adds (negative removes)
-    #[param(default = 0.2, range = -1e6..=1e6)]
-    pub weight: f32,
+params! {
+    /// One brush stroke in a medium ([S] 6.5.2.1, volume painting): a brush pattern placed at
+    /// `centre`, scaled by `radius` × `stretch` along its own axes and turned by `rotation` (Euler
+    /// angles in degrees, about x, then y, then z), adds `weight` × the pattern (0 … 1) to one
+    /// channel — the refractive index, the extinction κ or the scattering σ. Chain one node per
+    /// stroke: strokes are parameters, saved with the graph and undone with it, and a stroke
+    /// re-runs only what reads the medium (the octree onward, never `Voxelize`). Afterwards n ≥ 1,
+    /// κ ≥ 0 and 0 ≤ σ ≤ κ hold (painting σ above κ raises κ with it: scattering is extinction).
+    pub struct VolumePaint {
+        /// the property painted
+        pub channel: PaintChannel = Index;
+        /// the brush's pattern
+        pub brush: Brush = Ball;
+        /// centre of the stroke (scene units)
+        pub centre: Vec3 = (0.0, 0.6, 0.0);
+        /// size of the brush (scene units)
+        pub radius: f32 = 0.2, range = 1e-6..=1e6;
+        /// the brush's relative size along its own x, y, z
+        pub stretch: Vec3 = (1.0, 1.0, 1.0);
+        /// the brush's turn: Euler angles about x, y, z (degrees)
+        pub rotation: Vec3 = (0.0, 0.0, 0.0);
+        /// what the pattern's full strength adds (negative removes)
+        pub weight: f32 = 0.2, range = -1e6..=1e6;
+    }
 }
 
 /// The channel a stroke paints.

@@ -1,24 +1,22 @@
 use crate::types::Volume;
 use relume_base::types::Image;
-use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, params, NodeError, ParamEnum, RunCtx};
 
-/// A plane through a volume as an image, to look at a voxelised index, a painted weight or the
-/// stored radiance: the voxels of one slice across `axis` at `position` (0 … 1 across the box),
-/// channel `channel` in grey or, for a 3-channel volume with `channel` = −1, the three channels
-/// as RGB. Values are raw (an index of 1.5 shows as 1.5); tone-map or scale to view. The image
-/// is the slice's voxels, one pixel each, row 0 at the top (the largest coordinate of the
-/// slice's vertical axis: y for x and z slices, z for y slices).
-#[derive(Params)]
-pub struct VolumeSlice {
-    /// the axis the slice is across
-    #[param(default = Z)]
-    pub axis: Axis,
-    /// where across the box, 0 at its minimum, 1 at its maximum
-    #[param(default = 0.5, range = 0.0..=1.0)]
-    pub position: f32,
-    /// the channel shown (−1: channels 0, 1, 2 as RGB)
-    #[param(default = 0, range = -1..=63)]
-    pub channel: i32,
+params! {
+    /// A plane through a volume as an image, to look at a voxelised index, a painted weight or the
+    /// stored radiance: the voxels of one slice across `axis` at `position` (0 … 1 across the box),
+    /// channel `channel` in grey or, for a 3-channel volume with `channel` = −1, the three channels
+    /// as RGB. Values are raw (an index of 1.5 shows as 1.5); tone-map or scale to view. The image
+    /// is the slice's voxels, one pixel each, row 0 at the top (the largest coordinate of the
+    /// slice's vertical axis: y for x and z slices, z for y slices).
+    pub struct VolumeSlice {
+        /// the axis the slice is across
+        pub axis: Axis = Z;
+        /// where across the box, 0 at its minimum, 1 at its maximum
+        pub position: f32 = 0.5, range = 0.0..=1.0;
+        /// the channel shown (−1: channels 0, 1, 2 as RGB)
+        pub channel: i32 = 0, range = -1..=63;
+    }
 }
 
 /// An axis of a volume.
@@ -58,7 +56,7 @@ pub fn slice(v: &Volume, axis: Axis, position: f32, channel: i32) -> Result<Imag
 #[node(category = "volume", outputs = [image])]
 impl VolumeSlice {
     fn run(&self, volume: &Volume, _cx: &RunCtx) -> Result<Image, NodeError> {
-        Ok(slice(volume, self.axis, self.position, self.channel)?)
+        slice(volume, self.axis, self.position, self.channel)
     }
 }
 

@@ -1,56 +1,46 @@
 use crate::types::Volume;
 use glam::Vec3;
 use relume_base::math::rng::uniform;
-use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, params, NodeError, ParamEnum, RunCtx};
 
-/// A procedural medium ([S] 6.5: gradient-index objects, turbulent media) on a cubic grid of
-/// `resolution`³ voxels over the cube of side `size` at `centre`, in the layout `Voxelize`
-/// gives (channels: refractive index n, extinction κ, scattering σ):
-/// - `Constant`: n = `index` everywhere;
-/// - `GrinSphere`: inside the sphere of `radius`, n falls parabolically from `index` at the
-///   centre to 1 at the surface (n = 1 + (index − 1)(1 − r²/R²)), 1 outside;
-/// - `Luneburg`: the Luneburg lens n = √(2 − r²/R²) inside, 1 outside — it focuses a parallel
-///   beam on the sphere's far side, an analytic check of photon marching;
-/// - `Turbulence`: n = `index` + `amplitude` × seeded value noise (four octaves of trilinear
-///   lattice noise at `frequency` cells across the cube, zero mean).
-///
-/// κ = `extinction` and σ = `scattering` wherever n ≠ 1 (everywhere for `Constant` and
-/// `Turbulence`). Voxels in parallel; the same bytes on any thread count.
-#[derive(Params)]
-pub struct VolumeSource {
-    /// which medium
-    #[param(default = GrinSphere)]
-    pub kind: SourceKind,
-    /// voxels along each side
-    #[param(default = 128, range = 1..=1024, unit = "voxels", test = 32)]
-    pub resolution: u32,
-    /// centre of the cube
-    #[param(default = (0.0, 0.6, 0.0))]
-    pub centre: Vec3,
-    /// side of the cube (scene units)
-    #[param(default = 1.2, range = 1e-6..=1e6)]
-    pub size: f32,
-    /// radius of the sphere (GrinSphere, Luneburg)
-    #[param(default = 0.5, range = 1e-6..=1e6)]
-    pub radius: f32,
-    /// refractive index (Constant, Turbulence), or at the centre (GrinSphere)
-    #[param(default = 1.5, range = 1.0..=10.0)]
-    pub index: f32,
-    /// amplitude of the index noise (Turbulence)
-    #[param(default = 0.05, range = 0.0..=5.0)]
-    pub amplitude: f32,
-    /// noise cells across the cube at the first octave (Turbulence)
-    #[param(default = 4.0, range = 1.0..=256.0)]
-    pub frequency: f32,
-    /// extinction κ where the medium is (per unit length)
-    #[param(default = 0.0, range = 0.0..=1e6, unit = "1/unit")]
-    pub extinction: f32,
-    /// scattering σ where the medium is (per unit length, ≤ κ)
-    #[param(default = 0.0, range = 0.0..=1e6, unit = "1/unit")]
-    pub scattering: f32,
-    /// random seed (Turbulence)
-    #[param(default = 0, range = 0..=u32::MAX)]
-    pub seed: u64,
+params! {
+    /// A procedural medium ([S] 6.5: gradient-index objects, turbulent media) on a cubic grid of
+    /// `resolution`³ voxels over the cube of side `size` at `centre`, in the layout `Voxelize`
+    /// gives (channels: refractive index n, extinction κ, scattering σ):
+    /// - `Constant`: n = `index` everywhere;
+    /// - `GrinSphere`: inside the sphere of `radius`, n falls parabolically from `index` at the
+    ///   centre to 1 at the surface (n = 1 + (index − 1)(1 − r²/R²)), 1 outside;
+    /// - `Luneburg`: the Luneburg lens n = √(2 − r²/R²) inside, 1 outside — it focuses a parallel
+    ///   beam on the sphere's far side, an analytic check of photon marching;
+    /// - `Turbulence`: n = `index` + `amplitude` × seeded value noise (four octaves of trilinear
+    ///   lattice noise at `frequency` cells across the cube, zero mean).
+    ///
+    /// κ = `extinction` and σ = `scattering` wherever n ≠ 1 (everywhere for `Constant` and
+    /// `Turbulence`). Voxels in parallel; the same bytes on any thread count.
+    pub struct VolumeSource {
+        /// which medium
+        pub kind: SourceKind = GrinSphere;
+        /// voxels along each side
+        pub resolution: u32 = 128, range = 1..=1024, unit = "voxels", test = 32;
+        /// centre of the cube
+        pub centre: Vec3 = (0.0, 0.6, 0.0);
+        /// side of the cube (scene units)
+        pub size: f32 = 1.2, range = 1e-6..=1e6;
+        /// radius of the sphere (GrinSphere, Luneburg)
+        pub radius: f32 = 0.5, range = 1e-6..=1e6;
+        /// refractive index (Constant, Turbulence), or at the centre (GrinSphere)
+        pub index: f32 = 1.5, range = 1.0..=10.0;
+        /// amplitude of the index noise (Turbulence)
+        pub amplitude: f32 = 0.05, range = 0.0..=5.0;
+        /// noise cells across the cube at the first octave (Turbulence)
+        pub frequency: f32 = 4.0, range = 1.0..=256.0;
+        /// extinction κ where the medium is (per unit length)
+        pub extinction: f32 = 0.0, range = 0.0..=1e6, unit = "1/unit";
+        /// scattering σ where the medium is (per unit length, ≤ κ)
+        pub scattering: f32 = 0.0, range = 0.0..=1e6, unit = "1/unit";
+        /// random seed (Turbulence)
+        pub seed: u64 = 0, range = 0..=u32::MAX;
+    }
 }
 
 /// A procedural medium.

@@ -4,51 +4,43 @@ use crate::types::Volume;
 use glam::{UVec3, Vec3};
 use relume_base::geometry::closed_mesh::{enclosed_volume, open_edges};
 use relume_base::types::{Material, Scene};
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 
-/// A closed mesh object as a refractive medium ([S] 6.3.1): the inside fraction f of every
-/// voxel of a grid fitted around the object (cubic voxels, `resolution` along its longest
-/// side, `padding` of that side added around so the blur has room), mapped to the refractive
-/// index n = 1 + (index − 1) f, the extinction κ = (σ_a + σ_s) f and the scattering σ = σ_s f
-/// (channels 0, 1, 2), then Gaussian-blurred (`blur_radius` 3: 7³, 4: 9³). Fractions come from
-/// scanlines along x (exact along x): first one line through each voxel row's centre, then,
-/// for boundary voxels (3³ neighbourhood not uniform, or holding a mesh vertex, so a mesh
-/// smaller than a voxel is never missed), `supersample`² lines per voxel row; a mesh all lines
-/// miss puts its exact volume (divergence theorem) into the voxel at its centre. The report
-/// gives the voxelised volume against the mesh's (`volume_error_pct`). Inside is
-/// decided by parity, which needs a closed mesh: an object with edges not shared by exactly two
-/// faces is an error naming it. Index 0 takes the object's dielectric index; negative σ take
-/// the object's medium (grey: the mean over RGB). Rows in parallel, the same bytes on any
-/// thread count; the grid's bytes are checked against the budget before allocating.
-#[derive(Params)]
-pub struct Voxelize {
-    /// the scene object to voxelize (a closed mesh)
-    #[param(default = "glass")]
-    pub object: String,
-    /// voxels along the object's longest side
-    #[param(default = 128, range = 1..=1024, unit = "voxels", test = 32)]
-    pub resolution: u32,
-    /// margin around the object, as a fraction of its longest side
-    #[param(default = 0.1, range = 0.0..=2.0)]
-    pub padding: f32,
-    /// refractive index inside (0: the object's dielectric index)
-    #[param(default = 0.0, range = 0.0..=10.0)]
-    pub index: f32,
-    /// absorption σ_a inside, per unit length (negative: the object's medium)
-    #[param(default = -1.0, range = -1.0..=1e6, unit = "1/unit")]
-    pub absorption: f32,
-    /// scattering σ_s inside, per unit length (negative: the object's medium)
-    #[param(default = -1.0, range = -1.0..=1e6, unit = "1/unit")]
-    pub scattering: f32,
-    /// radius of the Gaussian blur (3: 7³, 4: 9³; 0: none)
-    #[param(default = 3, range = 0..=8, unit = "voxels")]
-    pub blur_radius: u32,
-    /// standard deviation of the Gaussian blur
-    #[param(default = 1.0, range = 0.0..=8.0, unit = "voxels")]
-    pub blur_sigma: f32,
-    /// lines per side of a boundary voxel row (4: 16 lines)
-    #[param(default = 4, range = 1..=16)]
-    pub supersample: u32,
+params! {
+    /// A closed mesh object as a refractive medium ([S] 6.3.1): the inside fraction f of every
+    /// voxel of a grid fitted around the object (cubic voxels, `resolution` along its longest
+    /// side, `padding` of that side added around so the blur has room), mapped to the refractive
+    /// index n = 1 + (index − 1) f, the extinction κ = (σ_a + σ_s) f and the scattering σ = σ_s f
+    /// (channels 0, 1, 2), then Gaussian-blurred (`blur_radius` 3: 7³, 4: 9³). Fractions come from
+    /// scanlines along x (exact along x): first one line through each voxel row's centre, then,
+    /// for boundary voxels (3³ neighbourhood not uniform, or holding a mesh vertex, so a mesh
+    /// smaller than a voxel is never missed), `supersample`² lines per voxel row; a mesh all lines
+    /// miss puts its exact volume (divergence theorem) into the voxel at its centre. The report
+    /// gives the voxelised volume against the mesh's (`volume_error_pct`). Inside is
+    /// decided by parity, which needs a closed mesh: an object with edges not shared by exactly two
+    /// faces is an error naming it. Index 0 takes the object's dielectric index; negative σ take
+    /// the object's medium (grey: the mean over RGB). Rows in parallel, the same bytes on any
+    /// thread count; the grid's bytes are checked against the budget before allocating.
+    pub struct Voxelize {
+        /// the scene object to voxelize (a closed mesh)
+        pub object: String = "glass";
+        /// voxels along the object's longest side
+        pub resolution: u32 = 128, range = 1..=1024, unit = "voxels", test = 32;
+        /// margin around the object, as a fraction of its longest side
+        pub padding: f32 = 0.1, range = 0.0..=2.0;
+        /// refractive index inside (0: the object's dielectric index)
+        pub index: f32 = 0.0, range = 0.0..=10.0;
+        /// absorption σ_a inside, per unit length (negative: the object's medium)
+        pub absorption: f32 = -1.0, range = -1.0..=1e6, unit = "1/unit";
+        /// scattering σ_s inside, per unit length (negative: the object's medium)
+        pub scattering: f32 = -1.0, range = -1.0..=1e6, unit = "1/unit";
+        /// radius of the Gaussian blur (3: 7³, 4: 9³; 0: none)
+        pub blur_radius: u32 = 3, range = 0..=8, unit = "voxels";
+        /// standard deviation of the Gaussian blur
+        pub blur_sigma: f32 = 1.0, range = 0.0..=8.0, unit = "voxels";
+        /// lines per side of a boundary voxel row (4: 16 lines)
+        pub supersample: u32 = 4, range = 1..=16;
+    }
 }
 
 /// The grid fitted around `lo … hi`: its box and dimensions.

@@ -1,48 +1,46 @@
 use crate::math::pca::uncentred_pca_with;
 use crate::types::{BasisFamily, BrdfBasis, BrdfSample, BrdfSpace, Metrics};
-use relume_core::{node, MemoryEstimate, NodeError, ParamEnum, Params, PortSize, RunCtx};
+use relume_core::{node, params, MemoryEstimate, NodeError, ParamEnum, PortSize, RunCtx};
 
-/// N_b basis BRDFs from a BRDF space ([S] 4-19 … 4-22). Basis 1 is the diffuse sample itself
-/// (divided by its kd: the table 1/π, so a material's diffuse coefficient is its Kd); bases
-/// 2 … N_b are the leading N_b − 1 components of an uncentred PCA (no mean subtracted, [S]
-/// 4-20) of the specular samples, each divided by its ks (`math/pca.rs`: Gram route in f64,
-/// decreasing eigenvalue, largest entry positive, so re-runs give identical bytes). The
-/// specular samples get no diffuse coefficient ([S] 4-21); their coefficients on bases 2 …
-/// form the table c(s) that `MaterialProject` interpolates linearly in s ([S] 4-22). From a
-/// Cook-Torrance space (`BrdfSpaceSample`'s `model`) the basis keeps no table but the range of
-/// roughness and F0 it was sampled over: `MaterialProject` fits each material on it. A
-/// rank-deficient sample set (all exponents equal, duplicated samples) gives fewer bases,
-/// with a note.
-///
-/// Weighting: by default each grid cell counts with its solid angle (dωi dωo), the measure a
-/// renderer integrates against; `Uniform` counts every (θi, θo, φ) cell alike, as [S] does by
-/// flattening its uniformly sampled tensor into a vector. `normalise` scales each specular
-/// sample to unit norm (under the weighting) before the PCA, so that every exponent counts
-/// alike; without it the raw samples are used and the tall lobes of large s dominate (at the
-/// thesis' setting the s = 1 sample is then rebuilt with 22 % error). Measured at that setting
-/// (30 × 30 × 60, s = 1 … 200, N_b = 6): `Uniform` + `normalise` gives a total error of
-/// 0.799 % and a max of 6.77 % (mean 0.89 %), against [S]'s "0.7979 %, the largest single
-/// sample 6.747 %": [S] most likely normalised its samples, weighted cells alike and quoted
-/// the total. The defaults (`SolidAngle` + `normalise`) give mean 1.18 %, max 8.85 %, total
-/// 1.07 % in the solid-angle norm.
-///
-/// Metrics: the relative L2 reconstruction error ‖f − f̂‖ / ‖f‖ of each specular sample, in %
-/// (f̂ rebuilt from the f32 tables as output): `l2_error_mean_pct` / `_max_pct` over the
-/// samples and `_total_pct` over all of them at once, under the chosen weighting, and the same
-/// mean and max under each weighting (`solid_angle_…`, `uniform_…`); the bases, the numerical
-/// rank of the specular set and the share of its energy (Σ eigenvalues, of the samples as the
-/// PCA saw them) the bases keep.
-#[derive(Params)]
-pub struct BrdfPca {
-    /// number of bases N_b, the diffuse one included
-    #[param(default = 6, range = 2..=32)]
-    pub bases: usize,
-    /// how grid cells count in the PCA and its error: by solid angle, or all alike as in [S]
-    #[param(default = SolidAngle)]
-    pub weighting: Weighting,
-    /// scale each specular sample to unit norm before the PCA, so every exponent counts alike
-    #[param(default = true)]
-    pub normalise: bool,
+params! {
+    /// N_b basis BRDFs from a BRDF space ([S] 4-19 … 4-22). Basis 1 is the diffuse sample itself
+    /// (divided by its kd: the table 1/π, so a material's diffuse coefficient is its Kd); bases
+    /// 2 … N_b are the leading N_b − 1 components of an uncentred PCA (no mean subtracted, [S]
+    /// 4-20) of the specular samples, each divided by its ks (`math/pca.rs`: Gram route in f64,
+    /// decreasing eigenvalue, largest entry positive, so re-runs give identical bytes). The
+    /// specular samples get no diffuse coefficient ([S] 4-21); their coefficients on bases 2 …
+    /// form the table c(s) that `MaterialProject` interpolates linearly in s ([S] 4-22). From a
+    /// Cook-Torrance space (`BrdfSpaceSample`'s `model`) the basis keeps no table but the range of
+    /// roughness and F0 it was sampled over: `MaterialProject` fits each material on it. A
+    /// rank-deficient sample set (all exponents equal, duplicated samples) gives fewer bases,
+    /// with a note.
+    ///
+    /// Weighting: by default each grid cell counts with its solid angle (dωi dωo), the measure a
+    /// renderer integrates against; `Uniform` counts every (θi, θo, φ) cell alike, as [S] does by
+    /// flattening its uniformly sampled tensor into a vector. `normalise` scales each specular
+    /// sample to unit norm (under the weighting) before the PCA, so that every exponent counts
+    /// alike; without it the raw samples are used and the tall lobes of large s dominate (at the
+    /// thesis' setting the s = 1 sample is then rebuilt with 22 % error). Measured at that setting
+    /// (30 × 30 × 60, s = 1 … 200, N_b = 6): `Uniform` + `normalise` gives a total error of
+    /// 0.799 % and a max of 6.77 % (mean 0.89 %), against [S]'s "0.7979 %, the largest single
+    /// sample 6.747 %": [S] most likely normalised its samples, weighted cells alike and quoted
+    /// the total. The defaults (`SolidAngle` + `normalise`) give mean 1.18 %, max 8.85 %, total
+    /// 1.07 % in the solid-angle norm.
+    ///
+    /// Metrics: the relative L2 reconstruction error ‖f − f̂‖ / ‖f‖ of each specular sample, in %
+    /// (f̂ rebuilt from the f32 tables as output): `l2_error_mean_pct` / `_max_pct` over the
+    /// samples and `_total_pct` over all of them at once, under the chosen weighting, and the same
+    /// mean and max under each weighting (`solid_angle_…`, `uniform_…`); the bases, the numerical
+    /// rank of the specular set and the share of its energy (Σ eigenvalues, of the samples as the
+    /// PCA saw them) the bases keep.
+    pub struct BrdfPca {
+        /// number of bases N_b, the diffuse one included
+        pub bases: usize = 6, range = 2..=32;
+        /// how grid cells count in the PCA and its error: by solid angle, or all alike as in [S]
+        pub weighting: Weighting = SolidAngle;
+        /// scale each specular sample to unit norm before the PCA, so every exponent counts alike
+        pub normalise: bool = true;
+    }
 }
 
 /// How `BrdfPca` weighs the grid cells.

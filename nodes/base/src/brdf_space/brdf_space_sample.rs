@@ -1,65 +1,54 @@
 use crate::brdf::BrdfModel;
 use crate::math::spread;
 use crate::types::{cos_half, BrdfGrid, BrdfSample, BrdfSpace, MAX_BRDF_SPACE_BYTES};
-use relume_core::{memory::fmt_bytes, node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{memory::fmt_bytes, node, params, MemoryEstimate, NodeError, PortSize, RunCtx};
 
-/// Tabulates BRDFs on a (θi, θo, φ) grid, the BRDF space of pipeline 1 ([S] 4.1.2, 4-17,
-/// 4-18). Sample 1 is diffuse (kd = 1, ks = 0); the other samples − 1 are specular (kd = 0,
-/// ks = 1) of the chosen `model`:
-///
-/// - Blinn-Phong: exponents spaced linearly over [s_min, s_max] ([S]: "s 在选定的范围内均匀
-///   采样", uniformly over the chosen range; one specular sample takes s_min). The BRDF is the
-///   project's normalised Blinn-Phong, (s+2)/(8π) cos^s δ (`brdf/blinn_phong.rs`), not the
-///   thesis' printed (s+2)/(2π).
-/// - Cook-Torrance (`brdf/cook_torrance.rs`, D F G / (4 cos θi cos θo)): `f0_count` Schlick F0
-///   values over [f0_min, f0_max] times (samples − 1) / f0_count Beckmann roughnesses over
-///   [m_min, m_max], roughness-major. The lobe is linear in F0, so the two ends (the default
-///   f0_count = 2) span every F0 between them; the defaults are `BrdfTensor`'s ranges, which
-///   `PttRelight` holds a material to. This is the space for the transfer tensors' bounce
-///   channels when the dynamic object is Cook-Torrance: a Blinn-Phong space cannot hold the
-///   microfacet lobe's growth toward grazing (see `MaterialProject`).
-///
-/// Values are taken at cell centres, φ the relative azimuth folded into [0, π] with the mirror
-/// direction at φ = π (see `BrdfSpace`). Sizes over 2 GiB of table are refused before
-/// allocating.
-#[derive(Params)]
-pub struct BrdfSpaceSample {
-    /// cells over the incident polar angle θi ∈ [0, π/2]
-    #[param(default = 30, range = 1..=1024, test = 8)]
-    pub n_theta_i: usize,
-    /// cells over the outgoing polar angle θo ∈ [0, π/2]
-    #[param(default = 30, range = 1..=1024, test = 8)]
-    pub n_theta_o: usize,
-    /// cells over the relative azimuth φ ∈ [0, π] (mirror direction at π)
-    #[param(default = 60, range = 1..=2048, test = 16)]
-    pub n_phi: usize,
-    /// BRDF samples N_s: one diffuse, N_s − 1 specular
-    #[param(default = 201, range = 2..=2048, test = 21)]
-    pub samples: usize,
-    /// Blinn-Phong: smallest exponent of the specular samples
-    #[param(default = 1.0, range = 0.0..=1e5)]
-    pub s_min: f32,
-    /// Blinn-Phong: largest exponent of the specular samples
-    #[param(default = 200.0, range = 0.0..=1e5)]
-    pub s_max: f32,
-    /// specular model of the samples: Blinn-Phong (s) or Cook-Torrance (m, F0)
-    #[param(default = BlinnPhong)]
-    pub model: BrdfModel,
-    /// Cook-Torrance: smallest Beckmann roughness m
-    #[param(default = 0.05, range = 0.001..=1.0)]
-    pub m_min: f32,
-    /// Cook-Torrance: largest Beckmann roughness m
-    #[param(default = 0.6, range = 0.001..=1.0)]
-    pub m_max: f32,
-    /// Cook-Torrance: smallest Schlick F0
-    #[param(default = 0.02, range = 0.0..=1.0)]
-    pub f0_min: f32,
-    /// Cook-Torrance: largest Schlick F0
-    #[param(default = 1.0, range = 0.0..=1.0)]
-    pub f0_max: f32,
-    /// Cook-Torrance: F0 values per roughness (2: the ends, which span every F0 between)
-    #[param(default = 2, range = 1..=64)]
-    pub f0_count: usize,
+params! {
+    /// Tabulates BRDFs on a (θi, θo, φ) grid, the BRDF space of pipeline 1 ([S] 4.1.2, 4-17,
+    /// 4-18). Sample 1 is diffuse (kd = 1, ks = 0); the other samples − 1 are specular (kd = 0,
+    /// ks = 1) of the chosen `model`:
+    ///
+    /// - Blinn-Phong: exponents spaced linearly over [s_min, s_max] ([S]: "s 在选定的范围内均匀
+    ///   采样", uniformly over the chosen range; one specular sample takes s_min). The BRDF is the
+    ///   project's normalised Blinn-Phong, (s+2)/(8π) cos^s δ (`brdf/blinn_phong.rs`), not the
+    ///   thesis' printed (s+2)/(2π).
+    /// - Cook-Torrance (`brdf/cook_torrance.rs`, D F G / (4 cos θi cos θo)): `f0_count` Schlick F0
+    ///   values over [f0_min, f0_max] times (samples − 1) / f0_count Beckmann roughnesses over
+    ///   [m_min, m_max], roughness-major. The lobe is linear in F0, so the two ends (the default
+    ///   f0_count = 2) span every F0 between them; the defaults are `BrdfTensor`'s ranges, which
+    ///   `PttRelight` holds a material to. This is the space for the transfer tensors' bounce
+    ///   channels when the dynamic object is Cook-Torrance: a Blinn-Phong space cannot hold the
+    ///   microfacet lobe's growth toward grazing (see `MaterialProject`).
+    ///
+    /// Values are taken at cell centres, φ the relative azimuth folded into [0, π] with the mirror
+    /// direction at φ = π (see `BrdfSpace`). Sizes over 2 GiB of table are refused before
+    /// allocating.
+    pub struct BrdfSpaceSample {
+        /// cells over the incident polar angle θi ∈ [0, π/2]
+        pub n_theta_i: usize = 30, range = 1..=1024, test = 8;
+        /// cells over the outgoing polar angle θo ∈ [0, π/2]
+        pub n_theta_o: usize = 30, range = 1..=1024, test = 8;
+        /// cells over the relative azimuth φ ∈ [0, π] (mirror direction at π)
+        pub n_phi: usize = 60, range = 1..=2048, test = 16;
+        /// BRDF samples N_s: one diffuse, N_s − 1 specular
+        pub samples: usize = 201, range = 2..=2048, test = 21;
+        /// Blinn-Phong: smallest exponent of the specular samples
+        pub s_min: f32 = 1.0, range = 0.0..=1e5;
+        /// Blinn-Phong: largest exponent of the specular samples
+        pub s_max: f32 = 200.0, range = 0.0..=1e5;
+        /// specular model of the samples: Blinn-Phong (s) or Cook-Torrance (m, F0)
+        pub model: BrdfModel = BlinnPhong;
+        /// Cook-Torrance: smallest Beckmann roughness m
+        pub m_min: f32 = 0.05, range = 0.001..=1.0;
+        /// Cook-Torrance: largest Beckmann roughness m
+        pub m_max: f32 = 0.6, range = 0.001..=1.0;
+        /// Cook-Torrance: smallest Schlick F0
+        pub f0_min: f32 = 0.02, range = 0.0..=1.0;
+        /// Cook-Torrance: largest Schlick F0
+        pub f0_max: f32 = 1.0, range = 0.0..=1.0;
+        /// Cook-Torrance: F0 values per roughness (2: the ends, which span every F0 between)
+        pub f0_count: usize = 2, range = 1..=64;
+    }
 }
 
 impl BrdfSpaceSample {

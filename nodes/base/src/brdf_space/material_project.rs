@@ -1,63 +1,57 @@
 use crate::brdf::BrdfModel;
 use crate::types::{BasisFamily, BrdfBasis, BrdfSample, ObjectMaterial, ObjectMaterials, Specular};
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 
-/// Projects the dynamic objects' materials on a BRDF basis ([S] 4-22), per colour channel:
-/// basis 0 (diffuse) gets Kd, specular basis k gets Ks · c_k. This is the edit node of
-/// relighting (pixel relighting, and the transfer tensors' BRDF edit): `object` names the
-/// dynamic object whose material the parameters set (empty: none, every object keeps the
-/// material its input gives); chain one node per edited object.
-///
-/// `model` picks the edited object's specular lobe: Blinn-Phong (exponent `s`) or
-/// Cook-Torrance (Beckmann roughness `m`, Schlick `f0`, as `brdf/cook_torrance.rs`; the ranges
-/// `BrdfTensor`'s Cook-Torrance grid takes, which `PttRelight` checks the material against).
-/// How the lobe (ks = 1) finds its coefficients depends on the basis' family
-/// (`BrdfSpaceSample`'s `model`):
-///
-/// - a Blinn-Phong lobe on a Blinn-Phong basis: c(s) interpolated linearly in s between the
-///   sampled exponents; an s outside the sampled range is a parameter error naming the range,
-///   never clamped: a clamped exponent would silently render another material (widen
-///   `BrdfSpaceSample`'s s_min / s_max instead);
-/// - a Cook-Torrance lobe on a Cook-Torrance basis: m and F0 must lie in the sampled ranges
-///   (a parameter error naming the range otherwise), and c is the least-squares fit of the
-///   lobe on the specular bases under the cells' projected solid angle
-///   (`BrdfBasis::fit_specular`);
-/// - a lobe of the other family than the basis': the same least-squares fit, however far the
-///   bases are from holding it. A Cook-Torrance lobe on a Blinn-Phong basis fits badly (79.5 %
-///   relative L2 error for m 0.3 on a 12 × 12 × 24 basis), nearly all of it the microfacet
-///   lobe's 1/(cos θi cos θo) growth toward grazing that Blinn-Phong bases cannot hold; it
-///   reaches only the light bounced off the object (the transfer tensors shade the object
-///   itself with their own tensor). Give such a graph a Cook-Torrance space.
-///
-/// Every fit's relative L2 error is reported (`fit_error_max_pct`).
-///
-/// With Ks = 0 the specular parameters play no part. Kd + Ks > 1 ([S] 4-16 asks ≤ 1) is
-/// allowed with a note.
-///
-/// Metrics (when a lobe was fitted): `fit_error_max_pct`, the largest fit error.
-#[derive(Params)]
-pub struct MaterialProject {
-    /// the dynamic object to edit (a name from `SceneMaterials`; empty: edit none)
-    #[param(default = "")]
-    pub object: String,
-    /// diffuse reflectance Kd of the edited object
-    #[param(rgb, default = (0.5, 0.5, 0.5), range = 0.0..=1.0)]
-    pub kd: [f32; 3],
-    /// specular reflectance Ks of the edited object
-    #[param(rgb, default = (0.5, 0.5, 0.5), range = 0.0..=1.0)]
-    pub ks: [f32; 3],
-    /// Blinn-Phong exponent s of the edited object, within the basis' sampled range
-    #[param(default = 20.0, range = 0.0..=1e5)]
-    pub s: f32,
-    /// specular model of the edited object: Blinn-Phong (s) or Cook-Torrance (m, f0)
-    #[param(default = BlinnPhong)]
-    pub model: BrdfModel,
-    /// Cook-Torrance: Beckmann roughness m (RMS slope) of the edited object
-    #[param(default = 0.3, range = 0.001..=1.0)]
-    pub m: f32,
-    /// Cook-Torrance: Schlick F0 (reflectance at normal incidence) of the edited object
-    #[param(default = 0.5, range = 0.0..=1.0)]
-    pub f0: f32,
+params! {
+    /// Projects the dynamic objects' materials on a BRDF basis ([S] 4-22), per colour channel:
+    /// basis 0 (diffuse) gets Kd, specular basis k gets Ks · c_k. This is the edit node of
+    /// relighting (pixel relighting, and the transfer tensors' BRDF edit): `object` names the
+    /// dynamic object whose material the parameters set (empty: none, every object keeps the
+    /// material its input gives); chain one node per edited object.
+    ///
+    /// `model` picks the edited object's specular lobe: Blinn-Phong (exponent `s`) or
+    /// Cook-Torrance (Beckmann roughness `m`, Schlick `f0`, as `brdf/cook_torrance.rs`; the ranges
+    /// `BrdfTensor`'s Cook-Torrance grid takes, which `PttRelight` checks the material against).
+    /// How the lobe (ks = 1) finds its coefficients depends on the basis' family
+    /// (`BrdfSpaceSample`'s `model`):
+    ///
+    /// - a Blinn-Phong lobe on a Blinn-Phong basis: c(s) interpolated linearly in s between the
+    ///   sampled exponents; an s outside the sampled range is a parameter error naming the range,
+    ///   never clamped: a clamped exponent would silently render another material (widen
+    ///   `BrdfSpaceSample`'s s_min / s_max instead);
+    /// - a Cook-Torrance lobe on a Cook-Torrance basis: m and F0 must lie in the sampled ranges
+    ///   (a parameter error naming the range otherwise), and c is the least-squares fit of the
+    ///   lobe on the specular bases under the cells' projected solid angle
+    ///   (`BrdfBasis::fit_specular`);
+    /// - a lobe of the other family than the basis': the same least-squares fit, however far the
+    ///   bases are from holding it. A Cook-Torrance lobe on a Blinn-Phong basis fits badly (79.5 %
+    ///   relative L2 error for m 0.3 on a 12 × 12 × 24 basis), nearly all of it the microfacet
+    ///   lobe's 1/(cos θi cos θo) growth toward grazing that Blinn-Phong bases cannot hold; it
+    ///   reaches only the light bounced off the object (the transfer tensors shade the object
+    ///   itself with their own tensor). Give such a graph a Cook-Torrance space.
+    ///
+    /// Every fit's relative L2 error is reported (`fit_error_max_pct`).
+    ///
+    /// With Ks = 0 the specular parameters play no part. Kd + Ks > 1 ([S] 4-16 asks ≤ 1) is
+    /// allowed with a note.
+    ///
+    /// Metrics (when a lobe was fitted): `fit_error_max_pct`, the largest fit error.
+    pub struct MaterialProject {
+        /// the dynamic object to edit (a name from `SceneMaterials`; empty: edit none)
+        pub object: String = "";
+        /// diffuse reflectance Kd of the edited object
+        pub kd: [f32; 3] = (0.5, 0.5, 0.5), rgb, range = 0.0..=1.0;
+        /// specular reflectance Ks of the edited object
+        pub ks: [f32; 3] = (0.5, 0.5, 0.5), rgb, range = 0.0..=1.0;
+        /// Blinn-Phong exponent s of the edited object, within the basis' sampled range
+        pub s: f32 = 20.0, range = 0.0..=1e5;
+        /// specular model of the edited object: Blinn-Phong (s) or Cook-Torrance (m, f0)
+        pub model: BrdfModel = BlinnPhong;
+        /// Cook-Torrance: Beckmann roughness m (RMS slope) of the edited object
+        pub m: f32 = 0.3, range = 0.001..=1.0;
+        /// Cook-Torrance: Schlick F0 (reflectance at normal incidence) of the edited object
+        pub f0: f32 = 0.5, range = 0.0..=1.0;
+    }
 }
 
 /// A material's specular coefficients on bases 1.. and the fit's relative error (`None`

@@ -1,20 +1,19 @@
 use crate::types::accel::{Accel, BuildQuality};
 use crate::types::Scene;
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 
-/// Builds a compressed-wide BVH (obvhs, PLOC) over every triangle of a scene, for
-/// closest-hit rays and shadow rays that stop at the first blocker. The build is
-/// deterministic; a disk-cached BVH is stored whole (nodes and prepared triangles). `exclude`
-/// leaves one object out (pipeline 3: the refractive object, which the medium volume stands
-/// for); hits still name scene triangles.
-#[derive(Params)]
-pub struct BuildBvh {
-    /// build effort against traversal speed (obvhs presets)
-    #[param(default = Medium)]
-    pub quality: BuildQuality,
-    /// an object to leave out ("": none)
-    #[param(default = "")]
-    pub exclude: String,
+params! {
+    /// Builds a compressed-wide BVH (obvhs, PLOC) over every triangle of a scene, for
+    /// closest-hit rays and shadow rays that stop at the first blocker. The build is
+    /// deterministic; a disk-cached BVH is stored whole (nodes and prepared triangles). `exclude`
+    /// leaves one object out (pipeline 3: the refractive object, which the medium volume stands
+    /// for); hits still name scene triangles.
+    pub struct BuildBvh {
+        /// build effort against traversal speed (obvhs presets)
+        pub quality: BuildQuality = Medium;
+        /// an object to leave out ("": none)
+        pub exclude: String = "";
+    }
 }
 
 #[node(category = "geometry", version = 2, metrics = ["triangles", "bvh_nodes"], outputs = [accel])]

@@ -2,30 +2,27 @@ use crate::math::rng::uniform;
 use crate::math::sampling::{uniform_triangle, Distribution1D};
 use crate::types::{Material, Scene, SurfacePoints, MAX_IMAGE_BYTES};
 use glam::{Vec2, Vec3};
-use relume_core::{node, CancelToken, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, params, CancelToken, NodeError, ParamEnum, RunCtx};
 use std::collections::HashMap;
 
-/// Samples points on every surface of a scene. `AreaCdf`: exactly `count` points, each
-/// triangle chosen in proportion to its area, uniform inside it (seeded). `PoissonDisk`:
-/// dart throwing over area-CDF candidates (8 per requested point) with a grid, keeping a
-/// point only if no kept point lies within r = sqrt(A / (count π)) · 0.75; it keeps fewer
-/// than `count` points and says how many. Each point carries position, shading normal, the
-/// radius of the disk of area A / n it stands for, object and material. Emissive objects
-/// are left out unless `emitters` is set.
-#[derive(Params)]
-pub struct SampleSurface {
-    /// area-proportional random points, or a Poisson-disk subset of them
-    #[param(default = AreaCdf)]
-    pub method: Method,
-    /// points requested
-    #[param(default = 100_000, range = 1..=100_000_000, unit = "points", test = 2000)]
-    pub count: usize,
-    /// random seed
-    #[param(default = 0, range = 0..=u32::MAX)]
-    pub seed: u64,
-    /// also sample emissive objects (lights); off for PBGI, whose direct pass handles them
-    #[param(default = false)]
-    pub emitters: bool,
+params! {
+    /// Samples points on every surface of a scene. `AreaCdf`: exactly `count` points, each
+    /// triangle chosen in proportion to its area, uniform inside it (seeded). `PoissonDisk`:
+    /// dart throwing over area-CDF candidates (8 per requested point) with a grid, keeping a
+    /// point only if no kept point lies within r = sqrt(A / (count π)) · 0.75; it keeps fewer
+    /// than `count` points and says how many. Each point carries position, shading normal, the
+    /// radius of the disk of area A / n it stands for, object and material. Emissive objects
+    /// are left out unless `emitters` is set.
+    pub struct SampleSurface {
+        /// area-proportional random points, or a Poisson-disk subset of them
+        pub method: Method = AreaCdf;
+        /// points requested
+        pub count: usize = 100_000, range = 1..=100_000_000, unit = "points", test = 2000;
+        /// random seed
+        pub seed: u64 = 0, range = 0..=u32::MAX;
+        /// also sample emissive objects (lights); off for PBGI, whose direct pass handles them
+        pub emitters: bool = false;
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ParamEnum)]

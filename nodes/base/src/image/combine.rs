@@ -1,17 +1,16 @@
 use crate::types::Image;
 use rayon::prelude::*;
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 
-/// Weighted sum of two images of the same size: out = weight_a · a + weight_b · b
-/// (direct + indirect lighting, or the difference of two renders with weight_b = −1).
-#[derive(Params)]
-pub struct Combine {
-    /// factor on input a
-    #[param(default = 1.0, range = -1e6..=1e6)]
-    pub weight_a: f32,
-    /// factor on input b
-    #[param(default = 1.0, range = -1e6..=1e6)]
-    pub weight_b: f32,
+params! {
+    /// Weighted sum of two images of the same size: out = weight_a · a + weight_b · b
+    /// (direct + indirect lighting, or the difference of two renders with weight_b = −1).
+    pub struct Combine {
+        /// factor on input a
+        pub weight_a: f32 = 1.0, range = -1e6..=1e6;
+        /// factor on input b
+        pub weight_b: f32 = 1.0, range = -1e6..=1e6;
+    }
 }
 
 #[node(category = "image", outputs = [image])]

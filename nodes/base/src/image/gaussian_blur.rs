@@ -1,17 +1,16 @@
 use crate::types::Image;
-use relume_core::{node, CancelToken, NodeError, Params, RunCtx};
+use relume_core::{node, params, CancelToken, NodeError, RunCtx};
 
-/// Separable Gaussian blur with clamp-to-edge borders. The kernel reaches
-/// ceil(truncate · σ) pixels each way and is normalised to sum 1, so a constant image stays
-/// constant; σ = 0 returns the input unchanged.
-#[derive(Params)]
-pub struct GaussianBlur {
-    /// standard deviation of the Gaussian
-    #[param(default = 1.0, range = 0.0..=256.0, unit = "px")]
-    pub sigma: f64,
-    /// kernel radius in standard deviations
-    #[param(default = 3.0, range = 1.0..=8.0, unit = "σ")]
-    pub truncate: f64,
+params! {
+    /// Separable Gaussian blur with clamp-to-edge borders. The kernel reaches
+    /// ceil(truncate · σ) pixels each way and is normalised to sum 1, so a constant image stays
+    /// constant; σ = 0 returns the input unchanged.
+    pub struct GaussianBlur {
+        /// standard deviation of the Gaussian
+        pub sigma: f64 = 1.0, range = 0.0..=256.0, unit = "px";
+        /// kernel radius in standard deviations
+        pub truncate: f64 = 3.0, range = 1.0..=8.0, unit = "σ";
+    }
 }
 
 /// Normalised 1-D Gaussian weights for offsets −r..=r.

@@ -1,31 +1,30 @@
 use crate::image::ssim::ssim_with;
 use crate::math::srgb::srgb_encode;
 use crate::types::{Image, Metrics};
-use relume_core::{node, CancelToken, NodeError, Params, RunCtx};
+use relume_core::{node, params, CancelToken, NodeError, RunCtx};
 
-/// Error of an image against a reference of the same size, into the run report:
-/// MSE (mean over pixels and channels of (x − r)²), relative MSE (mean of
-/// (x − r)² / (r² + ε)), PSNR = 10 log10(peak² / MSE) in dB, the theses' L2 % =
-/// 100 · ‖x − r‖₂ / ‖r‖₂, and two perceptual figures of the images as a display shows them
-/// (linear / `peak` clamped to [0, 1], sRGB-encoded, as in a PNG): `flip`, the mean of
-/// NVIDIA's LDR-ꟻLIP error map (Andersson et al. 2020, `nv-flip` crate, 67 pixels per degree,
-/// 8-bit input; 0 = identical, 1 = maximal; the crate has no HDR-ꟻLIP, so differences above
-/// `peak` are not seen), which models what a viewer sees flipping between the two, so it
-/// punishes a brightness shift as much as blotches and forgives pixel-scale noise; and
-/// `ssim`, mean SSIM (Wang et al. 2004; 11 × 11 Gaussian window, σ = 1.5, K1 = 0.01,
-/// K2 = 0.03, L = 1) of the Rec. 709 luma, 1 = identical, which punishes lost structure
-/// more than a brightness shift. Pixels where either image is not finite are left out of
-/// every figure and counted in `nonfinite_pixels` (ꟻLIP gets the same finite value in
-/// both images there; SSIM's windows skip them). Also outputs the per-pixel squared-error
-/// map.
-#[derive(Params)]
-pub struct ImageError {
-    /// signal peak: PSNR's peak, and the linear value ꟻLIP shows as display white
-    #[param(default = 1.0, range = 1e-6..=1e6)]
-    pub peak: f64,
-    /// ε in relative MSE's denominator (r² + ε), keeps dark pixels from dominating
-    #[param(default = 1e-2, range = 1e-8..=1.0)]
-    pub epsilon: f64,
+params! {
+    /// Error of an image against a reference of the same size, into the run report:
+    /// MSE (mean over pixels and channels of (x − r)²), relative MSE (mean of
+    /// (x − r)² / (r² + ε)), PSNR = 10 log10(peak² / MSE) in dB, the theses' L2 % =
+    /// 100 · ‖x − r‖₂ / ‖r‖₂, and two perceptual figures of the images as a display shows them
+    /// (linear / `peak` clamped to [0, 1], sRGB-encoded, as in a PNG): `flip`, the mean of
+    /// NVIDIA's LDR-ꟻLIP error map (Andersson et al. 2020, `nv-flip` crate, 67 pixels per degree,
+    /// 8-bit input; 0 = identical, 1 = maximal; the crate has no HDR-ꟻLIP, so differences above
+    /// `peak` are not seen), which models what a viewer sees flipping between the two, so it
+    /// punishes a brightness shift as much as blotches and forgives pixel-scale noise; and
+    /// `ssim`, mean SSIM (Wang et al. 2004; 11 × 11 Gaussian window, σ = 1.5, K1 = 0.01,
+    /// K2 = 0.03, L = 1) of the Rec. 709 luma, 1 = identical, which punishes lost structure
+    /// more than a brightness shift. Pixels where either image is not finite are left out of
+    /// every figure and counted in `nonfinite_pixels` (ꟻLIP gets the same finite value in
+    /// both images there; SSIM's windows skip them). Also outputs the per-pixel squared-error
+    /// map.
+    pub struct ImageError {
+        /// signal peak: PSNR's peak, and the linear value ꟻLIP shows as display white
+        pub peak: f64 = 1.0, range = 1e-6..=1e6;
+        /// ε in relative MSE's denominator (r² + ε), keeps dark pixels from dominating
+        pub epsilon: f64 = 1e-2, range = 1e-8..=1.0;
+    }
 }
 
 /// Error figures of `x` against `r` (same size), in the order the report lists them; outside

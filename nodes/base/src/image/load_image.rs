@@ -1,14 +1,15 @@
 use crate::image::io::read_image;
 use crate::types::Image;
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 use std::path::PathBuf;
 
-/// Reads an image file: OpenEXR (linear RGB) or PNG (sRGB, decoded to linear).
-/// The cache key hashes the file's content, so editing the file re-runs what depends on it.
-#[derive(Params)]
-pub struct LoadImage {
-    /// image file (.exr or .png), relative to the graph file
-    pub path: PathBuf,
+params! {
+    /// Reads an image file: OpenEXR (linear RGB) or PNG (sRGB, decoded to linear).
+    /// The cache key hashes the file's content, so editing the file re-runs what depends on it.
+    pub struct LoadImage {
+        /// image file (.exr or .png), relative to the graph file
+        pub path: PathBuf;
+    }
 }
 
 #[node(category = "image", outputs = [image])]

@@ -1,14 +1,14 @@
 use crate::types::Image;
-use relume_core::{node, CancelToken, NodeError, Params, RunCtx};
+use relume_core::{node, params, CancelToken, NodeError, RunCtx};
 
-/// Per-channel median over a (2·radius + 1)² window with clamp-to-edge borders: removes
-/// isolated outliers (fireflies) while keeping edges. NaN sorts above every number
-/// (total order), so a lone NaN pixel is replaced by its neighbours' median.
-#[derive(Params)]
-pub struct MedianFilter {
-    /// window half-size; 0 returns the input
-    #[param(default = 1, range = 0..=16, unit = "px")]
-    pub radius: usize,
+params! {
+    /// Per-channel median over a (2·radius + 1)² window with clamp-to-edge borders: removes
+    /// isolated outliers (fireflies) while keeping edges. NaN sorts above every number
+    /// (total order), so a lone NaN pixel is replaced by its neighbours' median.
+    pub struct MedianFilter {
+        /// window half-size; 0 returns the input
+        pub radius: usize = 1, range = 0..=16, unit = "px";
+    }
 }
 
 /// Median-filters an image (shared with later pipeline stages), outside a node run: never
@@ -80,7 +80,7 @@ impl MedianFilter {
     }
 
     fn run(&self, image: &Image, cx: &RunCtx) -> Result<Image, NodeError> {
-        Ok(median_filter_with(image, self.radius, cx)?)
+        median_filter_with(image, self.radius, cx)
     }
 }
 

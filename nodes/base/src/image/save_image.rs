@@ -1,16 +1,16 @@
 use crate::image::io::write_image;
 use crate::types::Image;
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 use std::path::PathBuf;
 
-/// Writes its input to a file (.exr: linear float; .png: 8-bit sRGB, clamped) and passes
-/// the image on. It has a side effect, so it is never cached and runs whenever needed.
-#[derive(Params)]
-pub struct SaveImage {
-    /// file to write (.exr or .png), relative to the graph file; it must lie below the graph's
-    /// folder or the run's output folder unless the run allows writes anywhere
-    #[param(output)]
-    pub path: PathBuf,
+params! {
+    /// Writes its input to a file (.exr: linear float; .png: 8-bit sRGB, clamped) and passes
+    /// the image on. It has a side effect, so it is never cached and runs whenever needed.
+    pub struct SaveImage {
+        /// file to write (.exr or .png), relative to the graph file; it must lie below the graph's
+        /// folder or the run's output folder unless the run allows writes anywhere
+        pub path: PathBuf, output;
+    }
 }
 
 #[node(category = "image", caching = Never, outputs = [image])]

@@ -1,34 +1,28 @@
 use crate::math::rng::uniform;
 use crate::types::Image;
 use rayon::prelude::*;
-use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, params, NodeError, ParamEnum, RunCtx};
 
-/// A synthetic image for tests, benchmarks and filter demos: a gradient, a checkerboard
-/// or a constant colour, plus optional seeded uniform noise of ± noise/2 (the same bytes
-/// on any thread count).
-#[derive(Params)]
-pub struct TestPattern {
-    /// image width
-    #[param(default = 64, range = 1..=16384, unit = "px")]
-    pub width: usize,
-    /// image height
-    #[param(default = 64, range = 1..=16384, unit = "px")]
-    pub height: usize,
-    /// what to draw
-    #[param(default = Gradient)]
-    pub pattern: Pattern,
-    /// checker cell size
-    #[param(default = 8, range = 1..=4096, unit = "px")]
-    pub cell: usize,
-    /// colour (scales the pattern)
-    #[param(rgb, default = (1.0, 1.0, 1.0), range = 0.0..=1e6)]
-    pub color: [f32; 3],
-    /// amplitude of uniform noise added to every channel
-    #[param(default = 0.0, range = 0.0..=1e6)]
-    pub noise: f32,
-    /// noise seed
-    #[param(default = 0, range = 0..=i64::MAX)]
-    pub seed: u64,
+params! {
+    /// A synthetic image for tests, benchmarks and filter demos: a gradient, a checkerboard
+    /// or a constant colour, plus optional seeded uniform noise of ± noise/2 (the same bytes
+    /// on any thread count).
+    pub struct TestPattern {
+        /// image width
+        pub width: usize = 64, range = 1..=16384, unit = "px";
+        /// image height
+        pub height: usize = 64, range = 1..=16384, unit = "px";
+        /// what to draw
+        pub pattern: Pattern = Gradient;
+        /// checker cell size
+        pub cell: usize = 8, range = 1..=4096, unit = "px";
+        /// colour (scales the pattern)
+        pub color: [f32; 3] = (1.0, 1.0, 1.0), rgb, range = 0.0..=1e6;
+        /// amplitude of uniform noise added to every channel
+        pub noise: f32 = 0.0, range = 0.0..=1e6;
+        /// noise seed
+        pub seed: u64 = 0, range = 0..=i64::MAX;
+    }
 }
 
 /// What TestPattern draws.

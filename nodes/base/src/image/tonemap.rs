@@ -1,19 +1,18 @@
 use crate::types::Image;
 use rayon::prelude::*;
-use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, params, NodeError, ParamEnum, RunCtx};
 
-/// Maps linear HDR radiance to display-referred values in [0, 1]: exposure in stops, then
-/// a curve (Clamp, Reinhard x/(1+x), or the ACES filmic fit of Narkowicz 2015). The output
-/// stays linear; PNG writing applies the sRGB encoding. NaN becomes 0 and +∞ becomes 1,
-/// so a broken pixel shows instead of poisoning the picture.
-#[derive(Params)]
-pub struct Tonemap {
-    /// scale by 2^exposure before the curve
-    #[param(default = 0.0, range = -20.0..=20.0, unit = "stops")]
-    pub exposure: f32,
-    /// tone curve
-    #[param(default = Aces)]
-    pub operator: Operator,
+params! {
+    /// Maps linear HDR radiance to display-referred values in [0, 1]: exposure in stops, then
+    /// a curve (Clamp, Reinhard x/(1+x), or the ACES filmic fit of Narkowicz 2015). The output
+    /// stays linear; PNG writing applies the sRGB encoding. NaN becomes 0 and +∞ becomes 1,
+    /// so a broken pixel shows instead of poisoning the picture.
+    pub struct Tonemap {
+        /// scale by 2^exposure before the curve
+        pub exposure: f32 = 0.0, range = -20.0..=20.0, unit = "stops";
+        /// tone curve
+        pub operator: Operator = Aces;
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, ParamEnum)]

@@ -1,26 +1,25 @@
 use crate::types::{Image, Metrics};
-use relume_core::{node, CancelToken, NodeError, Params, RunCtx};
+use relume_core::{node, params, CancelToken, NodeError, RunCtx};
 
-/// Per-pixel z-test of a noisy estimate against a reference, both given with the variance
-/// of their mean: per pixel and channel z = (x − r) / sqrt(var_x + var_r + tiny), tiny =
-/// the smallest normal f64 (negative variances, round-off of E[x²] − E[x]², count as 0).
-/// A pixel passes when all its channels have |z| ≤ `z`, so equal values with zero variance
-/// pass and unequal ones fail. A pixel with any value not finite fails and is counted in
-/// `nonfinite_pixels`. Metrics: `pass_fraction` (of all pixels), `max_abs_z` and signed
-/// `mean_z` (bias shows as mean_z away from 0; both over the finite pixels' channels with some
-/// variance: a difference without noise has no z worth averaging), `zero_variance_channels`
-/// (channels with no variance in either image; they pass only when equal), `pixels`; a note says whether pass_fraction ≥ `min_pass`. Under an unbiased Gaussian
-/// estimate with exact variances about 1 − 3 · P(|N| > z) of pixels pass (99.7 % at 3.29);
-/// variances estimated from few samples have heavier tails: use more samples or a larger
-/// `z`. Outputs the |z| map (f32::MAX where not finite or too large).
-#[derive(Params)]
-pub struct ZTest {
-    /// largest |z| a channel may have (3.29: two-sided 0.1 %)
-    #[param(default = 3.29, range = 0.5..=10.0, unit = "σ")]
-    pub z: f64,
-    /// fraction of pixels that must pass for the note to say the test passes
-    #[param(default = 0.995, range = 0.0..=1.0)]
-    pub min_pass: f64,
+params! {
+    /// Per-pixel z-test of a noisy estimate against a reference, both given with the variance
+    /// of their mean: per pixel and channel z = (x − r) / sqrt(var_x + var_r + tiny), tiny =
+    /// the smallest normal f64 (negative variances, round-off of E[x²] − E[x]², count as 0).
+    /// A pixel passes when all its channels have |z| ≤ `z`, so equal values with zero variance
+    /// pass and unequal ones fail. A pixel with any value not finite fails and is counted in
+    /// `nonfinite_pixels`. Metrics: `pass_fraction` (of all pixels), `max_abs_z` and signed
+    /// `mean_z` (bias shows as mean_z away from 0; both over the finite pixels' channels with some
+    /// variance: a difference without noise has no z worth averaging), `zero_variance_channels`
+    /// (channels with no variance in either image; they pass only when equal), `pixels`; a note says whether pass_fraction ≥ `min_pass`. Under an unbiased Gaussian
+    /// estimate with exact variances about 1 − 3 · P(|N| > z) of pixels pass (99.7 % at 3.29);
+    /// variances estimated from few samples have heavier tails: use more samples or a larger
+    /// `z`. Outputs the |z| map (f32::MAX where not finite or too large).
+    pub struct ZTest {
+        /// largest |z| a channel may have (3.29: two-sided 0.1 %)
+        pub z: f64 = 3.29, range = 0.5..=10.0, unit = "σ";
+        /// fraction of pixels that must pass for the note to say the test passes
+        pub min_pass: f64 = 0.995, range = 0.0..=1.0;
+    }
 }
 
 /// Result of `z_test`.

@@ -9,30 +9,28 @@ use crate::render::surface::Surface;
 use crate::types::accel::Accel;
 use crate::types::{gather_rows, row_spec, Image, ImageRows, Material, Scene};
 use glam::{Vec2, Vec3};
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx, ShardSpec};
+use relume_core::{inputs, node, outputs, params, NodeError, RunCtx, ShardSpec};
 use std::ops::Range;
 
-/// Direct light only, what `PathTrace` with `max_depth` 2 estimates (emitters seen plus
-/// light arriving straight from the lights), at less cost and noise: each pixel takes
-/// `pixel_samples` camera rays jittered over the pixel (box filter, correlated
-/// multi-jittered) and each opaque hit `light_samples` shadow rays toward points chosen by
-/// the light sampler, stratified over all of the pixel's light samples together. Light
-/// sampling only (no BSDF sampling): unbiased, but noisier than `PathTrace` on sharp
-/// highlights of large lights. Hits on delta surfaces (dielectrics) and misses are left to
-/// the path tracer with `max_depth` 2. Each pixel's random numbers depend only on (seed,
-/// pixel), so the image has the same bytes on any thread count. Sharded over image rows,
-/// like `PathTrace`.
-#[derive(Params)]
-pub struct DirectLight {
-    /// camera rays per pixel, jittered over the pixel (antialiasing)
-    #[param(default = 16, range = 1..=(1 << 16), unit = "rays/pixel", test = 4)]
-    pub pixel_samples: u32,
-    /// shadow rays toward the lights per camera hit
-    #[param(default = 4, range = 1..=1024, unit = "rays/hit")]
-    pub light_samples: u32,
-    /// random seed
-    #[param(default = 0, range = 0..=u32::MAX)]
-    pub seed: u64,
+params! {
+    /// Direct light only, what `PathTrace` with `max_depth` 2 estimates (emitters seen plus
+    /// light arriving straight from the lights), at less cost and noise: each pixel takes
+    /// `pixel_samples` camera rays jittered over the pixel (box filter, correlated
+    /// multi-jittered) and each opaque hit `light_samples` shadow rays toward points chosen by
+    /// the light sampler, stratified over all of the pixel's light samples together. Light
+    /// sampling only (no BSDF sampling): unbiased, but noisier than `PathTrace` on sharp
+    /// highlights of large lights. Hits on delta surfaces (dielectrics) and misses are left to
+    /// the path tracer with `max_depth` 2. Each pixel's random numbers depend only on (seed,
+    /// pixel), so the image has the same bytes on any thread count. Sharded over image rows,
+    /// like `PathTrace`.
+    pub struct DirectLight {
+        /// camera rays per pixel, jittered over the pixel (antialiasing)
+        pub pixel_samples: u32 = 16, range = 1..=(1 << 16), unit = "rays/pixel", test = 4;
+        /// shadow rays toward the lights per camera hit
+        pub light_samples: u32 = 4, range = 1..=1024, unit = "rays/hit";
+        /// random seed
+        pub seed: u64 = 0, range = 0..=u32::MAX;
+    }
 }
 
 inputs!(pub DirectLightIn { scene: Scene, accel: Accel });

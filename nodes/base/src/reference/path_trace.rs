@@ -4,33 +4,30 @@ use crate::render::integrator::{Settings, Tracer};
 use crate::types::accel::Accel;
 use crate::types::{gather_rows, row_spec, Image, ImageRows, Scene};
 use glam::Vec3;
-use relume_core::{inputs, node, outputs, NodeError, Params, RunCtx, ShardSpec};
+use relume_core::{inputs, node, outputs, params, NodeError, RunCtx, ShardSpec};
 use std::ops::Range;
 
-/// Reference path tracer (the ground truth every pipeline reports its error against):
-/// unbiased; next-event estimation with MIS (power heuristic) against BSDF sampling;
-/// importance-sampled environment maps; smooth dielectrics with homogeneous media;
-/// `max_depth` as in Mitsuba 3 (1: emitters only, 2: direct light, 3: one bounce, −1:
-/// unbounded with Russian roulette from `rr_depth`); box pixel filter. Samples are taken
-/// in passes of doubling size (progress and cancellation between rows); each pixel's
-/// random numbers depend only on (seed, pixel, sample), so the image has the same bytes on
-/// any thread count. Outputs the mean and the per-pixel variance of the mean. Sharded over
-/// image rows (chunks of about 4096 pixels): `relume shard`, `relume slurm` and
-/// `--processes` split it across processes and machines with the same bytes.
-#[derive(Params)]
-pub struct PathTrace {
-    /// samples per pixel
-    #[param(default = 16, range = 1..=(1 << 20), unit = "samples/pixel", test = 4)]
-    pub spp: u32,
-    /// maximum path segments (Mitsuba's meaning); -1 = unbounded
-    #[param(default = -1, range = -1..=1024)]
-    pub max_depth: i32,
-    /// depth at which Russian roulette starts
-    #[param(default = 5, range = 1..=1024)]
-    pub rr_depth: u32,
-    /// random seed
-    #[param(default = 0, range = 0..=u32::MAX)]
-    pub seed: u64,
+params! {
+    /// Reference path tracer (the ground truth every pipeline reports its error against):
+    /// unbiased; next-event estimation with MIS (power heuristic) against BSDF sampling;
+    /// importance-sampled environment maps; smooth dielectrics with homogeneous media;
+    /// `max_depth` as in Mitsuba 3 (1: emitters only, 2: direct light, 3: one bounce, −1:
+    /// unbounded with Russian roulette from `rr_depth`); box pixel filter. Samples are taken
+    /// in passes of doubling size (progress and cancellation between rows); each pixel's
+    /// random numbers depend only on (seed, pixel, sample), so the image has the same bytes on
+    /// any thread count. Outputs the mean and the per-pixel variance of the mean. Sharded over
+    /// image rows (chunks of about 4096 pixels): `relume shard`, `relume slurm` and
+    /// `--processes` split it across processes and machines with the same bytes.
+    pub struct PathTrace {
+        /// samples per pixel
+        pub spp: u32 = 16, range = 1..=(1 << 20), unit = "samples/pixel", test = 4;
+        /// maximum path segments (Mitsuba's meaning); -1 = unbounded
+        pub max_depth: i32 = -1, range = -1..=1024;
+        /// depth at which Russian roulette starts
+        pub rr_depth: u32 = 5, range = 1..=1024;
+        /// random seed
+        pub seed: u64 = 0, range = 0..=u32::MAX;
+    }
 }
 
 inputs!(pub PathTraceIn { scene: Scene, accel: Accel });

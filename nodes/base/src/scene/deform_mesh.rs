@@ -1,45 +1,40 @@
 use crate::types::Scene;
 use glam::{Mat3, Vec3};
-use relume_core::{node, NodeError, ParamEnum, Params, RunCtx};
+use relume_core::{node, params, NodeError, ParamEnum, RunCtx};
 
-/// Deforms one object of a scene ([S] 6.5, geometry deformation of a refractive object: the
-/// edit that re-runs voxelisation onward). With d = p − `centre`, w = d's coordinate along
-/// `axis` and κ = `amount` in radians:
-/// - Twist turns each vertex about the axis line through `centre` by the angle κ·w
-///   (right-handed about the +axis direction); distances to that line and w are kept.
-/// - Bend is Barr's bend (1984) with an unbounded bend region: the axis line is bent into a
-///   circle of radius R = 1/κ through `centre`, toward +x for axis y and toward +y for axes x
-///   and z (negative amounts bend the other way). With u = d's coordinate along that direction
-///   and θ = κ·w, u′ = R − (R − u) cos θ and w′ = (R − u) sin θ; the third coordinate is kept.
-///   A vertex at u ≥ R would fold the object inside out and is refused.
-/// - Scale multiplies w by `amount` (0 keeps it: 0.01 … 100 otherwise) and the two
-///   coordinates across the axis by `across`, about `centre`.
-///
-/// Triangles, their winding and closedness stay; per-vertex normals (when the scene has them)
-/// are carried by the inverse transpose of the deformation's Jacobian, so crease splits and
-/// analytic normals stay as they were. Only the object's own vertices move: a vertex it shares
-/// with another object is duplicated first. `amount` 0 (Scale: with `across` 1) returns the
-/// scene unchanged.
-#[derive(Params)]
-pub struct DeformMesh {
-    /// name of the object to deform
-    #[param(default = "glass")]
-    pub object: String,
-    /// the deformation
-    #[param(default = Twist)]
-    pub kind: Deformation,
-    /// the point it acts about (scene units)
-    #[param(default = (0.0, 0.6, 0.0))]
-    pub centre: Vec3,
-    /// the axis it acts along
-    #[param(default = Y)]
-    pub axis: Axis,
-    /// Twist, Bend: degrees per scene unit along the axis; Scale: the factor along the axis (0 keeps it)
-    #[param(default = 0.0, range = -720.0..=720.0)]
-    pub amount: f32,
-    /// Scale: the factor across the axis
-    #[param(default = 1.0, range = 0.01..=100.0)]
-    pub across: f32,
+params! {
+    /// Deforms one object of a scene ([S] 6.5, geometry deformation of a refractive object: the
+    /// edit that re-runs voxelisation onward). With d = p − `centre`, w = d's coordinate along
+    /// `axis` and κ = `amount` in radians:
+    /// - Twist turns each vertex about the axis line through `centre` by the angle κ·w
+    ///   (right-handed about the +axis direction); distances to that line and w are kept.
+    /// - Bend is Barr's bend (1984) with an unbounded bend region: the axis line is bent into a
+    ///   circle of radius R = 1/κ through `centre`, toward +x for axis y and toward +y for axes x
+    ///   and z (negative amounts bend the other way). With u = d's coordinate along that direction
+    ///   and θ = κ·w, u′ = R − (R − u) cos θ and w′ = (R − u) sin θ; the third coordinate is kept.
+    ///   A vertex at u ≥ R would fold the object inside out and is refused.
+    /// - Scale multiplies w by `amount` (0 keeps it: 0.01 … 100 otherwise) and the two
+    ///   coordinates across the axis by `across`, about `centre`.
+    ///
+    /// Triangles, their winding and closedness stay; per-vertex normals (when the scene has them)
+    /// are carried by the inverse transpose of the deformation's Jacobian, so crease splits and
+    /// analytic normals stay as they were. Only the object's own vertices move: a vertex it shares
+    /// with another object is duplicated first. `amount` 0 (Scale: with `across` 1) returns the
+    /// scene unchanged.
+    pub struct DeformMesh {
+        /// name of the object to deform
+        pub object: String = "glass";
+        /// the deformation
+        pub kind: Deformation = Twist;
+        /// the point it acts about (scene units)
+        pub centre: Vec3 = (0.0, 0.6, 0.0);
+        /// the axis it acts along
+        pub axis: Axis = Y;
+        /// Twist, Bend: degrees per scene unit along the axis; Scale: the factor along the axis (0 keeps it)
+        pub amount: f32 = 0.0, range = -720.0..=720.0;
+        /// Scale: the factor across the axis
+        pub across: f32 = 1.0, range = 0.01..=100.0;
+    }
 }
 
 /// A deformation of DeformMesh.

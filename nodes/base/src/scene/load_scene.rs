@@ -1,22 +1,21 @@
 use super::format::load_scene_file;
 use crate::types::Scene;
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 use std::path::PathBuf;
 
-/// Loads a scene file (RON: camera, materials, OBJ meshes and spheres, lights,
-/// environment; see `scene/format.rs`). OBJ `o`/`g` groups become objects. The
-/// meshes and maps it names are cache dependencies: editing any of them re-runs the node.
-/// Zero-area triangles are dropped and counted in the report's notes.
-#[derive(Params)]
-pub struct LoadScene {
-    /// scene file (.ron), relative to the graph file
-    pub path: PathBuf,
-    /// image width; 0 keeps the scene file's camera
-    #[param(default = 0, range = 0..=16384, unit = "px", test = 24)]
-    pub width: usize,
-    /// image height; 0 keeps the scene file's camera
-    #[param(default = 0, range = 0..=16384, unit = "px", test = 20)]
-    pub height: usize,
+params! {
+    /// Loads a scene file (RON: camera, materials, OBJ meshes and spheres, lights,
+    /// environment; see `scene/format.rs`). OBJ `o`/`g` groups become objects. The
+    /// meshes and maps it names are cache dependencies: editing any of them re-runs the node.
+    /// Zero-area triangles are dropped and counted in the report's notes.
+    pub struct LoadScene {
+        /// scene file (.ron), relative to the graph file
+        pub path: PathBuf;
+        /// image width; 0 keeps the scene file's camera
+        pub width: usize = 0, range = 0..=16384, unit = "px", test = 24;
+        /// image height; 0 keeps the scene file's camera
+        pub height: usize = 0, range = 0..=16384, unit = "px", test = 20;
+    }
 }
 
 #[node(category = "scene", version = 2, metrics = ["triangles", "objects"], outputs = [scene])]

@@ -1,18 +1,17 @@
 use crate::types::Scene;
 use glam::Vec3;
-use relume_core::{node, NodeError, Params, RunCtx};
+use relume_core::{node, params, NodeError, RunCtx};
 
-/// Translates one object of a scene (an area light, the bunny) by a vector: the
-/// interactive "move the light" edit. Nodes wired to the scene before this node (surface
-/// sampling that leaves emitters out) are not re-run when the translation changes.
-#[derive(Params)]
-pub struct MoveObject {
-    /// name of the object to move
-    #[param(default = "light")]
-    pub object: String,
-    /// offset added to its vertices (scene units)
-    #[param(default = (0.0, 0.0, 0.0))]
-    pub translation: Vec3,
+params! {
+    /// Translates one object of a scene (an area light, the bunny) by a vector: the
+    /// interactive "move the light" edit. Nodes wired to the scene before this node (surface
+    /// sampling that leaves emitters out) are not re-run when the translation changes.
+    pub struct MoveObject {
+        /// name of the object to move
+        pub object: String = "light";
+        /// offset added to its vertices (scene units)
+        pub translation: Vec3 = (0.0, 0.0, 0.0);
+    }
 }
 
 /// The scene with object `name` moved by `t`.
@@ -40,7 +39,7 @@ impl MoveObject {
     }
 
     fn run(&self, scene: &Scene, _cx: &RunCtx) -> Result<Scene, NodeError> {
-        Ok(move_object(scene, &self.object, self.translation)?)
+        move_object(scene, &self.object, self.translation)
     }
 }
 

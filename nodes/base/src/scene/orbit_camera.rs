@@ -1,35 +1,30 @@
 use crate::types::{Camera, Scene};
 use glam::{Quat, Vec3};
-use relume_core::{node, NodeError, Params, PortValue, RunCtx};
+use relume_core::{node, params, NodeError, PortValue, RunCtx};
 
-/// The scene's camera orbited about its target, as a `Camera` of its own: a render that takes
-/// the camera as an input re-runs alone when the view changes, not what reads the scene.
-/// `azimuth` turns the origin about the camera's `up` through the target (right-handed:
-/// counter-clockwise seen from above); `elevation` is added to the angle between the view
-/// ray (target → origin) and the horizontal plane, clamped to ±89° (or the scene camera's own
-/// angle where that is already steeper) so that the view never looks along `up`; `distance`
-/// scales the origin's distance to the target. `up` and the target are kept; `fov`, `width`
-/// and `height` replace the scene's when not 0. The defaults give the scene's camera.
-#[derive(Params)]
-pub struct OrbitCamera {
-    /// turn about the up axis through the target (degrees)
-    #[param(default = 0.0, range = -360.0..=360.0, unit = "°")]
-    pub azimuth: f32,
-    /// added to the view's elevation, which stays within ±89° (degrees)
-    #[param(default = 0.0, range = -89.0..=89.0, unit = "°")]
-    pub elevation: f32,
-    /// factor on the distance from the origin to the target
-    #[param(default = 1.0, range = 0.01..=100.0)]
-    pub distance: f32,
-    /// field of view on the smaller image axis; 0 keeps the scene's
-    #[param(default = 0.0, range = 0.0..=179.0, unit = "°")]
-    pub fov: f32,
-    /// image width; 0 keeps the scene's
-    #[param(default = 0, range = 0..=16384, unit = "px")]
-    pub width: usize,
-    /// image height; 0 keeps the scene's
-    #[param(default = 0, range = 0..=16384, unit = "px")]
-    pub height: usize,
+params! {
+    /// The scene's camera orbited about its target, as a `Camera` of its own: a render that takes
+    /// the camera as an input re-runs alone when the view changes, not what reads the scene.
+    /// `azimuth` turns the origin about the camera's `up` through the target (right-handed:
+    /// counter-clockwise seen from above); `elevation` is added to the angle between the view
+    /// ray (target → origin) and the horizontal plane, clamped to ±89° (or the scene camera's own
+    /// angle where that is already steeper) so that the view never looks along `up`; `distance`
+    /// scales the origin's distance to the target. `up` and the target are kept; `fov`, `width`
+    /// and `height` replace the scene's when not 0. The defaults give the scene's camera.
+    pub struct OrbitCamera {
+        /// turn about the up axis through the target (degrees)
+        pub azimuth: f32 = 0.0, range = -360.0..=360.0, unit = "°";
+        /// added to the view's elevation, which stays within ±89° (degrees)
+        pub elevation: f32 = 0.0, range = -89.0..=89.0, unit = "°";
+        /// factor on the distance from the origin to the target
+        pub distance: f32 = 1.0, range = 0.01..=100.0;
+        /// field of view on the smaller image axis; 0 keeps the scene's
+        pub fov: f32 = 0.0, range = 0.0..=179.0, unit = "°";
+        /// image width; 0 keeps the scene's
+        pub width: usize = 0, range = 0..=16384, unit = "px";
+        /// image height; 0 keeps the scene's
+        pub height: usize = 0, range = 0..=16384, unit = "px";
+    }
 }
 
 /// Largest elevation above or below the plane across `up` that an orbit reaches (degrees).

@@ -1,25 +1,24 @@
 use crate::types::{EnvMap, Environment, Scene};
 use relume_core::memory::fmt_bytes;
-use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, params, MemoryEstimate, NodeError, PortSize, RunCtx};
 
-/// The scene with its environment turned about the vertical (+y) axis by `rotation_deg`
-/// (right-handed: seen from above, counter-clockwise) and its radiance scaled by `scale`: the
-/// lighting edit of environment-lit pipelines ([S] chapter 5), applied to the scene so that
-/// the reference path tracer and the relighting see the same sky. A turn about +y shifts the
-/// lat-long map along u: each texel row is resampled linearly in u between its two nearest
-/// texels (with wrap), which is exact when the turn is a whole number of texel widths
-/// (360° / width: 0.703° for a 512-wide map) and otherwise blurs each texel by at most one
-/// texel width along u. A constant environment is only scaled. Wire it into what reads the
-/// sky (the environment lighting, the reference, the rasteriser's background), not into the
-/// precompute: the transfer never depends on the environment.
-#[derive(Params)]
-pub struct TurnEnvironment {
-    /// turn of the environment about the vertical (+y) axis, right-handed
-    #[param(default = 0.0, range = -360.0..=360.0, unit = "°")]
-    pub rotation_deg: f64,
-    /// radiance multiplier
-    #[param(default = 1.0, range = 0.0..=1.0e6)]
-    pub scale: f64,
+params! {
+    /// The scene with its environment turned about the vertical (+y) axis by `rotation_deg`
+    /// (right-handed: seen from above, counter-clockwise) and its radiance scaled by `scale`: the
+    /// lighting edit of environment-lit pipelines ([S] chapter 5), applied to the scene so that
+    /// the reference path tracer and the relighting see the same sky. A turn about +y shifts the
+    /// lat-long map along u: each texel row is resampled linearly in u between its two nearest
+    /// texels (with wrap), which is exact when the turn is a whole number of texel widths
+    /// (360° / width: 0.703° for a 512-wide map) and otherwise blurs each texel by at most one
+    /// texel width along u. A constant environment is only scaled. Wire it into what reads the
+    /// sky (the environment lighting, the reference, the rasteriser's background), not into the
+    /// precompute: the transfer never depends on the environment.
+    pub struct TurnEnvironment {
+        /// turn of the environment about the vertical (+y) axis, right-handed
+        pub rotation_deg: f64 = 0.0, range = -360.0..=360.0, unit = "°";
+        /// radiance multiplier
+        pub scale: f64 = 1.0, range = 0.0..=1.0e6;
+    }
 }
 
 impl TurnEnvironment {

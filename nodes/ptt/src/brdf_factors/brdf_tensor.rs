@@ -1,68 +1,58 @@
 use crate::types::brdf::{BrdfFamily, BrdfTensorTable, DiskGrid, MAX_BRDF_TENSOR_BYTES};
 use relume_base::brdf::BrdfModel;
 use relume_base::math::spread;
-use relume_core::{memory::fmt_bytes, node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{memory::fmt_bytes, node, params, MemoryEstimate, NodeError, PortSize, RunCtx};
 
-/// Samples the specular (non-diffuse) part of a BRDF family, ks = 1, into the tensor
-/// F(h, ωo, ωi) of [S] 5.2.2 (N_h × N_ωo × N_ωi) for `TuckerDecompose` (directly, or after
-/// `SpecularSeparation`). The diffuse term is shaded outside the tensor, as in [S] 5.3.3.1.
-///
-/// Directions ([S] 5.3.3.1, after Wang et al.): the upper hemisphere projected orthographically
-/// onto the unit disk; `disk` = n cuts [−1, 1]² into n × n cells and keeps those whose centre
-/// is inside the disk; a sample's direction is (x, y, √(1 − x² − y²)) and its solid angle the
-/// cell's area over cos θ, (2/n)²/cos θ (they sum to 2π within 4.9 % at n = 16, 0.35 % at 32:
-/// the midpoint rule's error at the rim, where 1/cos θ is singular). The default n = 16 gives
-/// 208 directions, 7.2° apart at the normal: the separated lobes' step ([S]: 0°, 7°, 14°,
-/// 21°) is resolved and the residual they leave varies on a larger scale, while 200 × 208²
-/// f32 values stay at 35 MB (n = 32: 812 directions, 527 MB, and a Tucker's Gram matrices
-/// 15× slower).
-///
-/// Families (`model`): Blinn-Phong, the project's (s+2)/(8π) cos^s δ (not [S] 4-15's 2π), with
-/// `samples` exponents spread linearly over [s_min, s_max] (default 200 over 1 … 200: the
-/// integers, as [S] 5.3.2); Cook-Torrance ([S] 2-12 as `brdf/cook_torrance.rs` writes it:
-/// Beckmann D, Schlick F, V-cavity G, the microfacet 1/4) on an `m_count` × `f0_count` grid
-/// over roughness × F0, h = i_m · f0_count + i_F0. The thesis' Cook-Torrance space is 100 fits
-/// of measured materials (Ngan et al.) that relume does not have; the default 10 × 10 sweep
-/// (m 0.05 … 0.6, F0 0.02 … 1) stands in for it. Values come from the library's `eval`.
-/// A material's parameter maps to a fractional h: linear in s, bilinear on (m, F0).
-///
-/// Tensors over 2 GiB (or the run's memory budget) are refused before allocating, with the
-/// estimate.
-#[derive(Params)]
-pub struct BrdfTensor {
-    /// the BRDF model whose specular part is sampled along h
-    #[param(default = BlinnPhong)]
-    pub model: BrdfModel,
-    /// disk resolution n: n × n cells over [−1, 1]², those inside the unit disk are directions
-    #[param(default = 16, range = 1..=256, test = 6)]
-    pub disk: usize,
-    /// Blinn-Phong: number of exponents (h samples)
-    #[param(default = 200, range = 1..=4096, test = 12)]
-    pub samples: usize,
-    /// Blinn-Phong: smallest exponent
-    #[param(default = 1.0, range = 0.0..=1e5)]
-    pub s_min: f32,
-    /// Blinn-Phong: largest exponent
-    #[param(default = 200.0, range = 0.0..=1e5)]
-    pub s_max: f32,
-    /// Cook-Torrance: number of roughness values
-    #[param(default = 10, range = 1..=256, test = 3)]
-    pub m_count: usize,
-    /// Cook-Torrance: smallest Beckmann roughness m (RMS slope)
-    #[param(default = 0.05, range = 0.001..=1.0)]
-    pub m_min: f32,
-    /// Cook-Torrance: largest Beckmann roughness m
-    #[param(default = 0.6, range = 0.001..=1.0)]
-    pub m_max: f32,
-    /// Cook-Torrance: number of F0 values
-    #[param(default = 10, range = 1..=256, test = 2)]
-    pub f0_count: usize,
-    /// Cook-Torrance: smallest Schlick F0 (reflectance at normal incidence)
-    #[param(default = 0.02, range = 0.0..=1.0)]
-    pub f0_min: f32,
-    /// Cook-Torrance: largest Schlick F0
-    #[param(default = 1.0, range = 0.0..=1.0)]
-    pub f0_max: f32,
+params! {
+    /// Samples the specular (non-diffuse) part of a BRDF family, ks = 1, into the tensor
+    /// F(h, ωo, ωi) of [S] 5.2.2 (N_h × N_ωo × N_ωi) for `TuckerDecompose` (directly, or after
+    /// `SpecularSeparation`). The diffuse term is shaded outside the tensor, as in [S] 5.3.3.1.
+    ///
+    /// Directions ([S] 5.3.3.1, after Wang et al.): the upper hemisphere projected orthographically
+    /// onto the unit disk; `disk` = n cuts [−1, 1]² into n × n cells and keeps those whose centre
+    /// is inside the disk; a sample's direction is (x, y, √(1 − x² − y²)) and its solid angle the
+    /// cell's area over cos θ, (2/n)²/cos θ (they sum to 2π within 4.9 % at n = 16, 0.35 % at 32:
+    /// the midpoint rule's error at the rim, where 1/cos θ is singular). The default n = 16 gives
+    /// 208 directions, 7.2° apart at the normal: the separated lobes' step ([S]: 0°, 7°, 14°,
+    /// 21°) is resolved and the residual they leave varies on a larger scale, while 200 × 208²
+    /// f32 values stay at 35 MB (n = 32: 812 directions, 527 MB, and a Tucker's Gram matrices
+    /// 15× slower).
+    ///
+    /// Families (`model`): Blinn-Phong, the project's (s+2)/(8π) cos^s δ (not [S] 4-15's 2π), with
+    /// `samples` exponents spread linearly over [s_min, s_max] (default 200 over 1 … 200: the
+    /// integers, as [S] 5.3.2); Cook-Torrance ([S] 2-12 as `brdf/cook_torrance.rs` writes it:
+    /// Beckmann D, Schlick F, V-cavity G, the microfacet 1/4) on an `m_count` × `f0_count` grid
+    /// over roughness × F0, h = i_m · f0_count + i_F0. The thesis' Cook-Torrance space is 100 fits
+    /// of measured materials (Ngan et al.) that relume does not have; the default 10 × 10 sweep
+    /// (m 0.05 … 0.6, F0 0.02 … 1) stands in for it. Values come from the library's `eval`.
+    /// A material's parameter maps to a fractional h: linear in s, bilinear on (m, F0).
+    ///
+    /// Tensors over 2 GiB (or the run's memory budget) are refused before allocating, with the
+    /// estimate.
+    pub struct BrdfTensor {
+        /// the BRDF model whose specular part is sampled along h
+        pub model: BrdfModel = BlinnPhong;
+        /// disk resolution n: n × n cells over [−1, 1]², those inside the unit disk are directions
+        pub disk: usize = 16, range = 1..=256, test = 6;
+        /// Blinn-Phong: number of exponents (h samples)
+        pub samples: usize = 200, range = 1..=4096, test = 12;
+        /// Blinn-Phong: smallest exponent
+        pub s_min: f32 = 1.0, range = 0.0..=1e5;
+        /// Blinn-Phong: largest exponent
+        pub s_max: f32 = 200.0, range = 0.0..=1e5;
+        /// Cook-Torrance: number of roughness values
+        pub m_count: usize = 10, range = 1..=256, test = 3;
+        /// Cook-Torrance: smallest Beckmann roughness m (RMS slope)
+        pub m_min: f32 = 0.05, range = 0.001..=1.0;
+        /// Cook-Torrance: largest Beckmann roughness m
+        pub m_max: f32 = 0.6, range = 0.001..=1.0;
+        /// Cook-Torrance: number of F0 values
+        pub f0_count: usize = 10, range = 1..=256, test = 2;
+        /// Cook-Torrance: smallest Schlick F0 (reflectance at normal incidence)
+        pub f0_min: f32 = 0.02, range = 0.0..=1.0;
+        /// Cook-Torrance: largest Schlick F0
+        pub f0_max: f32 = 1.0, range = 0.0..=1.0;
+    }
 }
 
 impl BrdfTensor {
@@ -150,6 +140,7 @@ mod tests {
     use glam::Vec3;
     use relume_base::brdf::blinn_phong;
     use relume_base::testing::{cancels_midway, f, i, id, run_on};
+    use relume_core::Params;
     use relume_core::PortValue;
 
     #[test]

@@ -1,54 +1,50 @@
 use crate::types::brdf::{lobe_row, BrdfTensorTable, SpecularLobes, MAX_LOBES};
 use relume_base::types::Metrics;
-use relume_core::{inputs, node, outputs, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{inputs, node, outputs, params, MemoryEstimate, NodeError, PortSize, RunCtx};
 
-/// Splits a BRDF tensor into Gaussian lobes around the mirror direction and a residual ([S]
-/// 5.3.1, 5-12, 5-13): f = f_s + f_r, f_s(h, ωo, ωi) = Σ_k a_k(h, ωo) g_σk(∠(ωi, m(ωo))) /
-/// cos θi, m(ωo) the mirror direction about the normal. g_σ is a Gaussian in angle normalised
-/// to ∫_sphere g_σ dω = 1 with the σ and 4σ cut-off of `CubeMap::gaussian_prefilter`, so a
-/// renderer shades lobe k as a_k × (environment prefiltered with σ_k) at m(ωo), and a_k is the
-/// lobe's share of the albedo. σ = 0 is the discrete normalised delta, 1/Ω at the disk sample
-/// holding m(ωo). Widths: the first `lobes` of sigma_0 … sigma_3, by default 0°, 7°, 14°, 21°
-/// as in [S] (each one cube-map texel wider than the last there).
-///
-/// Fit: the amplitudes a_k ≥ 0 are fitted for every material sample h and every ωo sample
-/// (a renderer looks up a_k(h, ωo), interpolated like the tensor), by non-negative least
-/// squares over the ωi row, solved exactly by trying every subset of lobes (at most 2⁴) and
-/// keeping the feasible one of least residual. [S] uses EM, which fits the lobes as a mixture
-/// density; least squares minimises the residual itself, in the same unweighted sum over
-/// entries that the Tucker error ([S] figure 5-5) measures, is exact and needs no iteration
-/// count or seed. The residual is f_r := F − f_s computed from the stored f32 amplitudes, so
-/// f_s + f_r = F holds to f32 rounding; it may be negative where a lobe overshoots.
-///
-/// Metrics: the share of each material sample's energy (Σ_ωo Ω_o Σ_ωi f cos θi Ω_i) carried by
-/// the lobes, `lobe_energy_share_min` / `_mean` / `_max` and at the first and last sample (0
-/// for a zero sample); the peak-to-mean ratio max|v| / mean|v| of the whole tensor before and
-/// after (`peak_to_mean_before` / `_after`) and its mean over the ωi rows (`row_peak_to_mean_…`):
-/// the residual is the lower-frequency one; `residual_norm_ratio` = ‖f_r‖ / ‖F‖.
-///
-/// Measured on the default Blinn-Phong tensor (s = 1 … 200, 200 × 208 × 208) with
-/// `TuckerDecompose` at (3, 8, 8): RMS 0.378 without separation, 0.288 with the 0° lobe
-/// alone, 0.147 with 0° and 7°, 0.099 with three and 0.097 with all four (‖f_r‖ = 0.20 ‖F‖;
-/// row peak-to-mean 45 → 28, while the single largest residual entry stays near F's: the
-/// half-vector lobe at grazing ωo is stretched away from a round Gaussian). Cook-Torrance
-/// (the default 10 × 10 sweep, n_h = 4): 4.94 → 0.153.
-#[derive(Params)]
-pub struct SpecularSeparation {
-    /// number of lobes fitted, the first ones of sigma_0 … sigma_3; 0 leaves the tensor whole
-    #[param(default = 4, range = 0..=4)]
-    pub lobes: usize,
-    /// width σ of lobe 1 (0 = the discrete mirror delta)
-    #[param(default = 0.0, range = 0.0..=60.0, unit = "°")]
-    pub sigma_0: f64,
-    /// width σ of lobe 2
-    #[param(default = 7.0, range = 0.0..=60.0, unit = "°")]
-    pub sigma_1: f64,
-    /// width σ of lobe 3
-    #[param(default = 14.0, range = 0.0..=60.0, unit = "°")]
-    pub sigma_2: f64,
-    /// width σ of lobe 4
-    #[param(default = 21.0, range = 0.0..=60.0, unit = "°")]
-    pub sigma_3: f64,
+params! {
+    /// Splits a BRDF tensor into Gaussian lobes around the mirror direction and a residual ([S]
+    /// 5.3.1, 5-12, 5-13): f = f_s + f_r, f_s(h, ωo, ωi) = Σ_k a_k(h, ωo) g_σk(∠(ωi, m(ωo))) /
+    /// cos θi, m(ωo) the mirror direction about the normal. g_σ is a Gaussian in angle normalised
+    /// to ∫_sphere g_σ dω = 1 with the σ and 4σ cut-off of `CubeMap::gaussian_prefilter`, so a
+    /// renderer shades lobe k as a_k × (environment prefiltered with σ_k) at m(ωo), and a_k is the
+    /// lobe's share of the albedo. σ = 0 is the discrete normalised delta, 1/Ω at the disk sample
+    /// holding m(ωo). Widths: the first `lobes` of sigma_0 … sigma_3, by default 0°, 7°, 14°, 21°
+    /// as in [S] (each one cube-map texel wider than the last there).
+    ///
+    /// Fit: the amplitudes a_k ≥ 0 are fitted for every material sample h and every ωo sample
+    /// (a renderer looks up a_k(h, ωo), interpolated like the tensor), by non-negative least
+    /// squares over the ωi row, solved exactly by trying every subset of lobes (at most 2⁴) and
+    /// keeping the feasible one of least residual. [S] uses EM, which fits the lobes as a mixture
+    /// density; least squares minimises the residual itself, in the same unweighted sum over
+    /// entries that the Tucker error ([S] figure 5-5) measures, is exact and needs no iteration
+    /// count or seed. The residual is f_r := F − f_s computed from the stored f32 amplitudes, so
+    /// f_s + f_r = F holds to f32 rounding; it may be negative where a lobe overshoots.
+    ///
+    /// Metrics: the share of each material sample's energy (Σ_ωo Ω_o Σ_ωi f cos θi Ω_i) carried by
+    /// the lobes, `lobe_energy_share_min` / `_mean` / `_max` and at the first and last sample (0
+    /// for a zero sample); the peak-to-mean ratio max|v| / mean|v| of the whole tensor before and
+    /// after (`peak_to_mean_before` / `_after`) and its mean over the ωi rows (`row_peak_to_mean_…`):
+    /// the residual is the lower-frequency one; `residual_norm_ratio` = ‖f_r‖ / ‖F‖.
+    ///
+    /// Measured on the default Blinn-Phong tensor (s = 1 … 200, 200 × 208 × 208) with
+    /// `TuckerDecompose` at (3, 8, 8): RMS 0.378 without separation, 0.288 with the 0° lobe
+    /// alone, 0.147 with 0° and 7°, 0.099 with three and 0.097 with all four (‖f_r‖ = 0.20 ‖F‖;
+    /// row peak-to-mean 45 → 28, while the single largest residual entry stays near F's: the
+    /// half-vector lobe at grazing ωo is stretched away from a round Gaussian). Cook-Torrance
+    /// (the default 10 × 10 sweep, n_h = 4): 4.94 → 0.153.
+    pub struct SpecularSeparation {
+        /// number of lobes fitted, the first ones of sigma_0 … sigma_3; 0 leaves the tensor whole
+        pub lobes: usize = 4, range = 0..=4;
+        /// width σ of lobe 1 (0 = the discrete mirror delta)
+        pub sigma_0: f64 = 0.0, range = 0.0..=60.0, unit = "°";
+        /// width σ of lobe 2
+        pub sigma_1: f64 = 7.0, range = 0.0..=60.0, unit = "°";
+        /// width σ of lobe 3
+        pub sigma_2: f64 = 14.0, range = 0.0..=60.0, unit = "°";
+        /// width σ of lobe 4
+        pub sigma_3: f64 = 21.0, range = 0.0..=60.0, unit = "°";
+    }
 }
 
 inputs!(pub SpecularSeparationIn { tensor: BrdfTensorTable });

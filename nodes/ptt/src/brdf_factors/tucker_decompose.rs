@@ -1,50 +1,45 @@
 use crate::types::brdf::{BrdfTensorTable, TuckerBrdf};
 use relume_base::math::tucker::{tucker, Tensor3, Tucker};
 use relume_base::types::Metrics;
-use relume_core::{node, MemoryEstimate, NodeError, Params, PortSize, RunCtx};
+use relume_core::{node, params, MemoryEstimate, NodeError, PortSize, RunCtx};
 
-/// Tucker-decomposes a BRDF tensor ([S] 5-3, 5-4): F ≈ D ×_h U^h ×_ωo U^ωo ×_ωi U^ωi, by HOOI
-/// started from the truncated HOSVD (`math/tucker.rs`, f64), into the `TuckerBrdf` a renderer
-/// shades with: u_h(material) (rows interpolated linearly in s, bilinearly on the
-/// Cook-Torrance (m, F0) grid), u_o(ωo) and u_i(ωi) (bilinear over the disk), core_for(u_h)
-/// = D ×_h u_h, and eval. Feed it `SpecularSeparation`'s residual f_r, as [S] does, or the
-/// raw tensor F.
-///
-/// Ranks: n_h = 3 by default ([S] 5.3.3.1 uses 3 for Blinn-Phong and 4 for its Cook-Torrance
-/// space), n_ωo = n_ωi = 8. A rank above its mode's numerical rank is cut to it (a zero
-/// tensor gives rank 0 and an empty core: every lookup is 0), with a note. HOOI stops when a
-/// sweep gains less than `tolerance` × ‖F‖² or after `max_iterations` sweeps; not converging
-/// is a note and a metric, not an error. Only the sweep limit checks cancellation inside a
-/// decomposition; the node checks between its steps.
-///
-/// Metrics: `rms_error` = √(Σ (F − F̂)² / (N_h N_ωo N_ωi)), the root mean square over the
-/// tensor entries, as [S] figure 5-5 plots it (from ‖F − F̂‖² = ‖F‖² − ‖D‖², exact for
-/// orthonormal factors); `relative_error` = ‖F − F̂‖ / ‖F‖; `iterations`, `converged` (1/0),
-/// the ranks kept. With `error_grid`, also the RMS error at n_ωi ∈ {4, 8, …, 32} × n_h ∈
-/// {1, …, 6} with n_ωo = n_ωi ([S] figure 5-5) as `grid_rms_nh{a}_nwi{b}` (48 decompositions:
-/// about 3 minutes on one core for the default 200 × 208 × 208 tensor). [S] reports 0.95
-/// without separation at n_h = 6, n_ωi = 32 for its measured Cook-Torrance fits, which calls
-/// it "squared error" without saying over what; relume's numbers are for its own tensors.
-#[derive(Params)]
-pub struct TuckerDecompose {
-    /// rank n_h of the material factor U^h ([S]: 3 Blinn-Phong, 4 Cook-Torrance)
-    #[param(default = 3, range = 1..=256)]
-    pub n_h: usize,
-    /// rank n_ωo of the outgoing-direction factor U^ωo
-    #[param(default = 8, range = 1..=4096)]
-    pub n_wo: usize,
-    /// rank n_ωi of the incoming-direction factor U^ωi
-    #[param(default = 8, range = 1..=4096)]
-    pub n_wi: usize,
-    /// most HOOI sweeps after the HOSVD start
-    #[param(default = 50, range = 0..=10000)]
-    pub max_iterations: usize,
-    /// stop when a sweep gains less than this share of ‖F‖²
-    #[param(default = 1e-10, range = 0.0..=1.0)]
-    pub tolerance: f64,
-    /// also report the RMS error over n_ωi ∈ {4 … 32} × n_h ∈ {1 … 6} ([S] figure 5-5)
-    #[param(default = false)]
-    pub error_grid: bool,
+params! {
+    /// Tucker-decomposes a BRDF tensor ([S] 5-3, 5-4): F ≈ D ×_h U^h ×_ωo U^ωo ×_ωi U^ωi, by HOOI
+    /// started from the truncated HOSVD (`math/tucker.rs`, f64), into the `TuckerBrdf` a renderer
+    /// shades with: u_h(material) (rows interpolated linearly in s, bilinearly on the
+    /// Cook-Torrance (m, F0) grid), u_o(ωo) and u_i(ωi) (bilinear over the disk), core_for(u_h)
+    /// = D ×_h u_h, and eval. Feed it `SpecularSeparation`'s residual f_r, as [S] does, or the
+    /// raw tensor F.
+    ///
+    /// Ranks: n_h = 3 by default ([S] 5.3.3.1 uses 3 for Blinn-Phong and 4 for its Cook-Torrance
+    /// space), n_ωo = n_ωi = 8. A rank above its mode's numerical rank is cut to it (a zero
+    /// tensor gives rank 0 and an empty core: every lookup is 0), with a note. HOOI stops when a
+    /// sweep gains less than `tolerance` × ‖F‖² or after `max_iterations` sweeps; not converging
+    /// is a note and a metric, not an error. Only the sweep limit checks cancellation inside a
+    /// decomposition; the node checks between its steps.
+    ///
+    /// Metrics: `rms_error` = √(Σ (F − F̂)² / (N_h N_ωo N_ωi)), the root mean square over the
+    /// tensor entries, as [S] figure 5-5 plots it (from ‖F − F̂‖² = ‖F‖² − ‖D‖², exact for
+    /// orthonormal factors); `relative_error` = ‖F − F̂‖ / ‖F‖; `iterations`, `converged` (1/0),
+    /// the ranks kept. With `error_grid`, also the RMS error at n_ωi ∈ {4, 8, …, 32} × n_h ∈
+    /// {1, …, 6} with n_ωo = n_ωi ([S] figure 5-5) as `grid_rms_nh{a}_nwi{b}` (48 decompositions:
+    /// about 3 minutes on one core for the default 200 × 208 × 208 tensor). [S] reports 0.95
+    /// without separation at n_h = 6, n_ωi = 32 for its measured Cook-Torrance fits, which calls
+    /// it "squared error" without saying over what; relume's numbers are for its own tensors.
+    pub struct TuckerDecompose {
+        /// rank n_h of the material factor U^h ([S]: 3 Blinn-Phong, 4 Cook-Torrance)
+        pub n_h: usize = 3, range = 1..=256;
+        /// rank n_ωo of the outgoing-direction factor U^ωo
+        pub n_wo: usize = 8, range = 1..=4096;
+        /// rank n_ωi of the incoming-direction factor U^ωi
+        pub n_wi: usize = 8, range = 1..=4096;
+        /// most HOOI sweeps after the HOSVD start
+        pub max_iterations: usize = 50, range = 0..=10000;
+        /// stop when a sweep gains less than this share of ‖F‖²
+        pub tolerance: f64 = 1e-10, range = 0.0..=1.0;
+        /// also report the RMS error over n_ωi ∈ {4 … 32} × n_h ∈ {1 … 6} ([S] figure 5-5)
+        pub error_grid: bool = false;
+    }
 }
 
 /// √(mean squared error over the entries) of a decomposition of a tensor of squared norm

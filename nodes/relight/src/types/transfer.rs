@@ -4,33 +4,30 @@
 
 use crate::terms::{Channels, Term};
 use relume_core::codec::pod_vec;
-use relume_core::{Params, PortValue};
+use relume_core::{params, PortValue};
 use serde::{Deserialize, Serialize};
 
 /// Largest transfer the precompute may hold (the thesis' two-object scene at 512² is 142 MiB;
 /// 16 GiB is a 4096² image of the same scene).
 pub const MAX_TRANSFER_BYTES: u64 = 16 << 30;
 
-/// How the stored images were sampled (the precompute's parameters), kept with them so that a
-/// same-seed reference traces exactly the same paths. Both precompute nodes take these as
-/// their own parameters (`#[param(flatten)]`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Params)]
-pub struct PathCounts {
-    /// camera samples per pixel, jittered over the pixel
-    #[param(default = 16, range = 1..=65536, unit = "samples/pixel", test = 2)]
-    pub spp: u32,
-    /// light samples at the first hit, per camera sample ([S]: 98 per pixel)
-    #[param(default = 4, range = 1..=4096)]
-    pub light_samples: u32,
-    /// uniform hemisphere rays from the first hit, per camera sample ([S]: 4096 per pixel)
-    #[param(default = 16, range = 0..=65536, test = 2)]
-    pub bounce_rays: u32,
-    /// light samples at the second hit, per hemisphere ray ([S]: 8)
-    #[param(default = 1, range = 1..=4096)]
-    pub bounce_light_samples: u32,
-    /// random seed
-    #[param(default = 0, range = 0..=u32::MAX)]
-    pub seed: u64,
+params! {
+    /// How the stored images were sampled (the precompute's parameters), kept with them so that a
+    /// same-seed reference traces exactly the same paths. Both precompute nodes take these as
+    /// their own parameters (`#[param(flatten)]`).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+    pub struct PathCounts {
+        /// camera samples per pixel, jittered over the pixel
+        pub spp: u32 = 16, range = 1..=65536, unit = "samples/pixel", test = 2;
+        /// light samples at the first hit, per camera sample ([S]: 98 per pixel)
+        pub light_samples: u32 = 4, range = 1..=4096;
+        /// uniform hemisphere rays from the first hit, per camera sample ([S]: 4096 per pixel)
+        pub bounce_rays: u32 = 16, range = 0..=65536, test = 2;
+        /// light samples at the second hit, per hemisphere ray ([S]: 8)
+        pub bounce_light_samples: u32 = 1, range = 1..=4096;
+        /// random seed
+        pub seed: u64 = 0, range = 0..=u32::MAX;
+    }
 }
 
 /// Disk encoding: serde through postcard. A port of its own, so that a same-seed render reads
