@@ -35,7 +35,10 @@ impl Document {
 
     /// Opens a graph file, validating it against the registry.
     pub fn open(path: &Path, reg: &Registry) -> Result<Self, String> {
-        let graph = Graph::load(path, reg).map_err(|e| e.to_string())?;
+        let mut graph = Graph::load(path, reg).map_err(|e| e.to_string())?;
+        // A graph without layout positions is laid out the same way each time it opens, so
+        // the layout alone does not mark it as changed.
+        crate::edit::lay_out_unplaced(&mut graph);
         let saved_text = graph.to_ron();
         Ok(Document { graph, path: Some(path.to_path_buf()), saved_text, undo: Vec::new(), redo: Vec::new(), last_edit: None, revision: 0 })
     }

@@ -102,6 +102,47 @@ pub fn position(graph: &Graph, id: &str) -> [f64; 2] {
     graph.editor.positions.iter().find(|(n, _)| n == id).map(|(_, p)| *p).unwrap_or([0.0, 0.0])
 }
 
+/// Places the nodes that have no layout position (a graph written by hand or by a script, with
+/// no `editor` section) in columns by depth, sources on the left, each column in file order,
+/// instead of stacking them all at the origin. Nodes that have a position keep it.
+pub fn lay_out_unplaced(graph: &mut Graph) {
+    const COLUMN: f64 = 240.0;
+    const ROW: f64 = 160.0;
+    let placed: std::collections::HashSet<&str> = graph.editor.positions.iter().map(|(n, _)| n.as_str()).collect();
+    if graph.nodes.iter().all(|n| placed.contains(n.id.as_str())) {
+        return;
+    }
+    // Depth: the longest path from a source, relaxed once per node (a cycle cannot load).
+    let index = graph.index();
+    let mut depth = vec![0usize; graph.nodes.len()];
+    for _ in 0..graph.nodes.len() {
+        let mut changed = false;
+        for e in &graph.edges {
+            let (Some(&a), Some(&b)) = (index.get(e.from.node.as_str()), index.get(e.to.node.as_str())) else { continue };
+            if depth[b] < depth[a] + 1 {
+                depth[b] = depth[a] + 1;
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    let mut rows = std::collections::HashMap::new();
+    let unplaced: Vec<(String, [f64; 2])> = graph
+        .nodes
+        .iter()
+        .enumerate()
+        .filter(|(_, n)| !placed.contains(n.id.as_str()))
+        .map(|(i, n)| {
+            let row = rows.entry(depth[i]).or_insert(0usize);
+            *row += 1;
+            (n.id.clone(), [depth[i] as f64 * COLUMN, (*row - 1) as f64 * ROW])
+        })
+        .collect();
+    graph.editor.positions.extend(unplaced);
+}
+
 pub fn set_position(graph: &mut Graph, id: &str, pos: [f64; 2]) {
     match graph.editor.positions.iter_mut().find(|(n, _)| n == id) {
         Some(slot) => slot.1 = pos,
@@ -117,6 +158,24 @@ mod tests {
         let reg = crate::registry();
         let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../graphs/filters.ron")).unwrap();
         (Graph::parse(&text, None).unwrap(), reg)
+    }
+
+    #[test]
+    fn a_graph_without_positions_is_laid_out_in_columns_by_depth() {
+        let (mut g, _) = graph();
+        g.editor.positions.clear();
+        lay_out_unplaced(&mut g);
+        let at = |id: &str| position(&g, id);
+        // clean, noisy → sum → median → blur → error, tonemap
+        assert_eq!((at("clean"), at("noisy")), ([0.0, 0.0], [0.0, 160.0]));
+        assert_eq!((at("sum"), at("median"), at("blur")), ([240.0, 0.0], [480.0, 0.0], [720.0, 0.0]));
+        assert_eq!((at("error"), at("tonemap")), ([960.0, 0.0], [960.0, 160.0]));
+        let distinct: std::collections::HashSet<[u64; 2]> = g.nodes.iter().map(|n| at(&n.id).map(f64::to_bits)).collect();
+        assert_eq!(distinct.len(), g.nodes.len(), "no two nodes share a place");
+        // Placed nodes keep their place; the laid-out graph is left alone.
+        let before = g.editor.positions.clone();
+        lay_out_unplaced(&mut g);
+        assert_eq!(g.editor.positions, before);
     }
 
     fn p(s: &str) -> PortRef {

@@ -32,10 +32,10 @@ pub struct Region {
 }
 
 impl Region {
-    /// A rendered picture: many colours and visible variation (a blank or flat panel has one
-    /// or two colours and no spread).
+    /// A rendered picture: more than one colour and visible variation (a blank or flat panel
+    /// has one colour and no spread; a two-colour checker is a picture).
     pub fn is_picture(&self) -> bool {
-        self.pixels > 0 && self.distinct_colors >= 16 && self.luma_std >= 4.0
+        self.pixels > 0 && self.distinct_colors >= 2 && self.luma_std >= 4.0
     }
 }
 
@@ -158,5 +158,12 @@ mod tests {
         }
         assert!(region_stats(&pic, r).is_picture());
         assert_eq!(region_stats(&pic, egui::Rect::NOTHING).pixels, 0);
+        // A 16 × 16 checker of two colours is a picture, not a blank viewer.
+        let mut checker = flat.clone();
+        for (i, p) in checker.pixels.iter_mut().enumerate() {
+            let (x, y) = (i % 64 / 4, i / 64 / 4);
+            *p = if (x + y) % 2 == 0 { egui::Color32::from_rgb(230, 128, 51) } else { egui::Color32::from_gray(20) };
+        }
+        assert!(region_stats(&checker, r).is_picture());
     }
 }
