@@ -231,7 +231,7 @@ fn obj_and_mtl_errors_name_their_own_file_and_line() {
     let mtl = Some("newmtl a\nKd 0.5 0.5 0.5\nnewmtl b\nKd 1 1 1\n");
     assert_eq!(
         err(&format!("mtllib m.mtl\n{tri}garbage here\nusemtl a\nf 1 2 3\n"), mtl),
-        "m.obj:5: `garbage here` is not an OBJ statement (expected v, vt, vn, f, o, g, usemtl, mtllib, s or a # comment)"
+        "m.obj:5: `garbage` is not an OBJ statement (expected v, vt, vn, f, o, g, usemtl, mtllib, s or a # comment)"
     );
     let e = err(&format!("mtllib other.mtl\n{tri}usemtl a\nf 1 2 3\n"), mtl);
     assert!(e.starts_with("m.obj:1: cannot read the material library \"other.mtl\""), "{e}");

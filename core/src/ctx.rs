@@ -24,7 +24,8 @@ impl CancelToken {
 }
 
 /// Where a run's nodes may write files (`ParamKind::OutputFile` parameters): a graph from
-/// someone else must not write outside the folders the person running it chose.
+/// someone else must not write outside the folders the person running it chose. The command
+/// line confines what a graph reads with the same rule (`RunFiles::outside`).
 #[derive(Clone, Debug, PartialEq)]
 pub enum WritePolicy {
     /// Below the graph file's own folder (the engine adds it) and below these folders (the

@@ -157,6 +157,18 @@ impl Engine {
     pub fn budget_source(&self) -> &str {
         &self.budget_source
     }
+    /// A graph whose nodes write files (`SaveImage`) is refused when a write would land on a
+    /// file the run reads or on another of its writes (`RunFiles`); a graph that writes no
+    /// file is not looked at further.
+    pub fn check_files(&self, graph: &Graph, plan: &Plan) -> Result<(), GraphErrors> {
+        let writes = plan.order.iter().any(|&i| {
+            self.registry.node(&graph.nodes[i].kind).is_some_and(|k| k.schema().0.iter().any(|s| s.kind == crate::ParamKind::OutputFile))
+        });
+        if !writes {
+            return Ok(());
+        }
+        crate::RunFiles::of_plan(graph, &self.registry, plan).check(graph)
+    }
     /// The plan's memory estimate against the budget: the refusal as a graph error.
     pub fn check_memory(&self, graph: &Graph, plan: &Plan) -> Result<(), GraphErrors> {
         match self.estimate(graph, plan).refusal(graph, self.run_budget, &self.budget_source) {
@@ -272,6 +284,7 @@ impl Engine {
         let plan = crate::plan::make_plan_for(graph, &self.registry, opts.outputs.as_deref(), &opts.nodes)?;
         check_shard_run(graph, &plan, &opts.shards)?;
         self.check_memory(graph, &plan)?;
+        self.check_files(graph, &plan)?;
         if let Some(o) = opts.observer {
             o.event(&Event::Planned { nodes: plan.order.len() });
         }
@@ -432,6 +445,9 @@ impl Engine {
         report.total_ms = start.elapsed().as_secs_f64() * 1e3;
         report.memory_cache_bytes = self.memory_bytes();
         report.peak_rss_bytes = peak_rss_bytes();
+        if let Some(d) = &self.disk {
+            report.notes.extend(d.take_notes());
+        }
         Ok(RunResult { outputs, report })
     }
 

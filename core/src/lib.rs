@@ -26,6 +26,7 @@ mod printable;
 mod registry;
 mod report;
 pub mod ron;
+mod run_files;
 pub mod shard;
 mod standalone;
 
@@ -40,15 +41,16 @@ pub use hash::{Hash, Hasher};
 pub use input_file::read_input;
 pub use memory::{MemoryEstimate, PortSize};
 pub use node::{ports_of, run_typed, Caching, Documented, DynNode, Node};
-pub use params::{ParamEnum, ParamKind, ParamSpec, ParamValue, ParamValues, Params, Schema};
+pub use params::{FileList, ParamEnum, ParamKind, ParamSpec, ParamValue, ParamValues, Params, Schema};
 pub use plan::{make_plan, Plan};
 pub use port::{input_at, InputPorts, OutputPorts, PortDecl, PortTypeInfo, PortValue, Ports, Value};
-pub use printable::printable;
+pub use printable::{clipped, printable};
 pub use relume_macros::{node, params, ParamEnum, Params};
 
 // Lets the derive macros name `::relume_core` inside this crate's own tests.
 extern crate self as relume_core;
 pub use registry::{closest, Registry};
 pub use report::{NodeReport, RunReport};
+pub use run_files::{RunFile, RunFiles};
 pub use shard::{ShardMode, ShardSpec, Sharded};
 pub use standalone::{run_kind, run_standalone, run_standalone_with};

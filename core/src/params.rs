@@ -71,6 +71,30 @@ pub struct ParamSpec {
     /// expensive knobs turned down so that every graph runs in seconds. `None`: the graph's own
     /// value is cheap enough.
     pub test: Option<ParamValue>,
+    /// For a file parameter, the extensions it takes (lower case, without the dot; empty: any),
+    /// checked when the graph loads so that a file the node cannot read or write is refused
+    /// before anything runs.
+    pub extensions: &'static [&'static str],
+    /// For an input file that names more files (a scene: its meshes and maps), the function
+    /// that lists them, joined to the file's folder, without reading them
+    /// (`#[param(also_reads = f)]`): the run's reads include them (`RunFiles`).
+    pub also_reads: Option<FileList>,
+}
+
+/// The files an input file names, found by reading it alone (`ParamSpec::also_reads`).
+#[derive(Clone, Copy)]
+pub struct FileList(pub fn(&Path) -> Vec<PathBuf>);
+
+impl std::fmt::Debug for FileList {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("FileList(..)")
+    }
+}
+
+impl PartialEq for FileList {
+    fn eq(&self, other: &Self) -> bool {
+        self.0 as usize == other.0 as usize
+    }
 }
 
 /// A parameter value as written in a graph file.
@@ -176,6 +200,16 @@ impl ParamSpec {
                 ParamValue::Text(s) if s.is_empty() && self.kind != ParamKind::Text => {
                     Err("expected a file path, found an empty string".into())
                 }
+                ParamValue::Text(s) if !self.extensions.is_empty() => {
+                    let ext = Path::new(s).extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
+                    if self.extensions.contains(&ext.as_str()) {
+                        Ok(v.clone())
+                    } else {
+                        let takes: Vec<String> = self.extensions.iter().map(|e| format!(".{e}")).collect();
+                        let has = if ext.is_empty() { "no extension".to_string() } else { format!("the extension .{ext}") };
+                        Err(format!("\"{s}\" has {has}; this parameter takes a {} file", takes.join(" or ")))
+                    }
+                }
                 ParamValue::Text(_) => Ok(v.clone()),
                 _ => Err(format!("expected a quoted string, found `{}`", v.to_text())),
             },
@@ -217,7 +251,7 @@ impl Schema {
     }
     fn push(mut self, name: &'static str, kind: ParamKind, default: Option<ParamValue>) -> Self {
         debug_assert!(self.get(name).is_none(), "parameter {name} declared twice");
-        self.0.push(ParamSpec { name, kind, default, unit: "", help: "", test: None });
+        self.0.push(ParamSpec { name, kind, default, unit: "", help: "", test: None, extensions: &[], also_reads: None });
         self
     }
     pub fn float(self, name: &'static str, default: f64, min: f64, max: f64) -> Self {
@@ -430,5 +464,21 @@ mod tests {
         assert_eq!(v.variant("op"), "A");
         assert_eq!(v.triple("c"), [1.0; 3]);
         assert_eq!(v.path("path"), PathBuf::from("/g/a.exr"));
+    }
+
+    #[test]
+    fn a_file_parameter_with_extensions_takes_only_those() {
+        let spec = ParamSpec { extensions: &["exr", "png"], ..Schema::new().output_file("path").0.remove(0) };
+        assert!(spec.check(&ParamValue::Text("out/a.PNG".into())).is_ok());
+        assert_eq!(
+            spec.check(&ParamValue::Text("x.ron".into())).unwrap_err(),
+            "\"x.ron\" has the extension .ron; this parameter takes a .exr or .png file"
+        );
+        assert_eq!(
+            spec.check(&ParamValue::Text("x".into())).unwrap_err(),
+            "\"x\" has no extension; this parameter takes a .exr or .png file"
+        );
+        let any = Schema::new().output_file("path").0.remove(0);
+        assert!(any.check(&ParamValue::Text("x.ron".into())).is_ok());
     }
 }

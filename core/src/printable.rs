@@ -21,6 +21,32 @@ pub fn printable(s: &str) -> Cow<'_, str> {
     Cow::Owned(s.chars().map(|c| if unsafe_char(c) { c.escape_unicode().to_string() } else { c.to_string() }).collect())
 }
 
+/// The longest line a message shows whole, in characters; a longer one (a megabyte-long path
+/// from a graph) keeps its start and end.
+pub const MAX_MESSAGE_LINE: usize = 2000;
+
+/// `s` with every line longer than `MAX_MESSAGE_LINE` characters cut in the middle, saying how
+/// much was left out: what an error or warning prints.
+pub fn clipped(s: &str) -> Cow<'_, str> {
+    if s.lines().all(|l| l.len() <= MAX_MESSAGE_LINE) {
+        return Cow::Borrowed(s);
+    }
+    let (head, tail) = (MAX_MESSAGE_LINE * 3 / 4, MAX_MESSAGE_LINE / 5);
+    let lines: Vec<String> = s
+        .split('\n')
+        .map(|l| {
+            let n = l.chars().count();
+            if n <= MAX_MESSAGE_LINE {
+                return l.to_string();
+            }
+            let start: String = l.chars().take(head).collect();
+            let end: String = l.chars().skip(n - tail).collect();
+            format!("{start}…[{} characters left out]…{end}", n - head - tail)
+        })
+        .collect();
+    Cow::Owned(lines.join("\n"))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -32,5 +58,19 @@ mod tests {
         let p = printable(hostile);
         assert_eq!(p, "a\\u{1b}[2J\\u{1b}]0;pwned\\u{7}\\u{0}b\\u{202e}cba\\u{9b}");
         assert!(!p.chars().any(unsafe_char));
+    }
+
+    #[test]
+    fn a_very_long_line_keeps_its_start_and_end() {
+        let short = "error: short\nsecond line";
+        assert!(matches!(clipped(short), Cow::Borrowed(_)));
+        let path = format!("/a/{}/z.png", "x".repeat(1 << 20));
+        let msg = format!("error: cannot read {path}: not found\nnext");
+        let c = clipped(&msg);
+        let first = c.lines().next().unwrap();
+        assert!(first.starts_with("error: cannot read /a/xxx") && first.ends_with("xxx/z.png: not found"), "{}", &first[..80]);
+        assert!(first.contains(&format!("…[{} characters left out]…", msg.lines().next().unwrap().len() - 1500 - 400)));
+        assert!(first.chars().count() < MAX_MESSAGE_LINE + 50);
+        assert_eq!(c.lines().nth(1), Some("next"));
     }
 }

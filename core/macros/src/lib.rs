@@ -1,9 +1,9 @@
 //! Procedural macros behind relume's node API, re-exported by relume-core:
 //!
 //! - `#[derive(Params)]` on a node struct: each field is a parameter (its doc comment is the
-//!   help text; `#[param(default = …, test = …, range = a..=b, unit = "…", rgb, output)]` the
-//!   rest; `#[param(flatten)]` takes in a group of parameters that derives `Params` itself), the
-//!   struct's doc comment is the node's doc (the editor tooltip).
+//!   help text; `#[param(default = …, test = …, range = a..=b, unit = "…", rgb, output,
+//!   extensions = ["…"], also_reads = f)]` the rest; `#[param(flatten)]` takes in a group of parameters that
+//!   derives `Params` itself), the struct's doc comment is the node's doc (the editor tooltip).
 //! - `params! { pub struct X { pub name: Type = default, key = …; … } }`: the same struct with
 //!   each parameter on one line (`params_block`); it expands to the derive above.
 //! - `#[derive(ParamEnum)]` on an enum of unit variants: a choice parameter whose variants are
@@ -87,6 +87,8 @@ struct FieldAttrs {
     rgb: bool,
     output: bool,
     flatten: bool,
+    extensions: Vec<syn::LitStr>,
+    also_reads: Option<syn::Path>,
 }
 
 fn field_attrs(f: &syn::Field) -> syn::Result<FieldAttrs> {
@@ -114,8 +116,18 @@ fn field_attrs(f: &syn::Field) -> syn::Result<FieldAttrs> {
                 out.output = true;
             } else if meta.path.is_ident("flatten") {
                 out.flatten = true;
+            } else if meta.path.is_ident("also_reads") {
+                out.also_reads = Some(meta.value()?.parse()?);
+            } else if meta.path.is_ident("extensions") {
+                let list: syn::ExprArray = meta.value()?.parse()?;
+                for e in list.elems {
+                    match e {
+                        Expr::Lit(syn::ExprLit { lit: Lit::Str(s), .. }) => out.extensions.push(s),
+                        e => return Err(syn::Error::new(e.span(), "extensions = [\"exr\", \"png\"]: lower case, without the dot")),
+                    }
+                }
             } else {
-                return Err(meta.error("unknown #[param] key (default, test, range, unit, rgb, output, flatten)"));
+                return Err(meta.error("unknown #[param] key (default, test, range, unit, rgb, output, flatten, extensions, also_reads)"));
             }
             Ok(())
         })?;
@@ -237,8 +249,13 @@ fn params_impl(input: &DeriveInput) -> syn::Result<Tokens> {
             (d, _) => option(d.as_ref())?,
         };
         let test = option(a.test.as_ref())?;
+        let extensions = &a.extensions;
+        let also_reads = match &a.also_reads {
+            Some(f) => quote!(::core::option::Option::Some(#c::FileList(#f))),
+            None => quote!(::core::option::Option::None),
+        };
         specs.push(
-            quote!(specs.push(#c::ParamSpec { name: #pname, kind: #kind, default: #default, unit: #unit, help: #help, test: #test });),
+            quote!(specs.push(#c::ParamSpec { name: #pname, kind: #kind, default: #default, unit: #unit, help: #help, test: #test, extensions: &[#(#extensions),*], also_reads: #also_reads });),
         );
         inits.push(quote!(#ident: #init));
     }
@@ -386,13 +403,14 @@ fn node_impl(args: NodeArgs, imp: ItemImpl) -> syn::Result<Tokens> {
     let caching = args.caching.unwrap_or_else(|| format_ident!("Auto"));
     let metrics = &args.metrics;
     let mut run = None;
-    let mut memory = None;
+    // `Node`'s optional functions, written in the impl and moved into the trait impl.
+    let mut trait_fns = Vec::new();
     let mut shard_fns: [Option<ImplItemFn>; 3] = [None, None, None];
     let mut rest = Vec::new();
     for item in imp.items {
         match item {
             ImplItem::Fn(f) if f.sig.ident == "run" => run = Some(f),
-            ImplItem::Fn(f) if f.sig.ident == "memory" => memory = Some(f),
+            ImplItem::Fn(f) if f.sig.ident == "memory" => trait_fns.push(f),
             ImplItem::Fn(f) if args.sharded && ["shard", "run_items", "gather"].contains(&f.sig.ident.to_string().as_str()) => {
                 let at = ["shard", "run_items", "gather"].iter().position(|n| f.sig.ident == n).unwrap();
                 shard_fns[at] = Some(f);
@@ -436,7 +454,7 @@ fn node_impl(args: NodeArgs, imp: ItemImpl) -> syn::Result<Tokens> {
                 fn sharded() -> Option<::std::sync::Arc<dyn #c::shard::DynSharded>> {
                     Some(::std::sync::Arc::new(#c::shard::ShardEntry::<Self>::new()))
                 }
-                #memory
+                #(#trait_fns)*
             }
             impl #c::Sharded for #self_ty {
                 type Partial = #partial;
@@ -449,7 +467,7 @@ fn node_impl(args: NodeArgs, imp: ItemImpl) -> syn::Result<Tokens> {
     }
     let run = run.ok_or_else(|| syn::Error::new(Span::call_site(), "#[node] impl has no `fn run`"))?;
     if let Some(names) = &args.outputs {
-        return ports_from_signature(&head, self_ty, run, memory, rest, names);
+        return ports_from_signature(&head, self_ty, run, trait_fns, rest, names);
     }
     let inputs = match run.sig.inputs.iter().nth(1) {
         Some(syn::FnArg::Typed(t)) => input_type(&t.ty)?,
@@ -462,7 +480,7 @@ fn node_impl(args: NodeArgs, imp: ItemImpl) -> syn::Result<Tokens> {
             type Inputs<'a> = #inputs;
             type Outputs = #outputs;
             #run
-            #memory
+            #(#trait_fns)*
         }
         #rest
     })
@@ -476,7 +494,7 @@ fn ports_from_signature(
     head: &Tokens,
     self_ty: &Type,
     mut run: ImplItemFn,
-    memory: Option<ImplItemFn>,
+    trait_fns: Vec<ImplItemFn>,
     rest: Tokens,
     names: &[syn::Ident],
 ) -> syn::Result<Tokens> {
@@ -536,7 +554,7 @@ fn ports_from_signature(
                 #unpack
                 self.run_ports(#(#pn,)* __cx).map(|#bind| #wrap)
             }
-            #memory
+            #(#trait_fns)*
         }
         impl #self_ty {
             #run

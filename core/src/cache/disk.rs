@@ -24,13 +24,24 @@ pub const DEAD_WRITER_TEMP_AGE: Duration = Duration::from_secs(60);
 
 pub struct DiskCache {
     dir: PathBuf,
+    /// What went wrong since the last `take_notes`, to be said once per run.
+    problems: std::sync::Mutex<Problems>,
+}
+
+/// Failed writes and entries that were not regular files: counted, the first of each kept.
+#[derive(Default)]
+struct Problems {
+    failed_writes: u64,
+    first_failure: Option<String>,
+    irregular: u64,
+    first_irregular: Option<PathBuf>,
 }
 
 impl DiskCache {
     /// Opens the cache in `dir` (created on the first write), removing stale temporary files
     /// that interrupted writes left behind.
     pub fn new(dir: impl Into<PathBuf>) -> Self {
-        let cache = DiskCache { dir: dir.into() };
+        let cache = DiskCache { dir: dir.into(), problems: Default::default() };
         cache.sweep_stale_temp_files(SystemTime::now());
         cache
     }
@@ -93,8 +104,42 @@ impl DiskCache {
         self.dir.join(&hex[..2]).join(format!("{hex}.rlc"))
     }
 
-    /// Writes an entry.
+    /// Writes an entry; a failure (a full disk, a folder made read-only meanwhile) is counted
+    /// for `take_notes` as well as returned.
     pub fn put(&self, key: &Hash, entry: &CacheEntry, decls: &[PortDecl]) -> std::io::Result<()> {
+        let r = self.write_entry(key, entry, decls);
+        if let Err(e) = &r {
+            let mut p = self.problems.lock().unwrap();
+            p.failed_writes += 1;
+            p.first_failure.get_or_insert_with(|| format!("{}: {e}", self.path_of(key).display()));
+        }
+        r
+    }
+
+    /// What went wrong since the last call, as sentences for the run report (each kind said
+    /// once, with a count and the first case), and forgets it.
+    pub fn take_notes(&self) -> Vec<String> {
+        let p = std::mem::take(&mut *self.problems.lock().unwrap());
+        let mut notes = Vec::new();
+        if let Some(first) = p.first_failure {
+            notes.push(format!(
+                "the disk cache {} could not store {} result(s) (the first: {first}); later runs will compute them again",
+                self.dir.display(),
+                p.failed_writes
+            ));
+        }
+        if let Some(first) = p.first_irregular {
+            notes.push(format!(
+                "the disk cache {} holds {} entr(ies) that are not regular files (the first: {}); they were read as missing, and a new result replaces them",
+                self.dir.display(),
+                p.irregular,
+                first.display()
+            ));
+        }
+        notes
+    }
+
+    fn write_entry(&self, key: &Hash, entry: &CacheEntry, decls: &[PortDecl]) -> std::io::Result<()> {
         let payloads: Vec<Vec<u8>> = entry.outputs.iter().map(|v| v.encode()).collect();
         let mut buf = Vec::new();
         buf.extend_from_slice(MAGIC);
@@ -133,7 +178,17 @@ impl DiskCache {
 
     /// Reads an entry whose outputs must match `decls`; any defect is a miss.
     pub fn get(&self, key: &Hash, decls: &[PortDecl], reg: &Registry) -> Option<CacheEntry> {
-        let bytes = read_regular(&self.path_of(key))?;
+        let path = self.path_of(key);
+        let bytes = match read_regular(&path) {
+            Read::Bytes(b) => b,
+            Read::Missing => return None,
+            Read::NotRegular => {
+                let mut p = self.problems.lock().unwrap();
+                p.irregular += 1;
+                p.first_irregular.get_or_insert(path);
+                return None;
+            }
+        };
         decode(&bytes, key, decls, reg)
     }
 }
@@ -142,20 +197,31 @@ impl DiskCache {
 /// anything else. An entry replaced by a link to `/dev/zero` would otherwise be read until
 /// memory runs out, and a FIFO would block the run; the next write of that key replaces the
 /// link or FIFO itself (`write_atomic` renames over the name, never writes through it).
-fn read_regular(path: &Path) -> Option<Vec<u8>> {
-    use std::io::Read;
-    let named = std::fs::symlink_metadata(path).ok()?;
+fn read_regular(path: &Path) -> Read {
+    use std::io::Read as _;
+    let Ok(named) = std::fs::symlink_metadata(path) else { return Read::Missing };
     if !named.file_type().is_file() {
-        return None;
+        return Read::NotRegular;
     }
-    let f = std::fs::File::open(path).ok()?;
-    let opened = f.metadata().ok()?;
+    let Ok(f) = std::fs::File::open(path) else { return Read::Missing };
+    let Ok(opened) = f.metadata() else { return Read::Missing };
     if !opened.file_type().is_file() {
-        return None;
+        return Read::NotRegular;
     }
     let mut bytes = Vec::new();
-    f.take(opened.len()).read_to_end(&mut bytes).ok()?;
-    Some(bytes)
+    match f.take(opened.len()).read_to_end(&mut bytes) {
+        Ok(_) => Read::Bytes(bytes),
+        Err(_) => Read::Missing,
+    }
+}
+
+/// What `read_regular` found.
+enum Read {
+    Bytes(Vec<u8>),
+    /// Not there, or not readable (a miss like any other).
+    Missing,
+    /// A link, a device, a FIFO or a folder where an entry should be.
+    NotRegular,
 }
 
 /// Whether `name` is a folder of entries: the first two hex digits of the keys in it.
@@ -338,7 +404,32 @@ mod tests {
         std::fs::write(&elsewhere, b"RELUMEC3").unwrap();
         std::os::unix::fs::symlink(&elsewhere, place(&key(3))).unwrap();
         assert!(cache.get(&key(3), &[], &reg).is_none());
-        assert_eq!(read_regular(&elsewhere).as_deref(), Some(&b"RELUMEC3"[..]));
+        assert!(matches!(read_regular(&elsewhere), Read::Bytes(b) if b == b"RELUMEC3"));
+        // Said once, with the count and the first, then forgotten; a plain miss says nothing.
+        assert!(cache.get(&key(4), &[], &reg).is_none());
+        let notes = cache.take_notes();
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(
+            notes[0].contains("holds 3 entr(ies) that are not regular files") && notes[0].contains(&place(&key(1)).display().to_string()),
+            "{notes:?}"
+        );
+        assert!(cache.take_notes().is_empty());
+    }
+
+    #[test]
+    fn a_write_that_fails_is_said_once_with_the_count_and_the_first_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let cache = DiskCache::new(dir.path().join("c"));
+        // Where the key folders should go, a file: every write fails, as on a full disk.
+        std::fs::write(dir.path().join("c"), b"").unwrap();
+        let entry = CacheEntry { outputs: vec![], metrics: vec![], notes: vec![], deps: vec![], compute_ms: 0.0 };
+        for b in 0..3 {
+            assert!(cache.put(&Hash([b; 32]), &entry, &[]).is_err());
+        }
+        let notes = cache.take_notes();
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(notes[0].contains("could not store 3 result(s)") && notes[0].contains("later runs will compute them again"), "{notes:?}");
+        assert!(cache.take_notes().is_empty());
     }
 
     #[test]

@@ -228,7 +228,12 @@ impl<'a> Parser<'a> {
             let v: f64 = s.parse().map_err(|_| bad())?;
             Ok(RonKind::Float(v))
         } else {
-            let v: i64 = s.trim_start_matches('+').parse().map_err(|_| bad())?;
+            let v: i64 = s.trim_start_matches('+').parse().map_err(|e: std::num::ParseIntError| match e.kind() {
+                std::num::IntErrorKind::PosOverflow | std::num::IntErrorKind::NegOverflow => {
+                    SyntaxError { pos, msg: format!("`{s}` is too large: whole numbers lie in {} ..= {}", i64::MIN, i64::MAX) }
+                }
+                _ => bad(),
+            })?;
             Ok(RonKind::Int(v))
         }
     }
@@ -362,5 +367,14 @@ mod tests {
         assert!(matches!(v.kind, RonKind::Tuple(None, ref i) if i.len() == 2));
         let v = parse("Rgb(1, 2.5, 3)").unwrap();
         assert!(matches!(v.kind, RonKind::Tuple(Some(ref n), ref i) if n == "Rgb" && i.len() == 3));
+    }
+
+    #[test]
+    fn a_whole_number_past_64_bits_is_too_large_not_malformed() {
+        let e = parse("(n: 99999999999999999999)").unwrap_err();
+        assert_eq!(e.msg, "`99999999999999999999` is too large: whole numbers lie in -9223372036854775808 ..= 9223372036854775807");
+        assert_eq!((e.pos.line, e.pos.col), (1, 5));
+        let RonKind::Struct(_, f) = parse("(n: -9223372036854775808)").unwrap().kind else { panic!() };
+        assert_eq!(f[0].value.kind, RonKind::Int(i64::MIN));
     }
 }

@@ -42,6 +42,15 @@ pub(crate) struct GraphArgs {
     /// graph from someone else cannot overwrite files elsewhere.
     #[arg(long)]
     pub(crate) allow_writes_anywhere: bool,
+    /// A folder the graph's nodes may read files from besides the graph file's own (repeat
+    /// for several): input images, scenes and the meshes and maps they name.
+    #[arg(long, value_name = "DIR")]
+    pub(crate) read_from: Vec<PathBuf>,
+    /// Let the graph's nodes read files anywhere. Without it they may read only below the
+    /// graph file's folder and the folders given with --read-from: a graph from someone else
+    /// cannot read (and quote in an error) a file elsewhere.
+    #[arg(long)]
+    pub(crate) allow_reads_anywhere: bool,
 }
 
 /// `relume check` and `relume plan`.
@@ -177,6 +186,16 @@ impl GraphArgs {
             WritePolicy::Anywhere
         } else {
             WritePolicy::Within(vec![out.to_path_buf()])
+        }
+    }
+
+    /// Where the graph's nodes may read files: the graph's folder and the --read-from folders,
+    /// or anywhere with --allow-reads-anywhere.
+    pub(crate) fn read_policy(&self) -> WritePolicy {
+        if self.allow_reads_anywhere {
+            WritePolicy::Anywhere
+        } else {
+            WritePolicy::Within(self.read_from.clone())
         }
     }
 

@@ -1,6 +1,7 @@
 //! The error a command ends with: a message for the user and the exit code that goes with it.
 
 /// An error for the user and the exit code that goes with it.
+#[derive(Debug)]
 pub(crate) struct CliError {
     pub code: i32,
     pub msg: String,

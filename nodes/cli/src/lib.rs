@@ -86,7 +86,7 @@ where
     };
     let reg = crate::registry();
     let result = match cli.cmd {
-        Cmd::Run(a) if a.cluster.processes.is_some() => cluster::launch(&a),
+        Cmd::Run(a) if a.cluster.processes.is_some() => cluster::launch(&reg, &a),
         Cmd::Run(a) if a.cluster.workers.is_some() => cluster::run_process(&reg, &a),
         Cmd::Run(a) => run::run_graph(&reg, &a, None),
         Cmd::Plan(a) => run::plan(&reg, &a),

@@ -4,10 +4,14 @@ use crate::args::{CheckArgs, RunArgs};
 use crate::error::CliError;
 use crate::files::{prepare_file, prepare_out_dir, write_refusals};
 use crate::interrupt::Watch;
-use crate::outputs::write_outputs;
+use crate::outputs::{planned_outputs, write_outputs};
 use crate::progress::Bars;
+use relume_base::image::exr_layers::layers_path;
 use relume_core::shard::ShardPeers;
-use relume_core::{make_plan, Graph, GraphErrors, Observer, PlanAction, Registry, RunError, RunOptions, ShardMode};
+use relume_core::{
+    make_plan, Graph, GraphErrors, Observer, PlanAction, Registry, RunError, RunFiles, RunOptions, ShardMode, WritePolicy, WriteRoots,
+};
+use std::path::{Path, PathBuf};
 
 /// The ids of the sharded nodes a run of `outputs` needs (what processes other than 0 run).
 pub(crate) fn sharded_nodes(reg: &Registry, graph: &Graph, outputs: Option<&[String]>) -> Result<Vec<String>, CliError> {
@@ -37,7 +41,12 @@ pub(crate) fn run_graph(reg: &Registry, a: &RunArgs, peers: Option<&dyn ShardPee
         }
     }
     let writes = a.g.write_policy(&a.out);
-    refuse_writes(reg, &graph, a.g.requested().as_deref(), &writes)?;
+    let command = CommandWrites {
+        out: writer.then_some(a.out.as_path()),
+        exr_layers: a.exr_layers,
+        files: a.report.iter().map(|r| (r.clone(), "--report")).collect(),
+    };
+    refuse_files(reg, &graph, a.g.requested().as_deref(), &writes, &a.g.read_policy(), &command)?;
     let (engine, cache_note) = a.g.engine_for_writing(reg);
     let watch = Watch::new();
     let bars = (!a.quiet).then(Bars::new);
@@ -56,6 +65,11 @@ pub(crate) fn run_graph(reg: &Registry, a: &RunArgs, peers: Option<&dyn ShardPee
     let result = engine.run(&graph, &opts).map_err(|e| run_error(&graph, e));
     drop(bars);
     let mut result = result?;
+    // What the run says of itself (a disk cache that could not store results, …), once, on
+    // stderr; the note of a cache unwritable from the start was said before the run.
+    for n in &result.report.notes {
+        say_err!("warning: {n}");
+    }
     result.report.notes.extend(cache_note);
     if !writer {
         if !a.quiet {
@@ -127,15 +141,46 @@ pub(crate) fn run_error(graph: &Graph, e: RunError) -> CliError {
 
 /// Refuses, before running, output-file parameters of the needed nodes that would write
 /// outside the folders allowed (exit 2, naming file, line, node and parameter).
-pub(crate) fn refuse_writes(
+/// What a command writes besides the graph's own output files.
+#[derive(Default)]
+pub(crate) struct CommandWrites<'a> {
+    /// The folder the graph's outputs are written to (`relume run --out`), when they are.
+    pub out: Option<&'a Path>,
+    /// `--exr-layers`: one multi-layer EXR in `out` too.
+    pub exr_layers: bool,
+    /// Other files, each with the flag that names it.
+    pub files: Vec<(PathBuf, &'static str)>,
+}
+
+/// Refuses, before anything runs, a graph output file outside the folders the run may write
+/// to, a file a node reads outside the folders it may read from, and any write (a node's
+/// output file, an output written to `--out`, `--report`, …) onto a file the run reads or onto
+/// another of its writes.
+pub(crate) fn refuse_files(
     reg: &Registry,
     graph: &Graph,
     outputs: Option<&[String]>,
-    writes: &relume_core::WritePolicy,
+    writes: &WritePolicy,
+    reads: &WritePolicy,
+    command: &CommandWrites,
 ) -> Result<(), CliError> {
     // A graph the planner refuses is reported by the run itself, with the same message.
     let Ok(plan) = make_plan(graph, reg, outputs) else { return Ok(()) };
-    let errs = write_refusals(reg, graph, plan.order.iter().map(|&i| graph.nodes[i].id.as_str()), writes);
+    let mut errs = write_refusals(reg, graph, plan.order.iter().map(|&i| graph.nodes[i].id.as_str()), writes);
+    let mut files = RunFiles::of_plan(graph, reg, &plan);
+    if let Some(out) = command.out {
+        for (name, path) in planned_outputs(reg, graph, &plan, out) {
+            files.write(&path, &format!("output \"{name}\""));
+        }
+        if command.exr_layers {
+            files.write(&layers_path(graph, out), "--exr-layers");
+        }
+    }
+    for (path, flag) in &command.files {
+        files.write(path, flag);
+    }
+    errs.extend(files.outside(graph, &WriteRoots::new(reads, &graph.base_dir)));
+    errs.extend(files.clashes(graph));
     if errs.is_empty() {
         Ok(())
     } else {
@@ -147,7 +192,7 @@ pub(crate) fn plan(reg: &Registry, a: &CheckArgs) -> Result<(), CliError> {
     let graph = a.g.load(reg)?;
     let engine = a.g.engine(reg);
     let lines = engine.explain(&graph, a.g.requested().as_deref()).map_err(CliError::graph)?;
-    refuse_writes(reg, &graph, a.g.requested().as_deref(), &a.g.write_policy(&a.out))?;
+    refuse_files(reg, &graph, a.g.requested().as_deref(), &a.g.write_policy(&a.out), &a.g.read_policy(), &CommandWrites::default())?;
     let (mut run, mut cached) = (0, 0);
     for l in &lines {
         let what = match l.action {
@@ -172,6 +217,14 @@ pub(crate) fn check(reg: &Registry, a: &CheckArgs) -> Result<(), CliError> {
     let graph = a.g.load(reg)?;
     let mut errs = graph.unconnected_inputs_of(reg, graph.nodes.iter().map(|n| n.id.as_str()));
     errs.extend(write_refusals(reg, &graph, graph.nodes.iter().map(|n| n.id.as_str()), &a.g.write_policy(&a.out)));
+    // The files the planned run reads and writes: each read there, no write onto a read or
+    // onto another write (a run would refuse or fail on these only later).
+    if let Ok(plan) = make_plan(&graph, reg, a.g.requested().as_deref()) {
+        let files = RunFiles::of_plan(&graph, reg, &plan);
+        errs.extend(files.outside(&graph, &WriteRoots::new(&a.g.read_policy(), &graph.base_dir)));
+        errs.extend(files.missing(&graph));
+        errs.extend(files.clashes(&graph));
+    }
     if !errs.is_empty() {
         errs.sort_by_key(|e| e.pos.map(|p| (p.line, p.col)).unwrap_or((u32::MAX, 0)));
         return Err(CliError::graph(GraphErrors(errs)));

@@ -33,11 +33,23 @@ pub(crate) struct ShardArgs {
     pub quiet: bool,
 }
 
+/// The value `v` of the environment variable `name` as a count or index, or what is wrong with it.
+fn whole_number(name: &str, v: &str) -> Result<u64, CliError> {
+    v.trim().parse().map_err(|_| {
+        let why = match v.trim().parse::<i128>() {
+            Ok(n) if n < 0 => "must be ≥ 0".to_string(),
+            Ok(_) => format!("is too large (at most {})", u64::MAX),
+            Err(_) => "is not a whole number".to_string(),
+        };
+        CliError::graph(format!("{name}={v} {why}"))
+    })
+}
+
 /// The shard's index and count from the flags or Slurm's environment.
 pub(crate) fn shard_place(index: Option<u64>, shards: Option<u64>) -> Result<(u64, u64), CliError> {
     let env = |name: &str| -> Result<Option<u64>, CliError> {
         match std::env::var(name) {
-            Ok(v) => v.trim().parse().map(Some).map_err(|_| CliError::graph(format!("{name}={v} is not a whole number"))),
+            Ok(v) => whole_number(name, &v).map(Some),
             Err(_) => Ok(None),
         }
     };
@@ -123,4 +135,18 @@ pub(crate) fn shard(reg: &Registry, a: &ShardArgs) -> Result<(), CliError> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::whole_number;
+
+    #[test]
+    fn a_slurm_index_says_what_is_wrong_with_it() {
+        assert_eq!(whole_number("SLURM_ARRAY_TASK_ID", " 7 ").unwrap(), 7);
+        let msg = |v: &str| whole_number("SLURM_ARRAY_TASK_ID", v).unwrap_err().msg;
+        assert_eq!(msg("-1"), "SLURM_ARRAY_TASK_ID=-1 must be ≥ 0");
+        assert_eq!(msg("99999999999999999999"), "SLURM_ARRAY_TASK_ID=99999999999999999999 is too large (at most 18446744073709551615)");
+        assert_eq!(msg("x1"), "SLURM_ARRAY_TASK_ID=x1 is not a whole number");
+    }
 }

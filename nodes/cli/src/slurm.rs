@@ -10,7 +10,7 @@
 use crate::args::GraphArgs;
 use crate::error::CliError;
 use crate::files::prepare_out_dir;
-use crate::run::refuse_writes;
+use crate::run::{refuse_files, CommandWrites};
 use clap::Args;
 use relume_core::graph::{Output, PortRef};
 use relume_core::{Graph, ParamValues, Registry, RunOptions, ShardSpec};
@@ -78,7 +78,7 @@ pub(crate) fn slurm(reg: &Registry, a: &SlurmArgs) -> Result<(), CliError> {
     check_shard_count(a.shards)?;
     check_options(a)?;
     let paths = Paths::resolve(a)?;
-    refuse_writes(reg, &graph, a.g.requested().as_deref(), &a.g.write_policy(&paths.out))?;
+    refuse_files(reg, &graph, a.g.requested().as_deref(), &a.g.write_policy(&paths.out), &a.g.read_policy(), &CommandWrites::default())?;
     std::fs::create_dir_all(&paths.cache)
         .map_err(|e| CliError::graph(format!("--cache {}: cannot create the folder: {e}", paths.cache.display())))?;
     let spec = chunk_spec(reg, a, &graph, &paths)?;

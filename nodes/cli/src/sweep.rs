@@ -15,7 +15,7 @@ use crate::files::{prepare_file, prepare_out_dir};
 use crate::interrupt::Watch;
 use crate::plot::{plot_log_log, Axes};
 use crate::progress::Bars;
-use crate::run::{refuse_writes, run_error};
+use crate::run::{refuse_files, run_error, CommandWrites};
 use clap::Args;
 use relume_core::graph::{Output, PortRef};
 use relume_core::{make_plan, Graph, Observer, ParamKind, Registry, RunOptions, RunReport};
@@ -154,7 +154,9 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
     prepare_file(if a.plot.is_some() { "--plot" } else { "the plot file" }, &plot_path)?;
     let writes = a.g.write_policy(&a.out);
     for v in &variants {
-        refuse_writes(reg, &v.graph, a.g.requested().as_deref(), &writes)
+        let command =
+            CommandWrites { files: vec![(csv_path.clone(), "the CSV file"), (plot_path.clone(), "the plot file")], ..Default::default() };
+        refuse_files(reg, &v.graph, a.g.requested().as_deref(), &writes, &a.g.read_policy(), &command)
             .map_err(|e| CliError::graph(format!("{} variant {}: {}", v.series.as_str(), v.label, e.msg)))?;
     }
 

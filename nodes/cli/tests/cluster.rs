@@ -98,12 +98,15 @@ fn unsharded_slurm_style_and_timely_runs_give_the_same_image_bytes() {
     // (partials travel as bytes).
     let r2 = p(d, "t2.json");
     let args2 = run_args(spp, &["--processes", "2", "--cache", &p(d, "t2-cache"), "--out", &p(d, "t2"), "--report", &r2]);
-    ok(relume(&args2).output().unwrap(), "timely, 2 processes");
+    let out2 = ok(relume(&args2).output().unwrap(), "timely, 2 processes");
     let r3 = p(d, "t3.json");
-    ok(
+    let out3 = ok(
         relume(&run_args(spp, &["--processes", "3", "--no-disk-cache", "--out", &p(d, "t3"), "--report", &r3])).output().unwrap(),
         "timely, 3",
     );
+    for out in [out2, out3] {
+        assert_eq!(String::from_utf8_lossy(&out.stdout), "", "-q: nothing on standard output, the transport's messages included");
+    }
     for (r, n) in [(report(&r2), 2usize), (report(&r3), 3)] {
         let s = shards(&r);
         let received = s["received"].as_object().unwrap();
@@ -183,6 +186,17 @@ fn a_timely_process_killed_midway_stops_the_others_and_the_rerun_computes_only_w
 
     ok(relume(&run_args(spp, &["--no-disk-cache", "--out", &p(d, "whole")])).output().unwrap(), "unsharded run");
     assert!(std::fs::read(d.join("rerun/image.exr")).unwrap() == std::fs::read(d.join("whole/image.exr")).unwrap(), "same bytes");
+}
+
+#[test]
+fn a_graph_that_does_not_load_is_said_once_before_any_process_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = p(dir.path(), "missing.ron");
+    let out = relume(&["run", &missing, "--processes", "2", "-q"].map(String::from)).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.matches("cannot read graph").count(), 1, "{err}");
+    assert!(!err.contains("process 0 exited"), "{err}");
 }
 
 #[test]

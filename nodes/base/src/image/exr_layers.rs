@@ -77,6 +77,12 @@ pub fn write_layers(path: &Path, graph: &str, layers: &[LayerSource], half: bool
     std::fs::rename(&tmp, path).map_err(|e| format!("cannot write {}: {e}", path.display()))
 }
 
+/// Where `write_run_layers` writes: `OUT/<graph stem>.layers.exr`.
+pub fn layers_path(graph: &relume_core::Graph, out: &Path) -> std::path::PathBuf {
+    let stem = graph.file.as_ref().and_then(|f| f.file_stem()).map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "run".into());
+    out.join(format!("{stem}.layers.exr"))
+}
+
 /// Writes a run's image outputs (those `graph.outputs` names; others are skipped) as one
 /// multi-layer EXR, `OUT/GRAPH.layers.exr`, and returns its path.
 pub fn write_run_layers(
@@ -97,8 +103,7 @@ pub fn write_run_layers(
             .map_err(|missing| format!("node \"{node}\": missing parameters {missing:?}"))?;
         layers.push(LayerSource { name, image, node, kind: kind.kind(), params });
     }
-    let stem = graph.file.as_ref().and_then(|f| f.file_stem()).map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "run".into());
-    let path = out.join(format!("{stem}.layers.exr"));
+    let path = layers_path(graph, out);
     let graph_name = graph.file.as_ref().map(|f| f.display().to_string()).unwrap_or_default();
     write_layers(&path, &graph_name, &layers, half)?;
     Ok(path)

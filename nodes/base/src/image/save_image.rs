@@ -9,7 +9,7 @@ params! {
     pub struct SaveImage {
         /// file to write (.exr or .png), relative to the graph file; it must lie below the graph's
         /// folder or the run's output folder unless the run allows writes anywhere
-        pub path: PathBuf, output;
+        pub path: PathBuf, output, extensions = ["exr", "png"];
     }
 }
 

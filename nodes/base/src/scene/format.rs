@@ -51,6 +51,33 @@ pub fn load_scene_file(path: &Path) -> Result<LoadedScene, String> {
     b.finish()
 }
 
+/// The files a scene file names (meshes, texture maps, the environment map), relative paths
+/// joined to its folder, found without reading them: what a run must not write onto. Empty
+/// when the scene cannot be read or parsed (loading it will say why).
+pub fn scene_file_paths(path: &Path) -> Vec<PathBuf> {
+    fn walk(v: &Ron, dir: &Path, out: &mut Vec<PathBuf>) {
+        use relume_core::ron::RonKind;
+        match &v.kind {
+            RonKind::Struct(_, fields) => {
+                for f in fields {
+                    match (&f.value.kind, f.name.as_str()) {
+                        (RonKind::Str(s), "path" | "kd_map" | "ks_map" | "exponent_map") => out.push(dir.join(s)),
+                        _ => walk(&f.value, dir, out),
+                    }
+                }
+            }
+            RonKind::List(items) | RonKind::Tuple(_, items) => items.iter().for_each(|x| walk(x, dir, out)),
+            RonKind::Map(entries) => entries.iter().for_each(|(_, x)| walk(x, dir, out)),
+            _ => {}
+        }
+    }
+    let Ok(bytes) = relume_core::read_input(path) else { return Vec::new() };
+    let Ok(doc) = std::str::from_utf8(&bytes).map_err(|_| ()).and_then(|t| parse(t).map_err(|_| ())) else { return Vec::new() };
+    let mut out = Vec::new();
+    walk(&doc, path.parent().unwrap_or(Path::new(".")), &mut out);
+    out
+}
+
 enum LoadError {
     At(SyntaxError),
     Plain(String),

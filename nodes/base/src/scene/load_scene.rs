@@ -1,4 +1,4 @@
-use super::format::load_scene_file;
+use super::format::{load_scene_file, scene_file_paths};
 use crate::types::Scene;
 use relume_core::{node, params, NodeError, RunCtx};
 use std::path::PathBuf;
@@ -10,7 +10,7 @@ params! {
     /// Zero-area triangles are dropped and counted in the report's notes.
     pub struct LoadScene {
         /// scene file (.ron), relative to the graph file
-        pub path: PathBuf;
+        pub path: PathBuf, also_reads = scene_file_paths;
         /// image width; 0 keeps the scene file's camera
         pub width: usize = 0, range = 0..=16384, unit = "px", test = 24;
         /// image height; 0 keeps the scene file's camera

@@ -54,8 +54,8 @@ const FREE_FORM_OBJ: &[&str] =
 fn number(at: &dyn Fn() -> String, tag: &str, w: &str) -> Result<f32, String> {
     match w.parse::<f32>() {
         Ok(x) if x.is_finite() => Ok(x),
-        Ok(_) => Err(format!("{}: `{tag}` has a non-finite value `{w}`", at())),
-        Err(_) => Err(format!("{}: `{w}` in `{tag}` is not a number", at())),
+        Ok(_) => Err(format!("{}: `{tag}` has a non-finite value {}", at(), word(w))),
+        Err(_) => Err(format!("{}: {} in `{tag}` is not a number", at(), word(w))),
     }
 }
 
@@ -93,8 +93,9 @@ pub fn parse_mtl(path: &Path, text: &str) -> Result<Vec<MtlMaterial>, String> {
         let known_map = lower.starts_with("map_") || matches!(lower.as_str(), "bump" | "disp" | "decal" | "refl" | "norm");
         if !(known_colour || known_scalar || known_map) {
             return Err(format!(
-                "{}: `{tag}` is not an MTL statement (known: newmtl, Kd, Ke, Ka, Ks, Tf, Ns, Ni, d, Tr, illum, map_…, bump, disp, refl)",
-                at()
+                "{}: {} is not an MTL statement (known: newmtl, Kd, Ke, Ka, Ks, Tf, Ns, Ni, d, Tr, illum, map_…, bump, disp, refl)",
+                at(),
+                word(tag)
             ));
         }
         let Some(cur) = out.last_mut() else {
@@ -211,12 +212,12 @@ fn check_obj<'t>(path: &Path, text: &'t str, read: &dyn Fn(&Path) -> std::io::Re
                 for c in corners {
                     for (k, p) in c.split('/').enumerate() {
                         if k > 2 {
-                            return Err(format!("{}: face corner `{c}` has more than v/vt/vn", at()));
+                            return Err(format!("{}: face corner {} has more than v/vt/vn", at(), word(c)));
                         }
                         if p.is_empty() && k > 0 {
                             continue;
                         }
-                        let idx: i64 = p.parse().map_err(|_| format!("{}: face index `{c}` is not a number", at()))?;
+                        let idx: i64 = p.parse().map_err(|_| format!("{}: face index {} is not a number", at(), word(c)))?;
                         let (limit, what) = [(nv, "vertex"), (nvt, "texture coordinate"), (nvn, "normal")][k];
                         let ok = (idx > 0 && idx <= limit) || (idx < 0 && idx.checked_neg().is_some_and(|n| n <= limit));
                         if !ok {
@@ -284,10 +285,10 @@ fn check_obj<'t>(path: &Path, text: &'t str, read: &dyn Fn(&Path) -> std::io::Re
                 ))
             }
             _ => {
-                let shown: String = line.trim().chars().take(40).collect();
                 return Err(format!(
-                    "{}: `{shown}` is not an OBJ statement (expected v, vt, vn, f, o, g, usemtl, mtllib, s or a # comment)",
-                    at()
+                    "{}: {} is not an OBJ statement (expected v, vt, vn, f, o, g, usemtl, mtllib, s or a # comment)",
+                    at(),
+                    word(tag)
                 ));
             }
         }
@@ -352,6 +353,17 @@ pub fn load_obj_file(path: &Path, text: &str) -> Result<ObjFile, String> {
         out.push(ObjModel { name, positions, uvs, triangles, material, emission });
     }
     Ok(ObjFile { models: out, libraries: checked.libraries })
+}
+
+/// How a message quotes a word taken from the file: whole when it is short and plain (a
+/// misspelt keyword, a number), else only its length, so that an error never repeats what a
+/// file holds (a graph may point a mesh at a file that is not one).
+fn word(w: &str) -> String {
+    if w.len() <= 12 && w.chars().all(|c| c.is_ascii_alphanumeric() || "_-+./".contains(c)) {
+        format!("`{w}`")
+    } else {
+        format!("a word of {} characters", w.chars().count())
+    }
 }
 
 #[cfg(test)]
@@ -430,7 +442,10 @@ mod tests {
     #[test]
     fn garbage_lines_are_reported_with_their_line() {
         let e = load(&format!("{TRI}hello world\nf 1 2 3\n"), None).err().unwrap();
-        assert_eq!(e, "m.obj:4: `hello world` is not an OBJ statement (expected v, vt, vn, f, o, g, usemtl, mtllib, s or a # comment)");
+        assert_eq!(e, "m.obj:4: `hello` is not an OBJ statement (expected v, vt, vn, f, o, g, usemtl, mtllib, s or a # comment)");
+        // A line from a file that is not a mesh is never repeated.
+        let e = load("root:x:0:0:root:/root:/bin/bash\n", None).err().unwrap();
+        assert!(e.starts_with("m.obj:1: a word of 31 characters is not an OBJ statement"), "{e}");
         let e = load(&format!("{TRI}curv 0 1 1 2\n"), None).err().unwrap();
         assert!(e.starts_with("m.obj:4: free-form geometry (`curv`) is not supported"), "{e}");
         let e = load(&format!("{TRI}v 1 2\n"), None).err().unwrap();

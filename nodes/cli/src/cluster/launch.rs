@@ -21,11 +21,13 @@ enum Outcome {
     },
 }
 
-pub(crate) fn launch(a: &RunArgs) -> Result<(), CliError> {
+pub(crate) fn launch(reg: &relume_core::Registry, a: &RunArgs) -> Result<(), CliError> {
     let n = a.cluster.processes.expect("--processes");
     if !(1..=64).contains(&n) {
         return Err(CliError::graph(format!("--processes {n}: give 1 to 64 local processes")));
     }
+    // A graph that does not load is said once, here, rather than by every process.
+    a.g.load(reg)?;
     let exe = std::env::var_os("RELUME_BIN").map(Into::into).or_else(|| std::env::current_exe().ok());
     let exe = exe.ok_or_else(|| CliError::run("cannot find the relume executable to start the processes (set RELUME_BIN)"))?;
     let args = child_args(&crate::args::command_line());
@@ -97,6 +99,11 @@ fn run_once(exe: &std::path::Path, args: &[OsString], n: usize, shared: bool, qu
         }
         if i > 0 && !quiet {
             cmd.arg("--quiet");
+        }
+        if quiet {
+            // The transport prints its connection progress on standard output; `--quiet`
+            // means nothing there.
+            cmd.stdout(std::process::Stdio::null());
         }
         match cmd.spawn() {
             Ok(c) => children.push(Some(c)),
