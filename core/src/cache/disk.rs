@@ -35,6 +35,8 @@ struct Problems {
     first_failure: Option<String>,
     irregular: u64,
     first_irregular: Option<PathBuf>,
+    /// `check_writable` found the cache unwritable and the caller said so.
+    unwritable_said: bool,
 }
 
 impl DiskCache {
@@ -48,7 +50,15 @@ impl DiskCache {
 
     /// Whether entries can be written here: creates the folder and writes and removes a probe
     /// file. `Err` says why not, as a sentence (the folder is a file, is read-only, …).
+    /// The failure is remembered: the writes that fail afterwards for the same reason are not
+    /// said again by `take_notes`.
     pub fn check_writable(&self) -> Result<(), String> {
+        let r = self.probe_writable();
+        self.problems.lock().unwrap().unwritable_said = r.is_err();
+        r
+    }
+
+    fn probe_writable(&self) -> Result<(), String> {
         let dir = &self.dir;
         if dir.exists() && !dir.is_dir() {
             return Err(format!("{} is a file, not a folder", dir.display()));
@@ -108,8 +118,8 @@ impl DiskCache {
     /// for `take_notes` as well as returned.
     pub fn put(&self, key: &Hash, entry: &CacheEntry, decls: &[PortDecl]) -> std::io::Result<()> {
         let r = self.write_entry(key, entry, decls);
-        if let Err(e) = &r {
-            let mut p = self.problems.lock().unwrap();
+        let mut p = self.problems.lock().unwrap();
+        if let (Err(e), false) = (&r, p.unwritable_said) {
             p.failed_writes += 1;
             p.first_failure.get_or_insert_with(|| format!("{}: {e}", self.path_of(key).display()));
         }
@@ -119,7 +129,11 @@ impl DiskCache {
     /// What went wrong since the last call, as sentences for the run report (each kind said
     /// once, with a count and the first case), and forgets it.
     pub fn take_notes(&self) -> Vec<String> {
-        let p = std::mem::take(&mut *self.problems.lock().unwrap());
+        let p = {
+            let mut held = self.problems.lock().unwrap();
+            let unwritable_said = held.unwritable_said;
+            std::mem::replace(&mut *held, Problems { unwritable_said, ..Default::default() })
+        };
         let mut notes = Vec::new();
         if let Some(first) = p.first_failure {
             notes.push(format!(
@@ -429,6 +443,11 @@ mod tests {
         let notes = cache.take_notes();
         assert_eq!(notes.len(), 1, "{notes:?}");
         assert!(notes[0].contains("could not store 3 result(s)") && notes[0].contains("later runs will compute them again"), "{notes:?}");
+        assert!(cache.take_notes().is_empty());
+        // Once the caller has said the cache cannot be written, the failures it causes are not
+        // said again.
+        assert!(cache.check_writable().is_err());
+        assert!(cache.put(&Hash([9; 32]), &entry, &[]).is_err());
         assert!(cache.take_notes().is_empty());
     }
 

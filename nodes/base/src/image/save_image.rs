@@ -41,6 +41,6 @@ mod tests {
         }
         assert_eq!(crate::image::io::read_image(&dir.path().join("sub/a.exr")).unwrap(), img);
         let err = run_node::<SaveImage>(&[("path", ParamValue::Text("c.tiff".into()))], dir.path(), vec![Value::new(img)]).unwrap_err();
-        assert!(err.to_string().contains("unsupported"), "{err}");
+        assert!(err.to_string().contains("\"c.tiff\" has the extension .tiff; this parameter takes a .exr or .png file"), "{err}");
     }
 }
