@@ -26,12 +26,13 @@ impl Cgroup {
         Ok(cg)
     }
 
-    /// `relume ARGS` run inside the cgroup: (exit code, stdout, stderr).
+    /// `relume ARGS` run inside the cgroup: (exit code, stdout, stderr); exit code 77 when the
+    /// process could not be moved into it (a container may let a cgroup be made, not joined).
     fn relume(&self, args: &[&str]) -> (Option<i32>, String, String) {
         let procs = self.dir.join("cgroup.procs");
         let out = Command::new("sh")
             .arg("-c")
-            .arg(format!("echo $$ > '{}' && exec \"$0\" \"$@\"", procs.display()))
+            .arg(format!("echo $$ > '{}' 2>/dev/null || exit 77; exec \"$0\" \"$@\"", procs.display()))
             .arg(env!("CARGO_BIN_EXE_relume"))
             .args(args)
             .env_remove("RELUME_CACHE")
@@ -64,6 +65,10 @@ fn under_a_cgroup_memory_limit_a_run_past_it_is_refused_naming_the_cgroup() {
         args.extend(["--set", s]);
     }
     let (code, _, err) = cg.relume(&args);
+    if code == Some(77) {
+        eprintln!("skipped: cannot move a process into {}", cg.dir.display());
+        return;
+    }
     assert_eq!(code, Some(2), "refused as bad input, not killed: {err}");
     let source = format!(
         "80 % of the cgroup's {}",
