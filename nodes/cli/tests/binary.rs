@@ -2,6 +2,8 @@
 
 use std::process::Command;
 
+mod common;
+
 fn graphs() -> std::path::PathBuf {
     std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../graphs")
 }
@@ -412,15 +414,7 @@ fn a_line_break_in_a_value_the_slurm_scripts_repeat_is_refused_before_writing() 
 
 /// `relume` under `ulimit -v 3000000` (2.86 GiB of address space), with `args`.
 fn relume_under_ulimit_v(args: &[&std::ffi::OsStr]) -> (Option<i32>, String, String) {
-    let out = Command::new("sh")
-        .arg("-c")
-        .arg("ulimit -v 3000000 && exec \"$0\" \"$@\"")
-        .arg(env!("CARGO_BIN_EXE_relume"))
-        .args(args)
-        .env_remove("RELUME_CACHE")
-        .output()
-        .unwrap();
-    (out.status.code(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+    common::relume_after("ulimit -v 3000000 || exit 77", args)
 }
 
 /// Under `ulimit -v` the filters graph at 6000² aborted on a failed allocation (SIGABRT): the

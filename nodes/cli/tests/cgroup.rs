@@ -4,8 +4,10 @@
 //! budget, before anything is allocated. Where no cgroup can be made the test says why and
 //! passes: `binary.rs` checks the same refusal under `ulimit -v`.
 
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+
+mod common;
 
 /// A memory cgroup made for one test, removed when dropped (its processes have exited).
 struct Cgroup {
@@ -30,15 +32,8 @@ impl Cgroup {
     /// process could not be moved into it (a container may let a cgroup be made, not joined).
     fn relume(&self, args: &[&str]) -> (Option<i32>, String, String) {
         let procs = self.dir.join("cgroup.procs");
-        let out = Command::new("sh")
-            .arg("-c")
-            .arg(format!("echo $$ > '{}' 2>/dev/null || exit 77; exec \"$0\" \"$@\"", procs.display()))
-            .arg(env!("CARGO_BIN_EXE_relume"))
-            .args(args)
-            .env_remove("RELUME_CACHE")
-            .output()
-            .unwrap();
-        (out.status.code(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+        let args: Vec<&OsStr> = args.iter().map(OsStr::new).collect();
+        common::relume_after(&format!("echo $$ > '{}' 2>/dev/null || exit 77", procs.display()), &args)
     }
 }
 
