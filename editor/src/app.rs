@@ -5,6 +5,8 @@
 use crate::document::Document;
 use crate::edit;
 use crate::file_dialog::{FileDialog, Purpose};
+use crate::frame_stats::{FrameStats, ImageShown};
+use crate::live::{Costs, When};
 use crate::palette::Palette;
 use crate::panels::{Action, Panels};
 use crate::runner::{NodeState, Runner};
@@ -20,9 +22,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// Quiet time after an edit before the automatic re-run starts (a slider drag runs once it
-/// pauses, not on every frame).
-pub const RUN_DEBOUNCE: Duration = Duration::from_millis(150);
+pub use crate::live::RUN_DEBOUNCE;
 /// How often unsaved work is written to the recovery file.
 const RECOVERY_EVERY: Duration = Duration::from_secs(5);
 /// Graph output name used to view a port that is not one of the graph's outputs.
@@ -50,6 +50,21 @@ pub struct EditorApp {
     pub auto_run: bool,
     /// When to start the next automatic run.
     pending_run: Option<Instant>,
+    /// Whether that run fits the frame budget (see [`crate::live`]).
+    pending_live: bool,
+    /// The run under way fits the frame budget: a newer edit waits for it instead of
+    /// cancelling it.
+    in_flight_live: bool,
+    /// When the outputs after the viewed image start (once the edits pause).
+    rest_at: Option<Instant>,
+    /// When each recent revision was made, for the edit-to-pixels latency.
+    edit_times: std::collections::VecDeque<(u64, Instant)>,
+    /// What each node cost when it last ran.
+    pub costs: Costs,
+    /// Frame and image rates, latency, the recorder.
+    pub stats: FrameStats,
+    /// The revision whose image the viewer shows.
+    shown_revision: Option<u64>,
     /// The first edit the viewer does not show yet.
     edit_started: Option<Instant>,
     /// Time from the last edit to its image, in ms.
@@ -93,6 +108,13 @@ impl EditorApp {
             done_states: None,
             auto_run: true,
             pending_run: None,
+            pending_live: false,
+            in_flight_live: false,
+            rest_at: None,
+            edit_times: std::collections::VecDeque::new(),
+            costs: Costs::default(),
+            stats: FrameStats::default(),
+            shown_revision: None,
             edit_started: None,
             edit_to_image_ms: None,
             rest_after: None,
@@ -125,6 +147,7 @@ impl EditorApp {
         self.report = None;
         self.done_states = None;
         self.planned = None;
+        self.costs.clear();
         self.status = format!("opened {}", path.display());
         Ok(())
     }
@@ -157,12 +180,40 @@ impl EditorApp {
         r
     }
 
-    /// After any change of the graph: drop the old run's states and schedule a re-run.
+    /// After any change of the graph: drop the old run's states and schedule a re-run, at
+    /// once when what it reaches fits the frame budget, else after the edits pause; a run
+    /// under way that the edit makes stale is cancelled unless both are cheap (then the newer
+    /// edit waits for it: at most one run in flight, the newest value wins).
     fn after_change(&mut self) {
+        let now = Instant::now();
         self.done_states = None;
-        if self.auto_run && self.report.is_some() {
-            self.pending_run = Some(Instant::now() + RUN_DEBOUNCE);
-            self.edit_started.get_or_insert_with(Instant::now);
+        self.edit_times.push_back((self.doc.revision, now));
+        if self.edit_times.len() > 256 {
+            self.edit_times.pop_front();
+        }
+        if !(self.auto_run && self.report.is_some()) {
+            return;
+        }
+        let live = self.when_edited() == When::Live;
+        self.pending_live = live;
+        self.pending_run = Some(if live { now } else { now + RUN_DEBOUNCE });
+        self.rest_at = None;
+        self.edit_started.get_or_insert(now);
+        if self.runner.is_running() && !(live && self.in_flight_live) {
+            self.runner.cancel();
+            self.rest_after = None;
+            self.view_after_preview = None;
+        }
+    }
+
+    /// When a re-run of the viewed image for the current graph starts: the nodes it would run
+    /// priced at what they cost last time.
+    pub fn when_edited(&self) -> When {
+        let Some(view) = self.view_output_name() else { return When::AfterPause };
+        let (g, _) = self.run_request();
+        match self.runner.plan_states(&g, &[view]) {
+            Ok(states) => self.costs.when(states.iter().filter(|(_, s)| **s == NodeState::Stale).map(|(id, _)| id.as_str())),
+            Err(_) => When::AfterPause,
         }
     }
 
@@ -283,12 +334,20 @@ impl EditorApp {
 
     /// Starts a run of the graph in the background.
     pub fn run(&mut self) {
+        self.start_run(false);
+    }
+
+    /// Starts a run; `live`: it fits the frame budget, so the viewed image runs alone (no
+    /// preview first) and a newer edit waits for it.
+    fn start_run(&mut self, live: bool) {
         let (g, outputs) = self.run_request();
         if outputs.is_empty() {
             self.status = "the graph has no outputs: tick \"graph output\" on a port of the selected node".into();
             return;
         }
         self.pending_run = None;
+        self.rest_at = None;
+        self.in_flight_live = live;
         self.edit_started.get_or_insert_with(Instant::now);
         // The preview first where the graph has one, then the viewed image, alone; the other
         // outputs when it is in (`take_in`).
@@ -297,7 +356,7 @@ impl EditorApp {
         match view.filter(|v| outputs.len() > 1 && outputs.contains(v)) {
             Some(v) => {
                 self.rest_after = Some(self.doc.revision);
-                if self.preview_output().is_some_and(|p| p != v && outputs.contains(&p)) {
+                if !live && self.preview_output().is_some_and(|p| p != v && outputs.contains(&p)) {
                     self.view_after_preview = Some(self.doc.revision);
                     self.runner.start(g, vec![PREVIEW_OUTPUT.into()], self.doc.revision);
                 } else {
@@ -323,6 +382,7 @@ impl EditorApp {
         !self.runner.is_running()
             && !self.runner.has_finished()
             && self.pending_run.is_none()
+            && self.rest_at.is_none()
             && self.rest_after.is_none()
             && self.view_after_preview.is_none()
     }
@@ -340,6 +400,7 @@ impl EditorApp {
         self.runner.cancel();
         self.pending_run = None;
         self.rest_after = None;
+        self.rest_at = None;
         self.view_after_preview = None;
         self.planned = None;
         self.status = "run cancelled".into();
@@ -378,14 +439,17 @@ impl EditorApp {
     fn take_in(&mut self, f: crate::runner::Finished) {
         let live = self.runner.live_states();
         self.planned = None;
+        self.in_flight_live = false;
         match f.outcome {
             Ok((report, outputs)) if f.revision == self.doc.revision && self.view_after_preview == Some(f.revision) => {
                 // The preview is in: show it, then compute the viewed image.
+                self.costs.learn(&report);
                 self.view_after_preview = None;
                 let preview = outputs.iter().find(|(n, _)| n == PREVIEW_OUTPUT).and_then(|(_, v)| v.get::<Image>()).cloned();
                 if let Some(img) = preview {
                     self.viewer.set_image(Some(Arc::new(img)));
                     self.preview_shown = true;
+                    self.stats.image(ImageShown::new(f.revision, self.latency_ms(f.revision, f.started), &report));
                 }
                 self.status = format!("preview in {}; the image is running...", crate::fmt_ms(report.total_ms));
                 self.report = Some(report);
@@ -395,18 +459,23 @@ impl EditorApp {
                 }
             }
             Ok((report, outputs)) => {
+                self.costs.learn(&report);
                 self.status = format!("ran in {} ({} ran, {} cached)", crate::fmt_ms(report.total_ms), report.ran, report.cached);
-                self.report = Some(report);
                 self.last_outputs = outputs;
-                self.show_target();
+                let new_revision = self.shown_revision != Some(f.revision) || self.preview_shown;
+                if self.show_target() && new_revision {
+                    self.shown_revision = Some(f.revision);
+                    self.stats.image(ImageShown::new(f.revision, self.latency_ms(f.revision, f.started), &report));
+                }
+                self.report = Some(report);
                 if f.revision == self.doc.revision {
                     if let Some(t0) = self.edit_started.take() {
                         self.edit_to_image_ms = Some(t0.elapsed().as_secs_f64() * 1e3);
                     }
-                    if self.rest_after.take() == Some(f.revision) {
-                        let (g, outputs) = self.run_request();
-                        self.runner.start(g, outputs, self.doc.revision);
-                        self.status = format!("{}; the other outputs are running...", self.status);
+                    if self.rest_after == Some(f.revision) {
+                        // The other outputs wait until the edits pause.
+                        let quiet = self.edit_times.back().map(|(_, t)| *t + RUN_DEBOUNCE);
+                        self.rest_at = Some(quiet.unwrap_or_else(Instant::now));
                     }
                 }
             }
@@ -423,14 +492,34 @@ impl EditorApp {
         self.done_states = Some((f.revision, live));
     }
 
-    /// Puts the viewed output of the last run in the viewer.
-    pub fn show_target(&mut self) {
-        let Some(name) = self.view_output_name() else { return };
+    /// From the edit that made `revision` to now (from the run's start where no edit made it:
+    /// the first run, an undo).
+    fn latency_ms(&self, revision: u64, started: Instant) -> f64 {
+        let t = self.edit_times.iter().rev().find(|(r, _)| *r == revision).map_or(started, |(_, t)| *t);
+        t.elapsed().as_secs_f64() * 1e3
+    }
+
+    /// Starts the outputs after the viewed image, once the edits have paused.
+    fn start_rest(&mut self) {
+        self.rest_at = None;
+        if self.rest_after.take() == Some(self.doc.revision) {
+            let (g, outputs) = self.run_request();
+            self.in_flight_live = false;
+            self.runner.start(g, outputs, self.doc.revision);
+            self.status = format!("{}; the other outputs are running...", self.status);
+        }
+    }
+
+    /// Puts the viewed output of the last run in the viewer; whether there was one.
+    pub fn show_target(&mut self) -> bool {
+        let Some(name) = self.view_output_name() else { return false };
         let img = self.last_outputs.iter().find(|(n, _)| *n == name).and_then(|(_, v)| v.get::<Image>()).cloned();
-        if img.is_some() {
+        let found = img.is_some();
+        if found {
             self.viewer.set_image(img.map(Arc::new));
             self.preview_shown = false;
         }
+        found
     }
 
     /// Refreshes what the nodes show: the plan for the current revision under the states of
@@ -481,12 +570,7 @@ impl EditorApp {
         self.handle_close(ctx);
         self.shortcuts(ctx);
         self.collect_finished();
-        if self.pending_run.is_some_and(|t| Instant::now() >= t) {
-            self.run();
-        }
-        if let Some(t) = self.pending_run {
-            ctx.request_repaint_after(t.saturating_duration_since(Instant::now()));
-        }
+        self.schedule(ctx);
         if self.view.shown != Some(self.doc.revision) {
             self.view.rebuild(&self.doc.graph, self.doc.revision);
         }
@@ -508,6 +592,7 @@ impl EditorApp {
             image_outputs,
             preview_shown: self.preview_shown,
             report: self.report.as_ref(),
+            stats: &mut self.stats,
             quit_prompt: self.quit_prompt,
             recovery_offer: self.recovery_offer.as_deref(),
         };
@@ -517,10 +602,32 @@ impl EditorApp {
         if let Some(job) = &mut self.screenshot {
             job.frame(ctx, &self.viewer, self.runner.is_running() || self.pending_run.is_some());
         }
+        self.stats.frame(self.doc.revision);
         let title = format!("{} - relume editor", self.doc.title());
         if title != self.window_title {
             ctx.send_viewport_cmd(egui::ViewportCommand::Title(title.clone()));
             self.window_title = title;
+        }
+    }
+
+    /// Starts the re-run an edit asked for once it is due (a cheap one waits for the cheap run
+    /// under way: its end asks for a frame), and the outputs after the viewed image once the
+    /// edits pause.
+    fn schedule(&mut self, ctx: &egui::Context) {
+        let now = Instant::now();
+        if let Some(t) = self.pending_run {
+            if now < t {
+                ctx.request_repaint_after(t - now);
+            } else if !(self.in_flight_live && self.runner.is_running()) {
+                self.start_run(self.pending_live);
+            }
+        }
+        if let Some(t) = self.rest_at {
+            if now < t {
+                ctx.request_repaint_after(t - now);
+            } else if self.pending_run.is_none() && !self.runner.is_running() {
+                self.start_rest();
+            }
         }
     }
 
@@ -578,6 +685,7 @@ impl EditorApp {
             Action::Redo => self.redo(),
             Action::DeleteSelected => self.delete_selected(),
             Action::Run => self.run(),
+            Action::ToggleRecording => self.toggle_recording(),
             Action::Cancel => self.cancel(),
             Action::SetParam { node, name, value } => {
                 if let Err(m) = self.set_param(&node, name, value) {
@@ -645,6 +753,25 @@ impl EditorApp {
         }
     }
 
+    /// Starts recording frame times, or stops and writes them (`GRAPH.frames.csv` beside the
+    /// graph unless a path was given); the status bar says what was measured.
+    pub fn toggle_recording(&mut self) {
+        if !self.stats.is_recording() {
+            self.stats.start_recording();
+            self.status = "recording frame times: press record again to stop and write them".into();
+            return;
+        }
+        let stem =
+            self.doc.path.as_ref().and_then(|p| p.file_stem()).map(|s| s.to_string_lossy().into_owned()).unwrap_or("untitled".into());
+        let default = self.doc.graph.base_dir.join(format!("{stem}.frames.csv"));
+        if let Some(r) = self.stats.stop_recording(&default) {
+            self.status = match r {
+                Ok((path, sum)) => format!("{} — written to {}", sum.line(), path.display()),
+                Err(e) => e,
+            };
+        }
+    }
+
     /// Saves, or asks for a file when the graph has none.
     pub fn save(&mut self) {
         if self.doc.path.is_none() {
@@ -688,6 +815,9 @@ impl EditorApp {
     pub fn wait_for_run(&mut self) {
         while let Some(f) = self.runner.wait() {
             self.take_in(f);
+            if self.rest_at.is_some() {
+                self.start_rest();
+            }
             if !self.runner.is_running() {
                 break;
             }

@@ -7,6 +7,8 @@ pub mod app;
 pub mod document;
 pub mod edit;
 pub mod file_dialog;
+pub mod frame_stats;
+pub mod live;
 pub mod palette;
 pub mod panels;
 pub mod params_ui;

@@ -32,6 +32,8 @@ pub enum Action {
     DeleteSelected,
     Run,
     Cancel,
+    /// Start or stop recording frame times.
+    ToggleRecording,
     SetParam {
         node: String,
         name: &'static str,
@@ -80,6 +82,7 @@ pub struct Panels<'a> {
     pub image_outputs: Vec<String>,
     pub preview_shown: bool,
     pub report: Option<&'a RunReport>,
+    pub stats: &'a mut crate::frame_stats::FrameStats,
     pub quit_prompt: bool,
     pub recovery_offer: Option<&'a Path>,
 }
@@ -265,8 +268,21 @@ fn viewer(p: &mut Panels, ui: &mut egui::Ui, out: &mut Vec<Action>) {
         }
     });
     p.viewer.controls(ui);
+    ui.horizontal(|ui| {
+        ui.checkbox(&mut p.stats.overlay, "frame times")
+            .on_hover_text("images and frames per second, edit-to-pixels latency and the last run's slowest nodes, over the image");
+        let label = if p.stats.is_recording() { "■ stop recording" } else { "● record" };
+        if ui.button(label).on_hover_text("record every frame's time and each new image's latency to CSV beside the graph").clicked() {
+            out.push(Action::ToggleRecording);
+        }
+    });
     let h = ui.available_width().min(420.0);
-    ui.allocate_ui(egui::vec2(ui.available_width(), h), |ui| p.viewer.show(ui));
+    ui.allocate_ui(egui::vec2(ui.available_width(), h), |ui| {
+        p.viewer.show(ui);
+        if let Some(r) = p.viewer.image_rect {
+            p.stats.draw_overlay(ui, r);
+        }
+    });
     if let Some(r) = p.report {
         egui::CollapsingHeader::new("run report").default_open(true).show(ui, |ui| crate::viewer::report_table(ui, r));
     }

@@ -86,11 +86,19 @@ pub struct Runner {
     shared: Arc<Mutex<Shared>>,
     cancel: Option<CancelToken>,
     repaint: Option<egui::Context>,
+    /// Runs started, and runs cancelled while under way, since the runner was made.
+    started: u64,
+    cancelled: u64,
+    /// The revision and outputs of the latest runs started, oldest first.
+    history: std::collections::VecDeque<(u64, Vec<String>)>,
 }
+
+/// How many started runs `Runner::history` keeps.
+const HISTORY: usize = 256;
 
 impl Runner {
     pub fn new(engine: Arc<Engine>) -> Self {
-        Runner { engine, shared: Arc::default(), cancel: None, repaint: None }
+        Runner { engine, shared: Arc::default(), cancel: None, repaint: None, started: 0, cancelled: 0, history: Default::default() }
     }
 
     /// Asks for repaints on `ctx` as the run progresses.
@@ -106,6 +114,21 @@ impl Runner {
         self.shared.lock().unwrap().running
     }
 
+    /// Runs started so far.
+    pub fn started(&self) -> u64 {
+        self.started
+    }
+
+    /// The revision and outputs of the latest runs started, oldest first.
+    pub fn history(&self) -> impl Iterator<Item = &(u64, Vec<String>)> {
+        self.history.iter()
+    }
+
+    /// Runs cancelled while under way so far (a newer request, or the user).
+    pub fn cancelled(&self) -> u64 {
+        self.cancelled
+    }
+
     /// Whether a run ended and `take_finished` has not taken it yet.
     pub fn has_finished(&self) -> bool {
         self.shared.lock().unwrap().finished.is_some()
@@ -114,6 +137,11 @@ impl Runner {
     /// Starts a run of `outputs` of `graph` (cancelling the one under way).
     pub fn start(&mut self, graph: Graph, outputs: Vec<String>, revision: u64) {
         self.cancel();
+        self.started += 1;
+        if self.history.len() == HISTORY {
+            self.history.pop_front();
+        }
+        self.history.push_back((revision, outputs.clone()));
         let cancel = CancelToken::new();
         self.cancel = Some(cancel.clone());
         let generation = {
@@ -148,6 +176,7 @@ impl Runner {
         }
         let mut s = self.shared.lock().unwrap();
         s.generation += 1;
+        self.cancelled += s.running as u64;
         s.running = false;
     }
 

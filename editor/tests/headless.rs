@@ -3,36 +3,14 @@
 //! on `graphs/pbgi_cornell.ron` read from the run report.
 
 use egui_node_graph2 as eng;
-use relume_core::{Engine, Graph, ParamValue};
+use relume_core::{Graph, ParamValue};
 use relume_editor::runner::NodeState;
 use relume_editor::view::NodeResponse;
 use relume_editor::EditorApp;
-use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-fn graphs() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../graphs")
-}
-
-fn app() -> EditorApp {
-    let reg = relume_editor::registry();
-    EditorApp::new(reg.clone(), Engine::new(reg))
-}
-
-/// Draws one frame of the editor on a headless context.
-fn frame(ctx: &egui::Context, app: &mut EditorApp) {
-    let input =
-        egui::RawInput { screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(1400.0, 860.0))), ..Default::default() };
-    let _ = ctx.run(input, |ctx| app.ui(ctx));
-}
-
-/// Copies a graph into a temporary folder (with the assets it names) and opens it.
-fn open_copy(app: &mut EditorApp, name: &str, dir: &Path) -> PathBuf {
-    let dst = dir.join(name);
-    std::fs::copy(graphs().join(name), &dst).unwrap();
-    app.open(&dst).unwrap();
-    dst
-}
+mod common;
+use common::*;
 
 /// `filters.ron` open in a fresh editor (in a temporary folder), one frame drawn.
 fn filters() -> (tempfile::TempDir, EditorApp, egui::Context) {
@@ -161,39 +139,6 @@ fn a_parameter_edit_marks_exactly_the_downstream_nodes_stale_and_undo_restores()
     assert_eq!(app.doc.graph.to_ron(), before);
 }
 
-/// A first run of the whole graph, waited for, shown.
-fn first_run(ctx: &egui::Context, app: &mut EditorApp) {
-    frame(ctx, app);
-    app.run();
-    app.wait_for_run();
-    frame(ctx, app);
-    assert!(app.is_idle());
-}
-
-/// Frames until the run in flight (the outputs after the viewed image) is done.
-fn until_idle(ctx: &egui::Context, app: &mut EditorApp) {
-    let t0 = Instant::now();
-    while !app.is_idle() {
-        assert!(t0.elapsed() < Duration::from_secs(600), "{}", app.status);
-        frame(ctx, app);
-        std::thread::sleep(Duration::from_millis(10));
-    }
-}
-
-/// Frames until the automatic re-run after an edit has refreshed the image.
-fn frames_until_refreshed(ctx: &egui::Context, app: &mut EditorApp) {
-    app.edit_to_image_ms = None;
-    let t0 = Instant::now();
-    while app.edit_to_image_ms.is_none() {
-        assert!(t0.elapsed() < Duration::from_secs(600), "no refreshed image: {}", app.status);
-        frame(ctx, app);
-        std::thread::sleep(Duration::from_millis(10));
-    }
-}
-
-/// Opens a shipped graph in a fresh editor, copied into `dir` with its scenes reached from
-/// `graphs/`, at a smaller size than shipped (`params`: node, parameter, value) so the test is
-/// quick; the wiring is the file's.
 /// Each edit (node, parameter, value, the nodes it must re-run): the viewed image comes first,
 /// from exactly those nodes, and differs from the one before; then the rest runs.
 fn edits_update_the_image(ctx: &egui::Context, app: &mut EditorApp, edits: Vec<(&str, &str, ParamValue, &[&str])>) {
@@ -209,18 +154,6 @@ fn edits_update_the_image(ctx: &egui::Context, app: &mut EditorApp, edits: Vec<(
         img = now;
         until_idle(ctx, app);
     }
-}
-
-fn open_shipped(dir: &Path, name: &str, params: &[(&str, &str, ParamValue)]) -> EditorApp {
-    let mut app = app();
-    let path = dir.join(name);
-    let text = std::fs::read_to_string(graphs().join(name)).unwrap();
-    std::fs::write(&path, text.replace("\"scenes/", &format!("\"{}/scenes/", graphs().display()))).unwrap();
-    app.open(&path).unwrap();
-    for (id, param, v) in params {
-        app.set_param(id, param, v.clone()).unwrap();
-    }
-    app
 }
 
 #[test]
