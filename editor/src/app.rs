@@ -63,6 +63,10 @@ pub struct EditorApp {
     pub costs: Costs,
     /// Frame and image rates, latency, the recorder.
     pub stats: FrameStats,
+    /// The viewer's tool: what a drag or click on the image does.
+    pub tool: Option<crate::tool::Tool>,
+    /// The drag or stroke under way.
+    pub(crate) gesture: Option<crate::tool::Gesture>,
     /// The revision whose image the viewer shows.
     shown_revision: Option<u64>,
     /// The first edit the viewer does not show yet.
@@ -114,6 +118,8 @@ impl EditorApp {
             edit_times: std::collections::VecDeque::new(),
             costs: Costs::default(),
             stats: FrameStats::default(),
+            tool: None,
+            gesture: None,
             shown_revision: None,
             edit_started: None,
             edit_to_image_ms: None,
@@ -142,6 +148,8 @@ impl EditorApp {
         self.view.shown = None;
         self.view.fit_pending = true;
         self.view.state.selected_nodes.clear();
+        self.gesture = None;
+        self.tool = None;
         self.view_target = self.default_view_target();
         self.viewer.set_image(None);
         self.report = None;
@@ -577,6 +585,7 @@ impl EditorApp {
         self.refresh_states();
         self.keep_recovery();
         let image_outputs = self.image_outputs();
+        let tools = self.tools();
         let panels = Panels {
             registry: &self.registry,
             doc: &self.doc,
@@ -593,12 +602,16 @@ impl EditorApp {
             preview_shown: self.preview_shown,
             report: self.report.as_ref(),
             stats: &mut self.stats,
+            tools,
+            tool: &mut self.tool,
             quit_prompt: self.quit_prompt,
             recovery_offer: self.recovery_offer.as_deref(),
         };
         for action in crate::panels::draw(panels, ctx) {
             self.act(action, ctx);
         }
+        let input = std::mem::take(&mut self.viewer.input);
+        self.manipulate(&input);
         if let Some(job) = &mut self.screenshot {
             job.frame(ctx, &self.viewer, self.runner.is_running() || self.pending_run.is_some());
         }

@@ -21,6 +21,9 @@ pub struct Document {
     redo: Vec<Graph>,
     /// The tag and time of the last edit, for merging.
     last_edit: Option<(String, Instant)>,
+    /// Edits with the last edit's tag merge into its step whatever the time between them,
+    /// until `seal` (a drag in the viewer, a brush stroke: one undo step each).
+    held: bool,
     /// Bumped on every change of the graph (edit, undo, redo, load).
     pub revision: u64,
 }
@@ -30,7 +33,7 @@ impl Document {
     pub fn new() -> Self {
         let graph = Graph { base_dir: std::env::current_dir().unwrap_or_default(), ..Graph::default() };
         let saved_text = graph.to_ron();
-        Document { graph, path: None, saved_text, undo: Vec::new(), redo: Vec::new(), last_edit: None, revision: 0 }
+        Document { graph, path: None, saved_text, undo: Vec::new(), redo: Vec::new(), last_edit: None, held: false, revision: 0 }
     }
 
     /// Opens a graph file, validating it against the registry.
@@ -40,7 +43,16 @@ impl Document {
         // the layout alone does not mark it as changed.
         crate::edit::lay_out_unplaced(&mut graph);
         let saved_text = graph.to_ron();
-        Ok(Document { graph, path: Some(path.to_path_buf()), saved_text, undo: Vec::new(), redo: Vec::new(), last_edit: None, revision: 0 })
+        Ok(Document {
+            graph,
+            path: Some(path.to_path_buf()),
+            saved_text,
+            undo: Vec::new(),
+            redo: Vec::new(),
+            last_edit: None,
+            held: false,
+            revision: 0,
+        })
     }
 
     pub fn title(&self) -> String {
@@ -57,7 +69,7 @@ impl Document {
     /// so that quick repeats of the same edit merge into one step.
     pub fn edit<R>(&mut self, tag: &str, f: impl FnOnce(&mut Graph) -> R) -> R {
         let now = Instant::now();
-        let merge = matches!(&self.last_edit, Some((t, at)) if t == tag && now.duration_since(*at) < MERGE_WINDOW);
+        let merge = matches!(&self.last_edit, Some((t, at)) if t == tag && (self.held || now.duration_since(*at) < MERGE_WINDOW));
         if !merge {
             self.undo.push(self.graph.clone());
             if self.undo.len() > UNDO_DEPTH {
@@ -73,6 +85,12 @@ impl Document {
     /// Ends merging: the next edit starts a new undo step even with the same tag.
     pub fn seal(&mut self) {
         self.last_edit = None;
+        self.held = false;
+    }
+
+    /// Keeps merging edits with the last edit's tag into one step until `seal`.
+    pub fn hold(&mut self) {
+        self.held = self.last_edit.is_some();
     }
 
     pub fn can_undo(&self) -> bool {

@@ -4,7 +4,7 @@
 
 use relume_core::graph::{Edge, NodeDecl, Output, PortRef};
 use relume_core::ron::Pos;
-use relume_core::{Graph, Registry};
+use relume_core::{Graph, ParamValue, Registry};
 
 /// A fresh node id from the kind's name: `gaussian_blur`, `gaussian_blur_2`, ….
 pub fn unique_id(graph: &Graph, kind: &str) -> String {
@@ -45,6 +45,44 @@ pub fn check_connect(graph: &Graph, reg: &Registry, from: &PortRef, to: &PortRef
 /// Every node downstream of `id` (itself included).
 pub fn downstream(graph: &Graph, id: &str) -> Vec<String> {
     graph.downstream(id)
+}
+
+/// Every node upstream of `id` (itself included).
+pub fn upstream(graph: &Graph, id: &str) -> std::collections::HashSet<String> {
+    let mut seen = std::collections::HashSet::from([id.to_string()]);
+    let mut todo = vec![id.to_string()];
+    while let Some(n) = todo.pop() {
+        for e in graph.edges.iter().filter(|e| e.to.node == n) {
+            if seen.insert(e.from.node.clone()) {
+                todo.push(e.from.node.clone());
+            }
+        }
+    }
+    seen
+}
+
+/// Inserts a copy of node `after` (same kind and parameters, then `params` set) between it and
+/// what read its outputs: what read `after.out` now reads the copy's, which reads `after.out`
+/// through `input` (one stroke after another in a chain of brush nodes). Returns the copy's id.
+pub fn insert_copy_after(graph: &mut Graph, after: &str, out: &str, input: &str, params: Vec<(&str, ParamValue)>) -> Option<String> {
+    let mut decl = graph.node(after)?.clone();
+    let id = unique_id(graph, &decl.kind);
+    decl.id = id.clone();
+    graph.nodes.push(decl);
+    for (name, v) in params {
+        graph.set_param(&id, name, v);
+    }
+    for e in graph.edges.iter_mut().filter(|e| e.from.node == after && e.from.port == out) {
+        e.from.node = id.clone();
+    }
+    for o in graph.outputs.iter_mut().filter(|o| o.port.node == after && o.port.port == out) {
+        o.port.node = id.clone();
+    }
+    let from = PortRef { node: after.into(), port: out.into() };
+    graph.edges.push(Edge { from, to: PortRef { node: id.clone(), port: input.into() }, pos: Pos::default() });
+    let [x, y] = position(graph, after);
+    graph.editor.positions.push((id.clone(), [x + 40.0, y + 90.0]));
+    Some(id)
 }
 
 /// Connects `from` to `to` (replacing what fed `to`), after `check_connect`.

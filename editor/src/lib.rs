@@ -9,11 +9,14 @@ pub mod edit;
 pub mod file_dialog;
 pub mod frame_stats;
 pub mod live;
+pub mod manipulate;
 pub mod palette;
 pub mod panels;
 pub mod params_ui;
+pub mod pick;
 pub mod runner;
 pub mod screenshot;
+pub mod tool;
 pub mod view;
 pub mod viewer;
 

@@ -83,6 +83,9 @@ pub struct Panels<'a> {
     pub preview_shown: bool,
     pub report: Option<&'a RunReport>,
     pub stats: &'a mut crate::frame_stats::FrameStats,
+    /// The viewer tools the graph offers, and the one in use.
+    pub tools: Vec<crate::tool::Tool>,
+    pub tool: &'a mut Option<crate::tool::Tool>,
     pub quit_prompt: bool,
     pub recovery_offer: Option<&'a Path>,
 }
@@ -276,6 +279,18 @@ fn viewer(p: &mut Panels, ui: &mut egui::Ui, out: &mut Vec<Action>) {
             out.push(Action::ToggleRecording);
         }
     });
+    if !p.tools.is_empty() {
+        ui.horizontal_wrapped(|ui| {
+            ui.label("tool");
+            ui.selectable_value(p.tool, None, "none").on_hover_text("the pointer only reads pixel values");
+            for &t in &p.tools {
+                ui.selectable_value(p.tool, Some(t), t.label()).on_hover_text(t.hint());
+            }
+        });
+        if let Some(t) = p.tool {
+            ui.weak(t.hint());
+        }
+    }
     let h = ui.available_width().min(420.0);
     ui.allocate_ui(egui::vec2(ui.available_width(), h), |ui| {
         p.viewer.show(ui);

@@ -8,6 +8,30 @@ use relume_base::types::Image;
 use relume_core::RunReport;
 use std::sync::Arc;
 
+/// What the pointer did on the image this frame, in image pixels (x right, y down), for the
+/// manipulators.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ViewerInput {
+    /// The image's size in pixels.
+    pub size: [usize; 2],
+    /// Where the pointer is over the image (or dragging from it).
+    pub pointer: Option<egui::Pos2>,
+    /// Where the button went down, while it is held.
+    pub origin: Option<egui::Pos2>,
+    /// A drag began on the image this frame.
+    pub pressed: bool,
+    /// A drag is under way.
+    pub dragging: bool,
+    /// The drag ended this frame.
+    pub released: bool,
+    /// A click (press and release without a drag).
+    pub clicked: bool,
+    /// The drag uses the secondary button or holds shift.
+    pub alternate: bool,
+    /// Wheel turn over the image this frame (points; positive away from the user).
+    pub scroll: f32,
+}
+
 pub struct Viewer {
     pub exposure: f32,
     pub operator: Operator,
@@ -17,11 +41,21 @@ pub struct Viewer {
     dirty: bool,
     /// Where the image was drawn last frame, in points (the screenshot check reads it).
     pub image_rect: Option<egui::Rect>,
+    /// What the pointer did on the image this frame.
+    pub input: ViewerInput,
 }
 
 impl Default for Viewer {
     fn default() -> Self {
-        Viewer { exposure: 0.0, operator: Operator::Aces, image: None, texture: None, dirty: false, image_rect: None }
+        Viewer {
+            exposure: 0.0,
+            operator: Operator::Aces,
+            image: None,
+            texture: None,
+            dirty: false,
+            image_rect: None,
+            input: ViewerInput::default(),
+        }
     }
 }
 
@@ -72,6 +106,7 @@ impl Viewer {
     pub fn show(&mut self, ui: &mut egui::Ui) {
         let Some(img) = self.image.clone() else {
             self.image_rect = None;
+            self.input = ViewerInput::default();
             ui.weak("no image yet: run the graph (F5)");
             return;
         };
@@ -87,8 +122,9 @@ impl Viewer {
         let avail = ui.available_size() - egui::vec2(0.0, 24.0);
         let s = (avail.x / img.width as f32).min(avail.y / img.height as f32).max(0.05);
         let size = egui::vec2(img.width as f32, img.height as f32) * s;
-        let resp = ui.add(egui::Image::new((tex.id(), size)).sense(egui::Sense::hover()));
+        let resp = ui.add(egui::Image::new((tex.id(), size)).sense(egui::Sense::click_and_drag()));
         self.image_rect = Some(resp.rect);
+        self.input = pointer_input(ui, &resp, s, [img.width, img.height]);
         let text = match resp.hover_pos() {
             Some(p) => {
                 let x = (((p.x - resp.rect.min.x) / s) as usize).min(img.width - 1);
@@ -99,6 +135,24 @@ impl Viewer {
             None => format!("{} × {}  (hover for pixel values)", img.width, img.height),
         };
         ui.monospace(text);
+    }
+}
+
+/// The pointer's doings on the image drawn at `scale` points per pixel.
+fn pointer_input(ui: &egui::Ui, resp: &egui::Response, scale: f32, size: [usize; 2]) -> ViewerInput {
+    let to_image = |p: egui::Pos2| ((p - resp.rect.min) / scale).to_pos2();
+    let (secondary, shift, scroll) = ui.input(|i| (i.pointer.secondary_down(), i.modifiers.shift, i.raw_scroll_delta.y));
+    let dragging = resp.dragged();
+    ViewerInput {
+        size,
+        pointer: resp.interact_pointer_pos().or(resp.hover_pos()).map(to_image),
+        origin: ui.input(|i| i.pointer.press_origin()).map(to_image),
+        pressed: resp.drag_started(),
+        dragging,
+        released: resp.drag_stopped(),
+        clicked: resp.clicked(),
+        alternate: (dragging || resp.drag_started()) && (secondary || shift),
+        scroll: if resp.hovered() { scroll } else { 0.0 },
     }
 }
 

@@ -319,18 +319,7 @@ fn a_material_edit_on_relight_cornell_bunny_shows_the_relit_image_first_with_its
 #[test]
 fn orbiting_moving_the_light_and_painting_on_refract_glass_update_the_image() {
     let dir = tempfile::tempdir().unwrap();
-    let mut app = open_shipped(
-        dir.path(),
-        "refract_glass.ron",
-        &[
-            ("scene", "width", ParamValue::Int(32)),
-            ("scene", "height", ParamValue::Int(32)),
-            ("voxelize", "resolution", ParamValue::Int(32)),
-            ("emit", "resolution", ParamValue::Int(64)),
-            ("reference", "spp", ParamValue::Int(4)),
-            ("pt", "spp", ParamValue::Int(1)),
-        ],
-    );
+    let mut app = refract_glass_small(dir.path());
     assert_eq!(app.view_target.as_deref(), Some("image"));
     let ctx = egui::Context::default();
     first_run(&ctx, &mut app);

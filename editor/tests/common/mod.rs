@@ -18,9 +18,70 @@ pub fn app() -> EditorApp {
 
 /// Draws one frame of the editor on a headless context.
 pub fn frame(ctx: &egui::Context, app: &mut EditorApp) {
-    let input =
-        egui::RawInput { screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(1400.0, 860.0))), ..Default::default() };
+    frame_with(ctx, app, Vec::new(), egui::Modifiers::NONE);
+}
+
+/// Draws one frame with these input events.
+pub fn frame_with(ctx: &egui::Context, app: &mut EditorApp, events: Vec<egui::Event>, modifiers: egui::Modifiers) {
+    let input = egui::RawInput {
+        screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(1400.0, 860.0))),
+        events,
+        modifiers,
+        ..Default::default()
+    };
     let _ = ctx.run(input, |ctx| app.ui(ctx));
+}
+
+/// The screen point at a fraction (x, y) of the viewer's image (where the last frame drew it:
+/// the helpers below draw a frame first, so a layout change shows before they aim).
+pub fn on_image(app: &EditorApp, f: (f32, f32)) -> egui::Pos2 {
+    let r = app.viewer.image_rect.expect("the viewer shows an image");
+    egui::pos2(r.min.x + f.0 * r.width(), r.min.y + f.1 * r.height())
+}
+
+fn button(pos: egui::Pos2, button: egui::PointerButton, pressed: bool, modifiers: egui::Modifiers) -> egui::Event {
+    egui::Event::PointerButton { pos, button, pressed, modifiers }
+}
+
+/// A drag on the viewer's image from one fraction of it to another, in `steps` moves.
+pub fn drag_on_image(ctx: &egui::Context, app: &mut EditorApp, from: (f32, f32), to: (f32, f32), steps: usize, alternate: bool) {
+    frame(ctx, app);
+    let (b, m) = if alternate {
+        (egui::PointerButton::Secondary, egui::Modifiers::NONE)
+    } else {
+        (egui::PointerButton::Primary, egui::Modifiers::NONE)
+    };
+    let (a, z) = (on_image(app, from), on_image(app, to));
+    frame_with(ctx, app, vec![egui::Event::PointerMoved(a)], m);
+    frame_with(ctx, app, vec![button(a, b, true, m)], m);
+    for i in 1..=steps {
+        let p = a + (z - a) * (i as f32 / steps as f32);
+        frame_with(ctx, app, vec![egui::Event::PointerMoved(p)], m);
+    }
+    frame_with(ctx, app, vec![button(z, b, false, m)], m);
+    frame_with(ctx, app, Vec::new(), m);
+}
+
+/// A click on the viewer's image at a fraction of it.
+pub fn click_on_image(ctx: &egui::Context, app: &mut EditorApp, at: (f32, f32)) {
+    frame(ctx, app);
+    let p = on_image(app, at);
+    let m = egui::Modifiers::NONE;
+    frame_with(ctx, app, vec![egui::Event::PointerMoved(p)], m);
+    frame_with(ctx, app, vec![button(p, egui::PointerButton::Primary, true, m)], m);
+    frame_with(ctx, app, vec![button(p, egui::PointerButton::Primary, false, m)], m);
+    frame_with(ctx, app, Vec::new(), m);
+}
+
+/// The wheel turned over the viewer's image at its centre.
+pub fn wheel_on_image(ctx: &egui::Context, app: &mut EditorApp, points: f32) {
+    frame(ctx, app);
+    let p = on_image(app, (0.5, 0.5));
+    let m = egui::Modifiers::NONE;
+    frame_with(ctx, app, vec![egui::Event::PointerMoved(p)], m);
+    let wheel = egui::Event::MouseWheel { unit: egui::MouseWheelUnit::Point, delta: egui::vec2(0.0, points), modifiers: m };
+    frame_with(ctx, app, vec![wheel], m);
+    frame_with(ctx, app, Vec::new(), m);
 }
 
 /// Copies a graph into a temporary folder (with the assets it names) and opens it.
@@ -74,4 +135,18 @@ pub fn open_shipped(dir: &Path, name: &str, params: &[(&str, &str, ParamValue)])
         app.set_param(id, param, v.clone()).unwrap();
     }
     app
+}
+
+/// `refract_glass.ron` at test size (32², a 32³ volume, few photons).
+pub fn refract_glass_small(dir: &Path) -> EditorApp {
+    let i = ParamValue::Int;
+    let params = [
+        ("scene", "width", i(32)),
+        ("scene", "height", i(32)),
+        ("voxelize", "resolution", i(32)),
+        ("emit", "resolution", i(64)),
+        ("reference", "spp", i(4)),
+        ("pt", "spp", i(1)),
+    ];
+    open_shipped(dir, "refract_glass.ron", &params)
 }

@@ -9,8 +9,10 @@ params! {
     /// counter-clockwise seen from above); `elevation` is added to the angle between the view
     /// ray (target → origin) and the horizontal plane, clamped to ±89° (or the scene camera's own
     /// angle where that is already steeper) so that the view never looks along `up`; `distance`
-    /// scales the origin's distance to the target. `up` and the target are kept; `fov`, `width`
-    /// and `height` replace the scene's when not 0. The defaults give the scene's camera.
+    /// scales the origin's distance to the target; `pan_right` and `pan_up` then move origin and
+    /// target together along the orbited view's right and up axes, in units of the distance
+    /// between them. `up` is kept; `fov`, `width` and `height` replace the scene's when not 0.
+    /// The defaults give the scene's camera.
     pub struct OrbitCamera {
         /// turn about the up axis through the target (degrees)
         pub azimuth: f32 = 0.0, range = -360.0..=360.0, unit = "°";
@@ -18,6 +20,10 @@ params! {
         pub elevation: f32 = 0.0, range = -89.0..=89.0, unit = "°";
         /// factor on the distance from the origin to the target
         pub distance: f32 = 1.0, range = 0.01..=100.0;
+        /// shift of the view to its right, in distances to the target
+        pub pan_right: f32 = 0.0, range = -100.0..=100.0;
+        /// shift of the view along its up axis, in distances to the target
+        pub pan_up: f32 = 0.0, range = -100.0..=100.0;
         /// field of view on the smaller image axis; 0 keeps the scene's
         pub fov: f32 = 0.0, range = 0.0..=179.0, unit = "°";
         /// image width; 0 keeps the scene's
@@ -53,6 +59,13 @@ impl OrbitCamera {
         } else if self.azimuth != 0.0 || self.distance != 1.0 {
             let turned = if self.azimuth != 0.0 && up != Vec3::ZERO { Quat::from_axis_angle(up, self.azimuth.to_radians()) * d } else { d };
             c.origin = cam.target + turned * self.distance;
+        }
+        if self.pan_right != 0.0 || self.pan_up != 0.0 {
+            let view = c.target - c.origin;
+            let right = view.cross(c.up).normalize_or_zero();
+            let shift = (self.pan_right * right + self.pan_up * right.cross(view.normalize_or_zero())) * view.length();
+            c.origin += shift;
+            c.target += shift;
         }
         if self.fov > 0.0 {
             c.fov_deg = self.fov;
@@ -178,6 +191,20 @@ mod tests {
         assert!((elevation(&c) - e0).abs() < 1e-3);
         let c = orbit(&[("elevation", f(-10.0))], &Scene { camera: steep, ..s.clone() });
         assert!((elevation(&c) - (e0 - 10.0)).abs() < 1e-3);
+    }
+
+    #[test]
+    fn panning_moves_origin_and_target_together_across_the_view() {
+        let s = test_scene::spheres();
+        let d = (s.camera.origin - s.camera.target).length();
+        // The default camera looks along −z from +z with up +y: right is +x.
+        let c = orbit(&[("pan_right", f(0.5)), ("pan_up", f(-0.25))], &s);
+        let want = Vec3::new(0.5 * d, -0.25 * d, 0.0);
+        assert!((c.origin - s.camera.origin - want).length() < 1e-5, "{}", c.origin);
+        assert!((c.target - s.camera.target - want).length() < 1e-5, "{}", c.target);
+        // After an orbit the shift follows the orbited view: a quarter turn makes right −z.
+        let c = orbit(&[("azimuth", f(90.0)), ("pan_right", f(1.0))], &s);
+        assert!((c.target - s.camera.target - Vec3::new(0.0, 0.0, -d)).length() < 1e-5, "{}", c.target);
     }
 
     #[test]
