@@ -212,6 +212,11 @@ impl EditorApp {
             self.rest_after = None;
             self.view_after_preview = None;
         }
+        // A cheap edit with nothing under way runs now, not at the next frame: a frame less
+        // between the edit and its pixels.
+        if live && !self.runner.is_running() {
+            self.start_run(true);
+        }
     }
 
     /// When a re-run of the viewed image for the current graph starts: the nodes it would run
@@ -248,6 +253,18 @@ impl EditorApp {
             return Ok(());
         }
         self.apply(&format!("param:{id}.{name}"), true, |g| g.set_param(id, name, v));
+        Ok(())
+    }
+
+    /// Sets a parameter from `node.param=value` text, checked as `relume run --set` checks it.
+    pub fn set_text(&mut self, assignment: &str) -> Result<(), String> {
+        let (target, value) = assignment.split_once('=').ok_or("expected NODE.PARAM=VALUE")?;
+        let mut g = self.doc.graph.clone();
+        g.set_param_text(&self.registry, target.trim(), value.trim()).map_err(|e| e.to_string())?;
+        let (id, name) = target.trim().split_once('.').expect("checked by set_param_text");
+        let v = g.node(id).and_then(|n| n.param(name)).cloned().expect("just set");
+        self.apply(&format!("param:{id}.{name}"), true, |g| g.set_param(id, name, v));
+        self.doc.seal();
         Ok(())
     }
 
@@ -338,6 +355,12 @@ impl EditorApp {
             }
         }
         (g, outputs)
+    }
+
+    /// The graph a run of the viewed image takes and the output that delivers it.
+    pub fn view_request(&self) -> Option<(Graph, String)> {
+        let view = self.view_output_name()?;
+        Some((self.run_request().0, view))
     }
 
     /// Starts a run of the graph in the background.
@@ -574,6 +597,7 @@ impl EditorApp {
 
     /// One frame of the editor.
     pub fn ui(&mut self, ctx: &egui::Context) {
+        let t0 = Instant::now();
         self.runner.set_repaint(ctx.clone());
         self.handle_close(ctx);
         self.shortcuts(ctx);
@@ -615,7 +639,7 @@ impl EditorApp {
         if let Some(job) = &mut self.screenshot {
             job.frame(ctx, &self.viewer, self.runner.is_running() || self.pending_run.is_some());
         }
-        self.stats.frame(self.doc.revision);
+        self.stats.frame(self.doc.revision, t0.elapsed().as_secs_f64() * 1e3);
         let title = format!("{} - relume editor", self.doc.title());
         if title != self.window_title {
             ctx.send_viewport_cmd(egui::ViewportCommand::Title(title.clone()));

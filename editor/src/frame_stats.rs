@@ -38,6 +38,8 @@ impl ImageShown {
 struct Row {
     t_s: f64,
     frame_ms: f64,
+    /// Of which the editor's own work on the frame (drawing aside).
+    ui_ms: f64,
     revision: u64,
     image: Option<ImageShown>,
 }
@@ -53,6 +55,8 @@ pub struct Summary {
     pub latency_p95_ms: f64,
     /// Median of the runs' own times.
     pub run_median_ms: f64,
+    /// Median of the editor's own work per frame.
+    pub ui_median_ms: f64,
 }
 
 impl Summary {
@@ -64,10 +68,11 @@ impl Summary {
     }
     pub fn line(&self) -> String {
         format!(
-            "{:.1} s: {} frames ({:.1}/s), {} new images ({:.1}/s), edit to pixels median {:.1} ms (95 % {:.1} ms), run median {:.1} ms",
+            "{:.1} s: {} frames ({:.1}/s, editor's work median {:.1} ms), {} new images ({:.1}/s), edit to pixels median {:.1} ms (95 % {:.1} ms), run median {:.1} ms",
             self.seconds,
             self.frames,
             self.frames_per_s(),
+            self.ui_median_ms,
             self.images,
             self.images_per_s(),
             self.latency_median_ms,
@@ -123,8 +128,9 @@ impl FrameStats {
         self.fresh = Some(shown);
     }
 
-    /// A frame was drawn (called once per frame, after the viewer took its image in).
-    pub fn frame(&mut self, revision: u64) {
+    /// A frame was drawn (called once per frame, after the viewer took its image in);
+    /// `ui_ms`: the editor's own work on it.
+    pub fn frame(&mut self, revision: u64, ui_ms: f64) {
         let now = Instant::now();
         let frame_ms = self.last_frame.map_or(0.0, |t| now.duration_since(t).as_secs_f64() * 1e3);
         self.last_frame = Some(now);
@@ -136,7 +142,7 @@ impl FrameStats {
         }
         let image = self.fresh.take();
         if let Some((t0, rows)) = &mut self.recording {
-            rows.push(Row { t_s: now.duration_since(*t0).as_secs_f64(), frame_ms, revision, image });
+            rows.push(Row { t_s: now.duration_since(*t0).as_secs_f64(), frame_ms, ui_ms, revision, image });
         }
     }
 
@@ -207,14 +213,15 @@ fn summarize(rows: &[Row]) -> Summary {
         latency_median_ms: quantile(images.iter().map(|i| i.latency_ms).collect(), 0.5),
         latency_p95_ms: quantile(images.iter().map(|i| i.latency_ms).collect(), 0.95),
         run_median_ms: quantile(images.iter().map(|i| i.run_ms).collect(), 0.5),
+        ui_median_ms: quantile(rows.iter().map(|r| r.ui_ms).collect(), 0.5),
     }
 }
 
 /// The recording as CSV: a row per frame; the image columns are empty where no new image came.
 fn csv(rows: &[Row]) -> String {
-    let mut s = String::from("time_s,frame_ms,revision,new_image,image_revision,latency_ms,run_ms,nodes_ran\n");
+    let mut s = String::from("time_s,frame_ms,ui_ms,revision,new_image,image_revision,latency_ms,run_ms,nodes_ran\n");
     for r in rows {
-        s += &format!("{:.6},{:.3},{},", r.t_s, r.frame_ms, r.revision);
+        s += &format!("{:.6},{:.3},{:.3},{},", r.t_s, r.frame_ms, r.ui_ms, r.revision);
         match &r.image {
             Some(i) => {
                 let nodes: Vec<String> = i.nodes.iter().map(|(id, ms)| format!("{id}:{ms:.3}")).collect();
@@ -238,13 +245,13 @@ mod tests {
     fn a_recording_counts_frames_and_images_and_writes_a_row_per_frame() {
         let dir = tempfile::tempdir().unwrap();
         let mut s = FrameStats::default();
-        s.frame(0);
+        s.frame(0, 1.0);
         assert!(s.stop_recording(&dir.path().join("x.csv")).is_none(), "nothing was recording");
         s.start_recording();
         for (rev, lat) in [(1, 10.0), (2, 30.0), (3, 20.0)] {
             s.image(shown(rev, lat));
-            s.frame(rev);
-            s.frame(rev);
+            s.frame(rev, 1.0);
+            s.frame(rev, 1.0);
         }
         assert_eq!(s.rates(), (7, 3));
         let (path, sum) = s.stop_recording(&dir.path().join("frames.csv")).unwrap().unwrap();
@@ -252,8 +259,8 @@ mod tests {
         let text = std::fs::read_to_string(path).unwrap();
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines.len(), 7);
-        assert!(lines[1].ends_with(",1,1,1,10.000,5.000,relight:5.000"), "{}", lines[1]);
-        assert!(lines[2].ends_with(",1,0,,,,"), "{}", lines[2]);
+        assert!(lines[1].ends_with(",1.000,1,1,1,10.000,5.000,relight:5.000"), "{}", lines[1]);
+        assert!(lines[2].ends_with(",1.000,1,0,,,,"), "{}", lines[2]);
         assert!(!s.is_recording());
         assert!(s.overlay_lines()[1].starts_with("edit to pixels 20 ms"), "{:?}", s.overlay_lines());
     }

@@ -5,6 +5,7 @@
 
 pub mod app;
 pub mod document;
+pub mod drive;
 pub mod edit;
 pub mod file_dialog;
 pub mod frame_stats;

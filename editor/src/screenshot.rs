@@ -39,12 +39,57 @@ impl Region {
     }
 }
 
-/// Measures the pixels of `img` inside `rect` (in physical pixels).
-pub fn region_stats(img: &egui::ColorImage, rect: egui::Rect) -> Region {
+/// The pixel bounds of `rect` (physical pixels) within `img`: x0, y0, x1, y1.
+fn bounds(img: &egui::ColorImage, rect: egui::Rect) -> (usize, usize, usize, usize) {
     let x0 = rect.min.x.max(0.0) as usize;
     let y0 = rect.min.y.max(0.0) as usize;
-    let x1 = (rect.max.x as usize).min(img.size[0]);
-    let y1 = (rect.max.y as usize).min(img.size[1]);
+    let x1 = (rect.max.x.max(0.0) as usize).min(img.size[0]);
+    let y1 = (rect.max.y.max(0.0) as usize).min(img.size[1]);
+    (x0, y0, x1.max(x0), y1.max(y0))
+}
+
+/// The part of `img` inside `rect` (physical pixels).
+pub fn crop(img: &egui::ColorImage, rect: egui::Rect) -> egui::ColorImage {
+    let (x0, y0, x1, y1) = bounds(img, rect);
+    let pixels = (y0..y1).flat_map(|y| img.pixels[y * img.size[0] + x0..y * img.size[0] + x1].iter().copied()).collect();
+    egui::ColorImage { size: [x1 - x0, y1 - y0], pixels }
+}
+
+/// Images side by side with `gap` pixels of `background` between them, top-aligned.
+pub fn strip(images: &[egui::ColorImage], gap: usize, background: egui::Color32) -> egui::ColorImage {
+    let w = images.iter().map(|i| i.size[0]).sum::<usize>() + gap * images.len().saturating_sub(1);
+    let h = images.iter().map(|i| i.size[1]).max().unwrap_or(0);
+    let mut out = egui::ColorImage::new([w, h], background);
+    let mut x = 0;
+    for img in images {
+        for y in 0..img.size[1] {
+            out.pixels[y * w + x..y * w + x + img.size[0]].copy_from_slice(&img.pixels[y * img.size[0]..(y + 1) * img.size[0]]);
+        }
+        x += img.size[0] + gap;
+    }
+    out
+}
+
+/// Writes an egui image as PNG.
+pub fn save_png(img: &egui::ColorImage, path: &std::path::Path) -> Result<(), String> {
+    let rgba: Vec<u8> = img.pixels.iter().flat_map(|c| [c.r(), c.g(), c.b(), 255]).collect();
+    image::save_buffer(path, &rgba, img.size[0] as u32, img.size[1] as u32, image::ExtendedColorType::Rgba8)
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))
+}
+
+/// The screenshot that arrived this frame, if any.
+pub fn arrived(ctx: &egui::Context) -> Option<Arc<egui::ColorImage>> {
+    ctx.input(|i| {
+        i.raw.events.iter().find_map(|e| match e {
+            egui::Event::Screenshot { image, .. } => Some(image.clone()),
+            _ => None,
+        })
+    })
+}
+
+/// Measures the pixels of `img` inside `rect` (in physical pixels).
+pub fn region_stats(img: &egui::ColorImage, rect: egui::Rect) -> Region {
+    let (x0, y0, x1, y1) = bounds(img, rect);
     let mut colors = std::collections::HashSet::new();
     let (mut n, mut sum, mut sum2) = (0usize, 0.0f64, 0.0f64);
     for y in y0..y1 {
@@ -93,18 +138,11 @@ impl ScreenshotJob {
         if Instant::now() > self.deadline {
             return self.finish(ctx, 3, "timed out before the viewer showed an image");
         }
-        let shot = ctx.input(|i| {
-            i.raw.events.iter().find_map(|e| match e {
-                egui::Event::Screenshot { image, .. } => Some(image.clone()),
-                _ => None,
-            })
-        });
-        if let Some(img) = shot {
+        if let Some(img) = arrived(ctx) {
             let ppp = ctx.pixels_per_point();
             let rect = viewer.image_rect.map(|r| egui::Rect::from_min_max(r.min * ppp, r.max * ppp)).unwrap_or(egui::Rect::NOTHING);
             let stats = region_stats(&img, rect);
-            let rgba: Vec<u8> = img.pixels.iter().flat_map(|c| [c.r(), c.g(), c.b(), 255]).collect();
-            let saved = image::save_buffer(&self.path, &rgba, img.size[0] as u32, img.size[1] as u32, image::ExtendedColorType::Rgba8);
+            let saved = save_png(&img, &self.path);
             let msg = format!(
                 "{} ({}×{}); viewer region {} px, {} colours, luma std {:.1}",
                 self.path.display(),
@@ -115,7 +153,7 @@ impl ScreenshotJob {
                 stats.luma_std
             );
             return match (saved, stats.is_picture()) {
-                (Err(e), _) => self.finish(ctx, 4, &format!("cannot write {}: {e}", self.path.display())),
+                (Err(e), _) => self.finish(ctx, 4, &e),
                 (Ok(()), true) => self.finish(ctx, 0, &format!("ok: {msg}")),
                 (Ok(()), false) => self.finish(ctx, 2, &format!("the viewer looks blank: {msg}")),
             };
@@ -165,5 +203,18 @@ mod tests {
             *p = if (x + y) % 2 == 0 { egui::Color32::from_rgb(230, 128, 51) } else { egui::Color32::from_gray(20) };
         }
         assert!(region_stats(&checker, r).is_picture());
+    }
+
+    #[test]
+    fn crops_lie_side_by_side_in_a_strip() {
+        let mut img = egui::ColorImage::new([8, 6], egui::Color32::BLACK);
+        img.pixels[2 * 8 + 3] = egui::Color32::WHITE;
+        let c = crop(&img, egui::Rect::from_min_max(egui::pos2(2.0, 1.0), egui::pos2(5.0, 4.0)));
+        assert_eq!(c.size, [3, 3]);
+        assert_eq!(c.pixels[3 + 1], egui::Color32::WHITE);
+        assert_eq!(crop(&img, egui::Rect::from_min_max(egui::pos2(6.0, 5.0), egui::pos2(20.0, 20.0))).size, [2, 1]);
+        let s = strip(&[c.clone(), c], 2, egui::Color32::RED);
+        assert_eq!(s.size, [8, 3]);
+        assert_eq!((s.pixels[3], s.pixels[4], s.pixels[5 + 8 + 1]), (egui::Color32::RED, egui::Color32::RED, egui::Color32::WHITE));
     }
 }

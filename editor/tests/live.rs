@@ -173,8 +173,8 @@ fn the_recorder_writes_a_row_per_frame_with_the_images_a_drag_showed() {
     let csv = std::fs::read_to_string(dir.path().join("live.frames.csv")).unwrap();
     let rows: Vec<&str> = csv.lines().skip(1).collect();
     assert!(rows.len() >= 2, "{csv}");
-    let images: Vec<&&str> = rows.iter().filter(|r| r.split(',').nth(3) == Some("1")).collect();
+    let images: Vec<&&str> = rows.iter().filter(|r| r.split(',').nth(4) == Some("1")).collect();
     assert_eq!(images.len(), 1, "{csv}");
-    assert_eq!(images[0].split(',').nth(4), Some(last.to_string().as_str()));
+    assert_eq!(images[0].split(',').nth(5), Some(last.to_string().as_str()));
     assert!(images[0].ends_with(|c: char| c.is_ascii_digit()) && images[0].contains("median:"), "{}", images[0]);
 }
