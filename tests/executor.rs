@@ -31,6 +31,7 @@ impl Observer for Recorder {
             }
             Event::Finished { id, status, .. } => format!("finished {id} {}", status.as_str()),
             Event::Failed { id, .. } => format!("failed {id}"),
+            Event::Partial { id, .. } => format!("partial {id}"),
         };
         let mut ev = self.events.lock().unwrap();
         if ev.last() != Some(&line) {

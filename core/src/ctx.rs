@@ -2,7 +2,9 @@
 
 use crate::error::NodeError;
 use crate::hash::Hash;
+use crate::port::Value;
 use rayon::prelude::*;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -155,11 +157,26 @@ pub enum Event<'a> {
         kind: &'a str,
         message: &'a str,
     },
+    /// A result before the node's end, for display while it runs: a sharded node's chunk
+    /// once it is done (or a pass of it), or a node's whole output so far. `chunk`: the items
+    /// the value covers and the node's item count, for a sharded node (an `ImageRows` band of
+    /// a renderer sharded over rows holds, layer by layer, its outputs' rows). Sent only to
+    /// observers that want them.
+    Partial {
+        id: &'a str,
+        value: &'a Value,
+        chunk: Option<(Range<u64>, u64)>,
+    },
 }
 
 /// Receives run events; called from the coordinating thread and from node threads.
 pub trait Observer: Send + Sync {
     fn event(&self, e: &Event<'_>);
+
+    /// Whether to send `Event::Partial` (building a partial result costs the node a copy).
+    fn wants_partials(&self) -> bool {
+        false
+    }
 }
 
 /// What a run recorded besides its outputs: metrics, notes, file dependencies.
@@ -183,6 +200,8 @@ pub struct RunCtx<'a> {
     /// The share of the node's work that `phase` subdivides (all of it, or one chunk of a
     /// sharded node: see `shard.rs`), in the same form.
     outer: AtomicU64,
+    /// The chunk a sharded node is computing and its item count (set by the sharded runner).
+    chunk: Mutex<Option<(Range<u64>, u64)>>,
 }
 
 impl<'a> RunCtx<'a> {
@@ -199,7 +218,27 @@ impl<'a> RunCtx<'a> {
             last_permille: AtomicU64::new(u64::MAX),
             span: AtomicU64::new(1000),
             outer: AtomicU64::new(1000),
+            chunk: Mutex::new(None),
         }
+    }
+
+    /// Whether anyone watches for partial results: build one only then.
+    pub fn wants_partials(&self) -> bool {
+        self.observer.is_some_and(|o| o.wants_partials())
+    }
+
+    /// Sends a result before the node's end (see `Event::Partial`): for a sharded node, a
+    /// value of the chunk it is computing, which the event names.
+    pub fn partial(&self, value: Value) {
+        if let Some(o) = self.observer.filter(|o| o.wants_partials()) {
+            let chunk = self.chunk.lock().unwrap().clone();
+            o.event(&Event::Partial { id: self.id, value: &value, chunk });
+        }
+    }
+
+    /// Says which chunk of how many items a sharded node computes now (`None`: the whole).
+    pub(crate) fn set_chunk(&self, chunk: Option<(Range<u64>, u64)>) {
+        *self.chunk.lock().unwrap() = chunk;
     }
 
     /// The node's id in the graph.

@@ -693,3 +693,58 @@ fn a_shard_run_asked_for_the_nodes_output_fails_with_a_message_not_a_panic() {
     let err = e.run(&g, &out_of_range).err().expect("shard 5 of 3 is refused");
     assert!(err.to_string().contains("shard 5 of 3 does not exist"), "{err}");
 }
+
+// ---------------------------------------------------------------------------------------
+// Partial results: a watcher that asks for them gets every chunk as it is done, in order,
+// named by its items, computed or from the disk cache; one that does not gets none.
+
+/// A partial result as received: node, chunk items, item count, the chunk's numbers.
+type Received = (String, Range<u64>, u64, Vec<f64>);
+
+struct Partials {
+    want: bool,
+    got: Mutex<Vec<Received>>,
+}
+
+impl relume_core::Observer for Partials {
+    fn event(&self, e: &relume_core::Event<'_>) {
+        if let relume_core::Event::Partial { id, value, chunk } = e {
+            let (items, total) = chunk.clone().expect("a sharded node names the chunk");
+            self.got.lock().unwrap().push((id.to_string(), items, total, value.get::<Floats>().expect("a chunk").0.clone()));
+        }
+    }
+    fn wants_partials(&self) -> bool {
+        self.want
+    }
+}
+
+#[test]
+fn a_watcher_that_asks_gets_each_chunk_as_it_is_done_from_the_run_or_the_cache() {
+    let dir = tempfile::tempdir().unwrap();
+    let g = squares("n: 20, chunk: 8, tag: 9");
+    let watch = |want| Partials { want, got: Mutex::new(Vec::new()) };
+    let run = |e: &Engine, w: &Partials| e.run(&g, &RunOptions { observer: Some(w), ..Default::default() }).unwrap();
+    let expect = |items: Range<u64>| items.map(|i| (i * i) as f64).collect::<Vec<_>>();
+    let w = watch(true);
+    run(&engine(), &w);
+    let got = w.got.into_inner().unwrap();
+    let ranges: Vec<(Range<u64>, u64)> = got.iter().map(|g| (g.1.clone(), g.2)).collect();
+    assert_eq!(ranges, [(0..8, 20), (8..16, 20), (16..20, 20)]);
+    for (id, items, _, values) in &got {
+        assert_eq!((id.as_str(), values), ("sq", &expect(items.clone())));
+    }
+    // The first shard's chunks in the disk cache (`relume shard`), then a run: those come
+    // from the cache, the rest are computed, and every chunk is sent, in order.
+    let e = cached_engine(dir.path());
+    run_shard(&e, &g, "sq", 0, 2);
+    let e = cached_engine(dir.path());
+    let w = watch(true);
+    let (_, ran) = counting(9, || run(&e, &w));
+    let got = w.got.into_inner().unwrap();
+    assert_eq!(got.iter().map(|g| g.1.clone()).collect::<Vec<_>>(), [0..8, 8..16, 16..20]);
+    assert!(ran > 0 && ran < 3, "{ran} chunks computed: the first shard's came from the cache");
+    // Not asked: not sent.
+    let w = watch(false);
+    run(&engine(), &w);
+    assert!(w.got.into_inner().unwrap().is_empty());
+}

@@ -81,6 +81,11 @@ pub struct EditorApp {
     view_after_preview: Option<u64>,
     /// The viewer shows the preview of the current run, not the viewed image yet.
     pub preview_shown: bool,
+    /// The viewer shows the viewed image as far as the run under way got (a renderer's
+    /// bands and passes so far).
+    pub partial_shown: bool,
+    /// The run and the partial update the viewer shows.
+    partial_seen: (u64, u64),
     pub report: Option<RunReport>,
     /// What the viewer shows: a graph output name, or `node.port`.
     pub view_target: Option<String>,
@@ -126,6 +131,8 @@ impl EditorApp {
             rest_after: None,
             view_after_preview: None,
             preview_shown: false,
+            partial_shown: false,
+            partial_seen: (0, 0),
             report: None,
             view_target: None,
             last_outputs: Vec::new(),
@@ -357,6 +364,35 @@ impl EditorApp {
         (g, outputs)
     }
 
+    /// Image output `name` of the last run.
+    pub fn last_output_image(&self, name: &str) -> Option<Image> {
+        self.last_outputs.iter().find(|(n, _)| n == name).and_then(|(_, v)| v.get::<Image>()).cloned()
+    }
+
+    /// The port whose image the viewer shows.
+    pub fn view_port(&self) -> Option<PortRef> {
+        let t = self.view_target.as_ref()?;
+        match self.doc.graph.outputs.iter().find(|o| &o.name == t) {
+            Some(o) => Some(o.port.clone()),
+            None => PortRef::parse(t),
+        }
+    }
+
+    /// Shows the viewed image as far as the run under way got, when its node sent more.
+    fn show_partial(&mut self) {
+        let run = self.runner.started();
+        let seen = if self.partial_seen.0 == run { self.partial_seen.1 } else { 0 };
+        let Some(port) = self.view_port() else { return };
+        let Some(p) = self.runner.partial_since(&port.node, seen) else { return };
+        self.partial_seen = (run, p.updates);
+        let kind = self.doc.graph.node(&port.node).and_then(|n| self.registry.node(&n.kind));
+        let index = kind.and_then(|k| k.ports().outputs.iter().position(|o| o.name == port.port));
+        if let Some(img) = index.and_then(|i| p.layers.get(i)) {
+            self.viewer.set_image(Some(Arc::new(img.clone())));
+            self.partial_shown = true;
+        }
+    }
+
     /// The graph a run of the viewed image takes and the output that delivers it.
     pub fn view_request(&self) -> Option<(Graph, String)> {
         let view = self.view_output_name()?;
@@ -549,6 +585,7 @@ impl EditorApp {
         if found {
             self.viewer.set_image(img.map(Arc::new));
             self.preview_shown = false;
+            self.partial_shown = false;
         }
         found
     }
@@ -603,6 +640,7 @@ impl EditorApp {
         self.shortcuts(ctx);
         self.collect_finished();
         self.schedule(ctx);
+        self.show_partial();
         if self.view.shown != Some(self.doc.revision) {
             self.view.rebuild(&self.doc.graph, self.doc.revision);
         }
@@ -624,6 +662,7 @@ impl EditorApp {
             view_target: self.view_target.clone(),
             image_outputs,
             preview_shown: self.preview_shown,
+            partial_shown: self.partial_shown,
             report: self.report.as_ref(),
             stats: &mut self.stats,
             tools,

@@ -12,7 +12,6 @@ use crate::pick::{Picked, Probe};
 use crate::tool::*;
 use crate::viewer::ViewerInput;
 use glam::Vec2;
-use relume_core::graph::PortRef;
 use relume_core::ParamValue;
 
 impl EditorApp {
@@ -26,11 +25,7 @@ impl EditorApp {
 
     /// The node that renders the viewed image.
     pub fn view_node(&self) -> Option<String> {
-        let t = self.view_target.as_ref()?;
-        match self.doc.graph.outputs.iter().find(|o| &o.name == t) {
-            Some(o) => Some(o.port.node.clone()),
-            None => PortRef::parse(t).map(|p| p.node),
-        }
+        self.view_port().map(|p| p.node)
     }
 
     /// The node a tool edits: the selected node where it is of the tool's kind, else one the

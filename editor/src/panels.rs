@@ -81,6 +81,7 @@ pub struct Panels<'a> {
     pub view_target: Option<String>,
     pub image_outputs: Vec<String>,
     pub preview_shown: bool,
+    pub partial_shown: bool,
     pub report: Option<&'a RunReport>,
     pub stats: &'a mut crate::frame_stats::FrameStats,
     /// The viewer tools the graph offers, and the one in use.
@@ -264,6 +265,10 @@ fn viewer(p: &mut Panels, ui: &mut egui::Ui, out: &mut Vec<Action>) {
         });
         if chosen != p.view_target {
             out.push(Action::ShowTarget(chosen));
+        }
+        if p.partial_shown {
+            ui.label(egui::RichText::new("partial").strong())
+                .on_hover_text("the viewed image as far as its renderer got: finished bands, and the band under way pass by pass");
         }
         if p.preview_shown {
             ui.label(egui::RichText::new("preview").strong())

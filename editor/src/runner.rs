@@ -2,6 +2,7 @@
 //! older one, per-node state and progress for the node widgets, the report and the outputs
 //! when it ends.
 
+use relume_base::types::{Image, ImageRows};
 use relume_core::{CancelToken, Engine, Event, Graph, NodeStatus, Observer, PlanAction, RunOptions, RunReport, Value};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
@@ -36,6 +37,46 @@ impl NodeState {
     }
 }
 
+/// A running node's images as far as they got, composed from its partial results (the bands
+/// of a renderer sharded over rows, pass by pass): one image per output port, rows not yet
+/// reached black.
+#[derive(Clone, Debug)]
+pub struct PartialImages {
+    pub node: String,
+    pub layers: Vec<Image>,
+    /// Bumped on every partial result taken in.
+    pub updates: u64,
+}
+
+impl PartialImages {
+    /// Takes in one partial result of `node`: a band of rows (`ImageRows`) of an image of
+    /// `total` rows, or a whole image.
+    fn take(slot: &mut Option<PartialImages>, node: &str, value: &Value, total: Option<u64>) {
+        if let (Some(band), Some(total)) = (value.get::<ImageRows>(), total) {
+            let (w, h) = (band.width as usize, total as usize);
+            let fits = |p: &PartialImages| {
+                p.node == node && p.layers.len() == band.layers.len() && p.layers.iter().all(|l| l.width == w && l.height == h)
+            };
+            if !slot.as_ref().is_some_and(fits) {
+                let Ok(layers) = band.layers.iter().map(|_| Image::try_new(w, h)).collect::<Result<Vec<_>, _>>() else { return };
+                *slot = Some(PartialImages { node: node.into(), layers, updates: 0 });
+            }
+            let p = slot.as_mut().expect("made above");
+            let start = band.first_row as usize * w;
+            for (img, layer) in p.layers.iter_mut().zip(&band.layers) {
+                let end = (start + layer.0.len()).min(img.pixels.len());
+                if start < end {
+                    img.pixels[start..end].copy_from_slice(&layer.0[..end - start]);
+                }
+            }
+            p.updates += 1;
+        } else if let Some(img) = value.get::<Image>() {
+            let updates = slot.as_ref().filter(|p| p.node == node).map_or(0, |p| p.updates) + 1;
+            *slot = Some(PartialImages { node: node.into(), layers: vec![img.clone()], updates });
+        }
+    }
+}
+
 /// The end of a run.
 pub struct Finished {
     /// The document revision the run was started for.
@@ -51,6 +92,8 @@ struct Shared {
     live: HashMap<String, NodeState>,
     finished: Option<Finished>,
     running: bool,
+    /// The partial images of the node of the run under way that sent the latest.
+    partial: Option<PartialImages>,
 }
 
 struct Watch {
@@ -60,9 +103,24 @@ struct Watch {
 }
 
 impl Observer for Watch {
+    fn wants_partials(&self) -> bool {
+        true
+    }
+
     fn event(&self, e: &Event<'_>) {
+        if let Event::Partial { id, value, chunk } = e {
+            let mut s = self.shared.lock().unwrap();
+            if s.generation == self.generation {
+                PartialImages::take(&mut s.partial, id, value, chunk.as_ref().map(|c| c.1));
+            }
+            drop(s);
+            if let Some(ctx) = &self.repaint {
+                ctx.request_repaint();
+            }
+            return;
+        }
         let (id, state) = match e {
-            Event::Planned { .. } => return,
+            Event::Planned { .. } | Event::Partial { .. } => return,
             Event::Started { id, .. } => (*id, NodeState::Running(0.0)),
             Event::Progress { id, fraction } => (*id, NodeState::Running(*fraction)),
             Event::Finished { id, status: NodeStatus::Ran, wall_ms, .. } => (*id, NodeState::Done(*wall_ms)),
@@ -148,6 +206,7 @@ impl Runner {
             let mut s = self.shared.lock().unwrap();
             s.generation += 1;
             s.live.clear();
+            s.partial = None;
             s.running = true;
             s.generation
         };
@@ -183,6 +242,18 @@ impl Runner {
     /// The end of the last run, once.
     pub fn take_finished(&self) -> Option<Finished> {
         self.shared.lock().unwrap().finished.take()
+    }
+
+    /// The images of the run under way as far as they got, when they changed since `seen`
+    /// updates (of the same node).
+    pub fn partial_since(&self, node: &str, seen: u64) -> Option<PartialImages> {
+        let s = self.shared.lock().unwrap();
+        s.partial.as_ref().filter(|p| p.node == node && p.updates > seen && s.running).cloned()
+    }
+
+    /// The partial images the latest run sent, whether or not it is still under way.
+    pub fn last_partial(&self) -> Option<PartialImages> {
+        self.shared.lock().unwrap().partial.clone()
     }
 
     /// States the current run reported so far.

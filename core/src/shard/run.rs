@@ -54,8 +54,11 @@ impl Engine {
                 Some(mut e) => (e.outputs.remove(0), true, e.compute_ms),
                 None => {
                     cx.set_outer(done as f64 / total, (done + 1) as f64 / total);
+                    cx.set_chunk(Some((items.clone(), spec.items)));
                     let t0 = Instant::now();
-                    let v = sh.run_items(params, inputs, items, cx)?;
+                    let v = sh.run_items(params, inputs, items.clone(), cx);
+                    cx.set_chunk(None);
+                    let v = v?;
                     let ms = t0.elapsed().as_secs_f64() * 1e3;
                     let entry =
                         CacheEntry { outputs: vec![v.clone()], metrics: Vec::new(), notes: Vec::new(), deps: Vec::new(), compute_ms: ms };
@@ -69,6 +72,11 @@ impl Engine {
             };
             if cached {
                 (stats.cached, stats.cached_ms) = (stats.cached + 1, stats.cached_ms + ms);
+            }
+            if cx.wants_partials() {
+                cx.set_chunk(Some((items.clone(), spec.items)));
+                cx.partial(value.clone());
+                cx.set_chunk(None);
             }
             if let Some(p) = peers {
                 let payload =

@@ -51,7 +51,7 @@ impl Observer for Bars {
                     t.inc(1);
                 }
             }
-            Event::Started { .. } => {}
+            Event::Started { .. } | Event::Partial { .. } => {}
         }
     }
 }

@@ -4,7 +4,7 @@ use crate::render::integrator::{Settings, Tracer};
 use crate::types::accel::Accel;
 use crate::types::{gather_rows, row_spec, Image, ImageRows, Scene};
 use glam::Vec3;
-use relume_core::{inputs, node, outputs, params, NodeError, RunCtx, ShardSpec};
+use relume_core::{inputs, node, outputs, params, NodeError, RunCtx, ShardSpec, Value};
 use std::ops::Range;
 
 params! {
@@ -13,7 +13,8 @@ params! {
     /// importance-sampled environment maps; smooth dielectrics with homogeneous media;
     /// `max_depth` as in Mitsuba 3 (1: emitters only, 2: direct light, 3: one bounce, −1:
     /// unbounded with Russian roulette from `rr_depth`); box pixel filter. Samples are taken
-    /// in passes of doubling size (progress and cancellation between rows); each pixel's
+    /// in passes of doubling size (progress and cancellation between rows; after each pass the
+    /// band so far goes to a watcher that asks, as the editor's viewer does); each pixel's
     /// random numbers depend only on (seed, pixel, sample), so the image has the same bytes on
     /// any thread count. Outputs the mean and the per-pixel variance of the mean. Sharded over
     /// image rows (chunks of about 4096 pixels): `relume shard`, `relume slurm` and
@@ -60,10 +61,17 @@ pub fn render_rows(scene: &Scene, accel: &Accel, p: &PathTrace, rows: Range<usiz
     let cam_rays = CameraRays::new(cam);
     let y0 = rows.start;
     with_ctx(cx, |cx| {
-        film.add_passes(cx, p.spp, |x, y, s, counts| {
+        let sample = |x, y, s, counts: &mut _| {
             let (o, d, id) = camera_sample(&cam_rays, p.seed, w, x, y + y0, s);
             tracer.radiance(o, d, id, counts)
-        })
+        };
+        // Each pass but the last, to a watcher that asks: the band as far as it got.
+        let partial = |film: &Film| {
+            if let Some((mean, var)) = cx.wants_partials().then(|| film.snapshot().ok()).flatten() {
+                cx.partial(Value::new(ImageRows::new(w, rows.clone(), vec![mean, var], vec![film.rays(), film.nonfinite()])));
+            }
+        };
+        film.add_passes(cx, p.spp, sample, partial)
     })?;
     let counters = vec![film.rays(), film.nonfinite()];
     let (mean, var) = film.finish();

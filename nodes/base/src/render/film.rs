@@ -138,12 +138,14 @@ impl Film {
     }
 
     /// Takes `spp` samples per pixel in progressive passes of doubling size (1, 2, 4, …
-    /// samples, the last pass what remains), with `f` as in [`Film::add_pass`].
+    /// samples, the last pass what remains), with `f` as in [`Film::add_pass`]; `after_pass`
+    /// sees the film after each pass but the last (a partial result for display).
     pub fn add_passes(
         &mut self,
         cx: &RunCtx,
         spp: u32,
         f: impl Fn(usize, usize, u32, &mut Counts) -> Vec3 + Sync + Send,
+        mut after_pass: impl FnMut(&Film),
     ) -> Result<(), NodeError> {
         let mut pass = 1u32;
         while self.samples < spp {
@@ -151,28 +153,44 @@ impl Film {
             let n = pass.min(spp - first);
             cx.phase(first as f64 / spp as f64, (first + n) as f64 / spp as f64);
             self.add_pass(cx, first..first + n, &f)?;
+            if self.samples < spp {
+                after_pass(self);
+            }
             pass = pass.saturating_mul(2);
         }
         Ok(())
     }
 
-    /// The mean of the samples, and the (unbiased) variance of the mean per pixel channel
-    /// (0 with fewer than 2 samples). Dropped samples count in the sample number `n`.
+    /// The mean of the samples so far, and the (unbiased) variance of the mean per pixel
+    /// channel (0 with fewer than 2 samples). Dropped samples count in the sample number `n`.
+    pub fn snapshot(&self) -> Result<(Image, Image), NodeError> {
+        let w = self.mean.width;
+        let (mut mean, mut var) = (Image::try_new(w, self.rows.len())?, Image::try_new(w, self.rows.len())?);
+        fill(&self.rows, self.samples, &mut mean, &mut var);
+        Ok((mean, var))
+    }
+
+    /// The mean and the variance of the mean, as [`Film::snapshot`], into the images
+    /// allocated when the film was made.
     pub fn finish(self) -> (Image, Image) {
         let Film { mut mean, mut var, rows, samples } = self;
-        let n = samples as f64;
-        let w = mean.width;
-        for (y, row) in rows.iter().enumerate() {
-            for x in 0..w {
-                let i = y * w + x;
-                for c in 0..3 {
-                    let m = row.sum[x][c] / n;
-                    mean.pixels[i][c] = m as f32;
-                    var.pixels[i][c] = if samples > 1 { ((row.sum2[x][c] / n - m * m).max(0.0) / (n - 1.0)) as f32 } else { 0.0 };
-                }
+        fill(&rows, samples, &mut mean, &mut var);
+        (mean, var)
+    }
+}
+
+/// The mean of the sums in `rows` over `samples` samples, and the variance of the mean.
+fn fill(rows: &[FilmRow], samples: u32, mean: &mut Image, var: &mut Image) {
+    let (n, w) = (samples as f64, mean.width);
+    for (y, row) in rows.iter().enumerate() {
+        for x in 0..w {
+            let i = y * w + x;
+            for c in 0..3 {
+                let m = if samples > 0 { row.sum[x][c] / n } else { 0.0 };
+                mean.pixels[i][c] = m as f32;
+                var.pixels[i][c] = if samples > 1 { ((row.sum2[x][c] / n - m * m).max(0.0) / (n - 1.0)) as f32 } else { 0.0 };
             }
         }
-        (mean, var)
     }
 }
 
@@ -187,23 +205,29 @@ mod tests {
             Vec3::splat((x + 10 * y) as f32 + 0.1 * s as f32)
         };
         let mut a = Film::try_new(3, 2).unwrap();
-        with_ctx(None, |cx| a.add_passes(cx, 11, f)).unwrap();
+        // After each pass but the last (1, 2, 4 samples; then the last 4): the film so far.
+        let mut seen = Vec::new();
+        with_ctx(None, |cx| a.add_passes(cx, 11, f, |film| seen.push((film.samples(), film.snapshot().unwrap().0.get(2, 1)[0])))).unwrap();
         assert_eq!((a.samples(), a.rays(), a.nonfinite()), (11, 66, 0));
+        assert_eq!(seen.iter().map(|s| s.0).collect::<Vec<_>>(), [1, 3, 7]);
+        assert!((seen[1].1 - (12.0 + 0.1)).abs() < 1e-5, "the mean of samples 0, 1, 2: {:?}", seen[1]);
         // The same samples one at a time: the same sums, bit for bit.
         let mut b = Film::try_new(3, 2).unwrap();
         for s in 0..11 {
             with_ctx(None, |cx| b.add_pass(cx, s..s + 1, f)).unwrap();
         }
+        let snapshot = a.snapshot().unwrap();
         let (ma, va) = a.finish();
         let (mb, vb) = b.finish();
-        assert_eq!((ma.clone(), va), (mb, vb));
+        assert_eq!((ma.clone(), va.clone()), (mb, vb));
+        assert_eq!(snapshot, (ma.clone(), va), "a snapshot at the end is the finished film");
         assert!((ma.get(2, 1)[0] - (12.0 + 0.5)).abs() < 1e-5, "{:?}", ma.get(2, 1));
     }
 
     #[test]
     fn nonfinite_samples_are_dropped_and_counted() {
         let mut film = Film::try_new(2, 1).unwrap();
-        with_ctx(None, |cx| film.add_passes(cx, 4, |x, _, s, _| if x == 1 && s == 2 { Vec3::NAN } else { Vec3::ONE })).unwrap();
+        with_ctx(None, |cx| film.add_passes(cx, 4, |x, _, s, _| if x == 1 && s == 2 { Vec3::NAN } else { Vec3::ONE }, |_| {})).unwrap();
         assert_eq!(film.nonfinite(), 1);
         let (mean, var) = film.finish();
         assert_eq!(mean.pixels, vec![[1.0; 3], [0.75; 3]]);
