@@ -202,6 +202,8 @@ pub struct RunCtx<'a> {
     outer: AtomicU64,
     /// The chunk a sharded node is computing and its item count (set by the sharded runner).
     chunk: Mutex<Option<(Range<u64>, u64)>>,
+    /// The run keeps its results in memory only (`RunOptions::memory_only`).
+    memory_only: bool,
 }
 
 impl<'a> RunCtx<'a> {
@@ -219,7 +221,18 @@ impl<'a> RunCtx<'a> {
             span: AtomicU64::new(1000),
             outer: AtomicU64::new(1000),
             chunk: Mutex::new(None),
+            memory_only: false,
         }
+    }
+
+    /// Keeps the run's results (a sharded node's chunks too) off the disk cache.
+    pub(crate) fn with_memory_only(mut self, on: bool) -> Self {
+        self.memory_only = on;
+        self
+    }
+
+    pub(crate) fn memory_only(&self) -> bool {
+        self.memory_only
     }
 
     /// Whether anyone watches for partial results: build one only then.

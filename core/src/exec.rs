@@ -59,6 +59,10 @@ pub struct RunOptions<'a> {
     pub nodes: Vec<String>,
     /// Which chunks of sharded nodes this run computes (`shard.rs`).
     pub shards: crate::shard::ShardMode<'a>,
+    /// Keep what this run computes in memory only, not on disk (the editor's live re-runs:
+    /// a drag's many intermediate results are each not worth a disk write); what is on disk
+    /// is still read.
+    pub memory_only: bool,
 }
 
 pub struct RunResult {
@@ -264,11 +268,11 @@ impl Engine {
 
     /// Keeps a result in memory, and on disk when it cost more to compute than loading it
     /// would (`cache::worth_storing`): the one rule for every `Caching::Auto` node.
-    fn store(&self, kind: &dyn DynNode, node: &str, key: Hash, entry: Arc<CacheEntry>) {
+    fn store(&self, kind: &dyn DynNode, node: &str, key: Hash, entry: Arc<CacheEntry>, memory_only: bool) {
         if kind.caching() == Caching::Never {
             return;
         }
-        if self.disk_policy == DiskPolicy::Always || crate::cache::worth_storing(&entry) {
+        if !memory_only && (self.disk_policy == DiskPolicy::Always || crate::cache::worth_storing(&entry)) {
             if let Some(d) = &self.disk {
                 // A failed write only costs a later recomputation.
                 let _ = d.put(&key, &entry, &kind.ports().outputs);
@@ -359,11 +363,11 @@ impl Engine {
                     let kind = self.kind_of(graph, i).clone();
                     let id = graph.nodes[i].id.as_str();
                     let (tx, cancel, observer, pool) = (tx.clone(), &opts.cancel, opts.observer, self.pool.as_deref());
-                    let (writes, shards) = (&write_roots, opts.shards);
+                    let (writes, shards, memory_only) = (&write_roots, opts.shards, opts.memory_only);
                     spawn(Box::new(move || {
                         let t0 = Instant::now();
                         let node = NodeRun { kind: kind.as_ref(), id, params: &prepared.params, key: prepared.key, inputs: &inputs };
-                        let go = || self.run_node(node, cancel, observer, writes, shards);
+                        let go = || self.run_node(node, cancel, observer, writes, shards, memory_only);
                         let result = match pool {
                             Some(p) => p.install(go),
                             None => go(),
@@ -389,7 +393,7 @@ impl Engine {
                         // One shard of a node is not the node's result: nothing to keep.
                         let whole = entry.outputs.len() == kind.ports().outputs.len();
                         if whole {
-                            self.store(kind.as_ref(), id, state.keys[i], entry.clone());
+                            self.store(kind.as_ref(), id, state.keys[i], entry.clone(), opts.memory_only);
                         }
                         if let Some(o) = opts.observer {
                             o.event(&Event::Finished { id, kind: kind.kind(), status: NodeStatus::Ran, wall_ms: ms });
@@ -499,11 +503,15 @@ impl Engine {
         observer: Option<&dyn Observer>,
         writes: &crate::ctx::WriteRoots,
         shards: ShardMode,
+        memory_only: bool,
     ) -> Result<(CacheEntry, Option<ShardStats>), NodeError> {
         if let Some(o) = observer {
             o.event(&Event::Started { id: n.id, kind: n.kind.kind() });
         }
-        let cx = RunCtx::new(n.id, cancel, observer).with_write_roots(writes.clone()).with_memory_budget(self.run_budget);
+        let cx = RunCtx::new(n.id, cancel, observer)
+            .with_write_roots(writes.clone())
+            .with_memory_budget(self.run_budget)
+            .with_memory_only(memory_only);
         let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match n.kind.sharded() {
             Some(sh) => {
                 self.run_sharded(sh, n.id, n.params, n.key, n.inputs, &cx, shards).map(|r| (r.outputs.unwrap_or_default(), Some(r.stats)))

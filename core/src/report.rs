@@ -29,6 +29,25 @@ pub struct NodeReport {
     pub shards: Option<crate::shard::ShardStats>,
 }
 
+impl NodeReport {
+    /// A node's line with only its times: the rest empty (tools that price runs, and tests).
+    pub fn timed(id: &str, status: &'static str, wall_ms: f64, compute_ms: f64) -> NodeReport {
+        NodeReport {
+            id: id.into(),
+            kind: String::new(),
+            status,
+            cache: None,
+            wall_ms,
+            compute_ms,
+            bytes: 0,
+            key: String::new(),
+            metrics: BTreeMap::new(),
+            notes: Vec::new(),
+            shards: None,
+        }
+    }
+}
+
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct RunReport {
     pub graph: String,

@@ -748,3 +748,28 @@ fn a_watcher_that_asks_gets_each_chunk_as_it_is_done_from_the_run_or_the_cache()
     run(&engine(), &w);
     assert!(w.got.into_inner().unwrap().is_empty());
 }
+
+#[test]
+fn a_memory_only_run_writes_nothing_to_disk_and_still_reads_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = || walk(dir.path());
+    let g = squares("n: 20, chunk: 8, tag: 10");
+    let e = cached_engine(dir.path()).with_disk_policy(DiskPolicy::Always);
+    let memory_only = RunOptions { memory_only: true, ..Default::default() };
+    let (r, ran) = counting(10, || e.run(&g, &memory_only).unwrap());
+    assert_eq!((ran, files()), (3, 0), "three chunks computed, no file written");
+    assert_eq!(bytes(&r, "out"), expected_squares(20, 1.0));
+    // The same engine has them in memory; a fresh one on the folder computes them again, and
+    // a run that may write leaves them on disk for the next.
+    assert_eq!(counting(10, || e.run(&g, &memory_only).unwrap()).1, 0);
+    let fresh = cached_engine(dir.path()).with_disk_policy(DiskPolicy::Always);
+    assert_eq!(counting(10, || run_all(&fresh, &g)).1, 3);
+    assert!(files() > 0);
+    let third = cached_engine(dir.path());
+    assert_eq!(counting(10, || third.run(&g, &memory_only).unwrap()).1, 0, "what is on disk is read");
+}
+
+/// Files below `dir`, at any depth.
+fn walk(dir: &Path) -> usize {
+    std::fs::read_dir(dir).map_or(0, |rd| rd.flatten().map(|e| if e.path().is_dir() { walk(&e.path()) } else { 1 }).sum())
+}

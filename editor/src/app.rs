@@ -6,7 +6,7 @@ use crate::document::Document;
 use crate::edit;
 use crate::file_dialog::{FileDialog, Purpose};
 use crate::frame_stats::{FrameStats, ImageShown};
-use crate::live::{Costs, When};
+use crate::live::{Costs, When, PROBE_GRACE, REPROBE_FIRST, REPROBE_MAX};
 use crate::palette::Palette;
 use crate::panels::{Action, Panels};
 use crate::runner::{NodeState, Runner};
@@ -50,8 +50,18 @@ pub struct EditorApp {
     pub auto_run: bool,
     /// When to start the next automatic run.
     pending_run: Option<Instant>,
-    /// Whether that run fits the frame budget (see [`crate::live`]).
+    /// Whether that run starts at once (it fits the frame budget, or is tried: see
+    /// [`crate::live`]).
     pending_live: bool,
+    /// The nodes of the tried run the pending one is, if it is one.
+    pending_probe: Option<Vec<String>>,
+    /// The tried run under way: when it started and the nodes it runs.
+    probe: Option<(Instant, Vec<String>)>,
+    /// How long a tried run may go on before a newer edit cancels it.
+    pub probe_grace: Duration,
+    /// How long a drag may show nothing before its run is tried again (doubling after each
+    /// trial cancelled, back to the first value after one that ends).
+    pub reprobe_after: Duration,
     /// The run under way fits the frame budget: a newer edit waits for it instead of
     /// cancelling it.
     in_flight_live: bool,
@@ -118,6 +128,10 @@ impl EditorApp {
             auto_run: true,
             pending_run: None,
             pending_live: false,
+            pending_probe: None,
+            probe: None,
+            probe_grace: PROBE_GRACE,
+            reprobe_after: REPROBE_FIRST,
             in_flight_live: false,
             rest_at: None,
             edit_times: std::collections::VecDeque::new(),
@@ -209,8 +223,27 @@ impl EditorApp {
         if !(self.auto_run && self.report.is_some()) {
             return;
         }
-        let live = self.when_edited() == When::Live;
+        let (mut when, mut nodes) = self.edit_plan();
+        // A trial run still going past its grace is dear after all: its nodes cost at least
+        // what it has run (the run is cancelled below), and the edit is priced again.
+        if let Some((t0, probed)) = self.probe.take().filter(|(t0, _)| t0.elapsed() > self.probe_grace && self.runner.is_running()) {
+            let ms = t0.elapsed().as_secs_f64() * 1e3;
+            for id in probed.iter().filter(|id| !self.costs.measured(id)).collect::<Vec<_>>() {
+                self.costs.set(id, ms);
+            }
+            (when, nodes) = self.edit_plan();
+            self.reprobe_after = (self.reprobe_after * 2).min(REPROBE_MAX);
+        } else if when == When::AfterPause
+            && !nodes.is_empty()
+            && self.edit_started.is_some_and(|t| now.duration_since(t) > self.reprobe_after)
+        {
+            // A drag that has shown nothing for a while tries its run again: a cost measured
+            // once (say a first run after opening, slowed by what it read) may not hold.
+            when = When::Probe;
+        }
+        let live = when != When::AfterPause;
         self.pending_live = live;
+        self.pending_probe = (when == When::Probe).then_some(nodes);
         self.pending_run = Some(if live { now } else { now + RUN_DEBOUNCE });
         self.rest_at = None;
         self.edit_started.get_or_insert(now);
@@ -229,11 +262,19 @@ impl EditorApp {
     /// When a re-run of the viewed image for the current graph starts: the nodes it would run
     /// priced at what they cost last time.
     pub fn when_edited(&self) -> When {
-        let Some(view) = self.view_output_name() else { return When::AfterPause };
+        self.edit_plan().0
+    }
+
+    /// `when_edited`, with the nodes the re-run would run.
+    fn edit_plan(&self) -> (When, Vec<String>) {
+        let Some(view) = self.view_output_name() else { return (When::AfterPause, Vec::new()) };
         let (g, _) = self.run_request();
         match self.runner.plan_states(&g, &[view]) {
-            Ok(states) => self.costs.when(states.iter().filter(|(_, s)| **s == NodeState::Stale).map(|(id, _)| id.as_str())),
-            Err(_) => When::AfterPause,
+            Ok(states) => {
+                let nodes: Vec<String> = states.into_iter().filter(|(_, s)| *s == NodeState::Stale).map(|(id, _)| id).collect();
+                (self.costs.when(nodes.iter().map(String::as_str)), nodes)
+            }
+            Err(_) => (When::AfterPause, Vec::new()),
         }
     }
 
@@ -415,6 +456,7 @@ impl EditorApp {
         self.pending_run = None;
         self.rest_at = None;
         self.in_flight_live = live;
+        self.probe = self.pending_probe.take().filter(|_| live).map(|nodes| (Instant::now(), nodes));
         self.edit_started.get_or_insert_with(Instant::now);
         // The preview first where the graph has one, then the viewed image, alone; the other
         // outputs when it is in (`take_in`).
@@ -427,7 +469,7 @@ impl EditorApp {
                     self.view_after_preview = Some(self.doc.revision);
                     self.runner.start(g, vec![PREVIEW_OUTPUT.into()], self.doc.revision);
                 } else {
-                    self.runner.start(g, vec![v], self.doc.revision);
+                    self.runner.start_with(g, vec![v], self.doc.revision, live);
                 }
             }
             None => {
@@ -507,6 +549,9 @@ impl EditorApp {
         let live = self.runner.live_states();
         self.planned = None;
         self.in_flight_live = false;
+        if self.probe.take().is_some() && f.outcome.is_ok() {
+            self.reprobe_after = REPROBE_FIRST;
+        }
         match f.outcome {
             Ok((report, outputs)) if f.revision == self.doc.revision && self.view_after_preview == Some(f.revision) => {
                 // The preview is in: show it, then compute the viewed image.

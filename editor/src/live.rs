@@ -3,6 +3,14 @@
 //! shows every value it can), a dearer one after the edits pause. At most one run is in
 //! flight: while a cheap run is under way a newer edit waits for it and then runs the newest
 //! value (coalesced); any other run a newer edit makes stale is cancelled at once.
+//!
+//! A cost measured in this session is trusted. One known only from a cached result (the
+//! time the node took when it ran, perhaps beside other nodes sharing the cores, so often
+//! more than its own work) is tried: the edit runs at once as if cheap, and if a newer edit
+//! comes while that run is still going after [`PROBE_GRACE`], the run is cancelled and its
+//! nodes are taken to cost what it had run so far. A drag over the budget that has shown
+//! nothing for [`REPROBE_FIRST`] is tried the same way (a cost measured once, say by a first
+//! run after opening, may not hold), waiting twice as long after each trial it had to cancel.
 
 use relume_core::RunReport;
 use std::collections::HashMap;
@@ -16,32 +24,63 @@ pub const FRAME_BUDGET_MS: f64 = 50.0;
 /// drag on an expensive parameter runs once it pauses, not on every frame).
 pub const RUN_DEBOUNCE: Duration = Duration::from_millis(150);
 
+/// How long a tried run (`When::Probe`) may go on before a newer edit cancels it: long
+/// enough for a first run after opening a graph, which also reads the cached inputs of what
+/// it re-runs from disk.
+pub const PROBE_GRACE: Duration = Duration::from_secs(1);
+
+/// How long a drag over the budget may show nothing before its run is tried again, at first
+/// and at most (the wait doubles after each trial that had to be cancelled).
+pub const REPROBE_FIRST: Duration = Duration::from_secs(1);
+pub const REPROBE_MAX: Duration = Duration::from_secs(16);
+
 /// When an edit's re-run starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum When {
     /// On this change: the re-run fits the frame budget.
     Live,
+    /// On this change, as a trial: the re-run is over the budget only with costs read from
+    /// cached results (what was measured here fits); a newer edit cancels it once it has run
+    /// longer than [`PROBE_GRACE`].
+    Probe,
     /// After the edits pause for [`RUN_DEBOUNCE`]: the re-run is dearer, or its cost is unknown.
     AfterPause,
+}
+
+/// A node's cost and whether it was measured in this session.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Cost {
+    ms: f64,
+    measured: bool,
 }
 
 /// What each node cost when it last ran, learnt from run reports.
 #[derive(Clone, Debug, Default)]
 pub struct Costs {
-    ms: HashMap<String, f64>,
+    ms: HashMap<String, Cost>,
 }
 
 impl Costs {
-    /// Takes in a run's report: each node's own cost, whether it ran or came from the cache.
+    /// Takes in a run's report: a node that ran, its time; one from the cache, the time its
+    /// result took when it ran (kept only while nothing was measured).
     pub fn learn(&mut self, report: &RunReport) {
         for n in &report.nodes {
-            self.ms.insert(n.id.clone(), n.compute_ms);
+            if n.status == "ran" {
+                self.ms.insert(n.id.clone(), Cost { ms: n.wall_ms, measured: true });
+            } else if !self.ms.get(&n.id).is_some_and(|c| c.measured) {
+                self.ms.insert(n.id.clone(), Cost { ms: n.compute_ms, measured: false });
+            }
         }
     }
 
-    /// Sets what a node costs (tests, and a caller that knows better than the last run).
+    /// Sets what a node costs, as measured (tests, and a trial cancelled after this long).
     pub fn set(&mut self, id: &str, ms: f64) {
-        self.ms.insert(id.to_string(), ms);
+        self.ms.insert(id.to_string(), Cost { ms, measured: true });
+    }
+
+    /// Whether the node's cost was measured in this session.
+    pub fn measured(&self, id: &str) -> bool {
+        self.ms.get(id).is_some_and(|c| c.measured)
     }
 
     /// Forgets everything (another graph was opened).
@@ -51,14 +90,18 @@ impl Costs {
 
     /// The cost of running these nodes; `None` when one of them has not run yet.
     pub fn estimate<'a>(&self, nodes: impl IntoIterator<Item = &'a str>) -> Option<f64> {
-        nodes.into_iter().map(|id| self.ms.get(id).copied()).sum()
+        nodes.into_iter().map(|id| self.ms.get(id).map(|c| c.ms)).sum()
     }
 
     /// When a re-run of these nodes starts.
-    pub fn when<'a>(&self, nodes: impl IntoIterator<Item = &'a str>) -> When {
+    pub fn when<'a>(&self, nodes: impl IntoIterator<Item = &'a str> + Clone) -> When {
+        let measured: f64 = nodes.clone().into_iter().filter_map(|id| self.ms.get(id).filter(|c| c.measured).map(|c| c.ms)).sum();
         match self.estimate(nodes) {
+            None => When::AfterPause,
             Some(ms) if ms <= FRAME_BUDGET_MS => When::Live,
-            _ => When::AfterPause,
+            // Over the budget by what was measured here alone: dear.
+            Some(_) if measured > FRAME_BUDGET_MS => When::AfterPause,
+            Some(_) => When::Probe,
         }
     }
 }
@@ -69,20 +112,12 @@ mod tests {
     use relume_core::NodeReport;
 
     fn report(nodes: &[(&str, f64)]) -> RunReport {
-        let node = |&(id, ms): &(&str, f64)| NodeReport {
-            id: id.into(),
-            kind: "K".into(),
-            status: "cached",
-            cache: Some("memory"),
-            wall_ms: 0.01,
-            compute_ms: ms,
-            bytes: 0,
-            key: String::new(),
-            metrics: Default::default(),
-            notes: Vec::new(),
-            shards: None,
-        };
-        RunReport { nodes: nodes.iter().map(node).collect(), ..Default::default() }
+        ran(nodes, "ran")
+    }
+
+    fn ran(nodes: &[(&str, f64)], status: &'static str) -> RunReport {
+        let wall = |ms: f64| if status == "ran" { ms } else { 0.01 };
+        RunReport { nodes: nodes.iter().map(|&(id, ms)| NodeReport::timed(id, status, wall(ms), ms)).collect(), ..Default::default() }
     }
 
     #[test]
@@ -101,5 +136,21 @@ mod tests {
         assert_eq!(c.when(["relight"]), When::AfterPause);
         c.clear();
         assert_eq!(c.estimate(["relight"]), None);
+    }
+
+    #[test]
+    fn a_dear_cost_read_from_the_cache_is_tried_and_a_measured_one_trusted() {
+        let mut c = Costs::default();
+        c.learn(&ran(&[("hits", 155_000.0), ("raster", 2.0)], "cached"));
+        assert_eq!(c.when(["hits", "raster"]), When::Probe);
+        assert_eq!(c.when(["raster"]), When::Live);
+        // Measured in this session: trusted, cheap or dear; a later cached figure does not
+        // replace a measured one.
+        c.learn(&report(&[("hits", 3.0)]));
+        assert_eq!(c.when(["hits", "raster"]), When::Live);
+        c.learn(&ran(&[("hits", 155_000.0)], "cached"));
+        assert_eq!(c.when(["hits", "raster"]), When::Live);
+        c.set("hits", 400.0);
+        assert_eq!(c.when(["hits", "raster"]), When::AfterPause);
     }
 }

@@ -100,6 +100,28 @@ struct Watch {
     shared: Arc<Mutex<Shared>>,
     generation: u64,
     repaint: Option<egui::Context>,
+    /// When the watch last asked for a frame, in µs since `born`.
+    asked_us: std::sync::atomic::AtomicU64,
+    born: Instant,
+}
+
+/// The least time between two frames a run's progress asks for: a node reports progress up to
+/// a thousand times and partial results every pass, from its worker threads, and asking the
+/// UI for a frame takes the UI's lock, which the frame being drawn holds.
+const REPAINT_EVERY_US: u64 = 15_000;
+
+impl Watch {
+    /// Asks for a frame unless one was asked for less than `REPAINT_EVERY_US` ago.
+    fn repaint_soon(&self) {
+        let Some(ctx) = &self.repaint else { return };
+        let now = self.born.elapsed().as_micros() as u64;
+        let last = self.asked_us.load(std::sync::atomic::Ordering::Relaxed);
+        if now >= last + REPAINT_EVERY_US
+            && self.asked_us.compare_exchange(last, now, std::sync::atomic::Ordering::Relaxed, std::sync::atomic::Ordering::Relaxed).is_ok()
+        {
+            ctx.request_repaint_after(std::time::Duration::from_millis(1));
+        }
+    }
 }
 
 impl Observer for Watch {
@@ -114,9 +136,7 @@ impl Observer for Watch {
                 PartialImages::take(&mut s.partial, id, value, chunk.as_ref().map(|c| c.1));
             }
             drop(s);
-            if let Some(ctx) = &self.repaint {
-                ctx.request_repaint();
-            }
+            self.repaint_soon();
             return;
         }
         let (id, state) = match e {
@@ -132,9 +152,7 @@ impl Observer for Watch {
             s.live.insert(id.to_string(), state);
         }
         drop(s);
-        if let Some(ctx) = &self.repaint {
-            ctx.request_repaint();
-        }
+        self.repaint_soon();
     }
 }
 
@@ -194,6 +212,12 @@ impl Runner {
 
     /// Starts a run of `outputs` of `graph` (cancelling the one under way).
     pub fn start(&mut self, graph: Graph, outputs: Vec<String>, revision: u64) {
+        self.start_with(graph, outputs, revision, false);
+    }
+
+    /// `start`; `memory_only`: what the run computes stays off the disk cache (a live re-run
+    /// during a drag).
+    pub fn start_with(&mut self, graph: Graph, outputs: Vec<String>, revision: u64, memory_only: bool) {
         self.cancel();
         self.started += 1;
         if self.history.len() == HISTORY {
@@ -213,8 +237,9 @@ impl Runner {
         let (engine, shared, repaint) = (self.engine.clone(), self.shared.clone(), self.repaint.clone());
         std::thread::spawn(move || {
             let started = Instant::now();
-            let watch = Watch { shared: shared.clone(), generation, repaint: repaint.clone() };
-            let opts = RunOptions { outputs: Some(outputs), cancel, observer: Some(&watch), ..Default::default() };
+            let watch =
+                Watch { shared: shared.clone(), generation, repaint: repaint.clone(), asked_us: Default::default(), born: Instant::now() };
+            let opts = RunOptions { outputs: Some(outputs), cancel, observer: Some(&watch), memory_only, ..Default::default() };
             let outcome = engine.run(&graph, &opts).map(|r| (r.report, r.outputs)).map_err(|e| e.to_string());
             let mut s = shared.lock().unwrap();
             if s.generation == generation {

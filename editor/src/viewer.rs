@@ -3,7 +3,7 @@
 
 use egui::{Color32, ColorImage, TextureHandle, TextureOptions};
 use relume_base::image::tonemap::{tonemap_channel, Operator};
-use relume_base::math::srgb::srgb_encode;
+use relume_base::math::srgb::srgb_encode_u8;
 use relume_base::types::Image;
 use relume_core::RunReport;
 use std::sync::Arc;
@@ -61,14 +61,19 @@ impl Default for Viewer {
 
 /// Display colour of a linear pixel: exposure, curve, sRGB encoding.
 pub fn display(p: [f32; 3], exposure: f32, op: Operator) -> Color32 {
-    let scale = exposure.exp2();
-    let c = |x: f32| (srgb_encode(tonemap_channel(x, scale, op)) * 255.0).round() as u8;
+    shown(p, exposure.exp2(), op)
+}
+
+/// `display` with the exposure as a factor.
+fn shown(p: [f32; 3], scale: f32, op: Operator) -> Color32 {
+    let c = |x: f32| srgb_encode_u8(tonemap_channel(x, scale, op));
     Color32::from_rgb(c(p[0]), c(p[1]), c(p[2]))
 }
 
 /// The whole image for the screen.
 pub fn to_color_image(img: &Image, exposure: f32, op: Operator) -> ColorImage {
-    ColorImage { size: [img.width, img.height], pixels: img.pixels.iter().map(|&p| display(p, exposure, op)).collect() }
+    let scale = exposure.exp2();
+    ColorImage { size: [img.width, img.height], pixels: img.pixels.iter().map(|&p| shown(p, scale, op)).collect() }
 }
 
 impl Viewer {

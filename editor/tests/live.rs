@@ -178,3 +178,54 @@ fn the_recorder_writes_a_row_per_frame_with_the_images_a_drag_showed() {
     assert_eq!(images[0].split(',').nth(5), Some(last.to_string().as_str()));
     assert!(images[0].ends_with(|c: char| c.is_ascii_digit()) && images[0].contains("median:"), "{}", images[0]);
 }
+
+/// A report of `NODES` from the cache, each said to have cost `ms` when it ran.
+fn cached_report(ms: f64) -> relume_core::RunReport {
+    let nodes = NODES.iter().map(|id| relume_core::NodeReport::timed(id, "cached", 0.1, ms)).collect();
+    relume_core::RunReport { nodes, ..Default::default() }
+}
+
+#[test]
+fn a_dear_cost_read_from_the_cache_is_tried_and_the_trial_cancelled_once_past_its_grace() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut app, ctx) = open(dir.path(), 1.0);
+    app.costs = Default::default();
+    app.costs.learn(&cached_report(400.0));
+    app.probe_grace = Duration::from_millis(100);
+    let (s0, c0) = (app.runner.started(), app.runner.cancelled());
+    // Tried at once.
+    let r2 = seed(&mut app, 2);
+    assert_eq!(app.runner.started(), s0 + 1, "{:?}", app.when_edited());
+    std::thread::sleep(Duration::from_millis(150));
+    assert!(app.runner.is_running(), "the median at 1024² is still under way");
+    // Past its grace: the next edit cancels it and the nodes are dear from now on.
+    let r3 = seed(&mut app, 3);
+    assert_eq!(app.runner.cancelled(), c0 + 1);
+    assert_eq!(app.when_edited(), relume_editor::live::When::AfterPause);
+    frame(&ctx, &mut app);
+    assert_eq!(app.runner.started(), s0 + 1, "the edit waits for the pause");
+    let seen = frames_until_shown(&ctx, &mut app, r3);
+    assert_eq!(seen, [r3]);
+    until_idle(&ctx, &mut app);
+    assert_eq!(runs_since(&app, s0), [view(r2), view(r3), all(r3)]);
+}
+
+#[test]
+fn a_dear_drag_that_shows_nothing_for_a_while_tries_its_run_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut app, ctx) = open(dir.path(), 400.0);
+    app.reprobe_after = Duration::from_millis(100);
+    let s0 = app.runner.started();
+    seed(&mut app, 2);
+    frame(&ctx, &mut app);
+    assert_eq!(app.runner.started(), s0, "dear: it waits");
+    std::thread::sleep(Duration::from_millis(150));
+    // Still dragging, nothing shown for longer than the wait: tried at once.
+    let r3 = seed(&mut app, 3);
+    assert_eq!(app.runner.started(), s0 + 1);
+    assert_eq!(frames_until_shown(&ctx, &mut app, r3), [r3]);
+    until_idle(&ctx, &mut app);
+    assert_eq!(runs_since(&app, s0), [view(r3), all(r3)]);
+    // The trial ran to its end: what it measured is the cost now.
+    assert!(app.costs.measured("median"));
+}

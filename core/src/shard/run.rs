@@ -62,7 +62,7 @@ impl Engine {
                     let ms = t0.elapsed().as_secs_f64() * 1e3;
                     let entry =
                         CacheEntry { outputs: vec![v.clone()], metrics: Vec::new(), notes: Vec::new(), deps: Vec::new(), compute_ms: ms };
-                    if let Some(d) = self.disk().filter(|_| keep_all || crate::cache::worth_storing(&entry)) {
+                    if let Some(d) = self.disk().filter(|_| !cx.memory_only() && (keep_all || crate::cache::worth_storing(&entry))) {
                         // A failed write only costs a recomputation later.
                         let _ = d.put(&pk, &entry, &decl);
                     }

@@ -61,6 +61,8 @@ pub(crate) fn run_graph(reg: &Registry, a: &RunArgs, peers: Option<&dyn ShardPee
         observer: bars.as_ref().map(|b| b as &dyn Observer),
         cancel: watch.token.clone(),
         writes,
+
+        ..Default::default()
     };
     let result = engine.run(&graph, &opts).map_err(|e| run_error(&graph, e));
     drop(bars);

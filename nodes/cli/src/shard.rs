@@ -110,6 +110,8 @@ pub(crate) fn shard(reg: &Registry, a: &ShardArgs) -> Result<(), CliError> {
         observer: bars.as_ref().map(|b| b as &dyn Observer),
         cancel: watch.token.clone(),
         writes: a.g.write_policy(&cache_dir),
+
+        ..Default::default()
     };
     let result = engine.run(&graph, &opts).map_err(|e| run_error(&graph, e));
     drop(bars);
