@@ -148,20 +148,29 @@ impl DriveJob {
         app.discard_and_close(ctx);
     }
 
-    /// The same edit through the engine alone: the viewed image re-run for values between
-    /// those the drive set (so none is cached), one after another.
+    /// The same edit through the engine alone: the viewed image re-run for values none of
+    /// which was set before (offsets drawn from the clock, so not even an earlier drive's
+    /// results are in the disk cache), keeping the results in memory only, one after another.
+    /// Fails where an edit re-ran fewer nodes than the first: it would time a load, not the edit.
     fn engine_alone(&self, app: &EditorApp) -> Result<String, String> {
         let (mut g, view): (Graph, String) = app.view_request().ok_or("no viewed image")?;
         let (view_graph, outputs) = (&mut g, vec![view]);
         let engine: &Engine = app.runner.engine();
         let step = (self.to - self.from) / ENGINE_EDITS as f64;
-        let mut times = Vec::with_capacity(ENGINE_EDITS);
+        let offset = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0.37, |d| d.subsec_nanos() as f64 * 1e-9);
+        let (mut times, mut first_ran) = (Vec::with_capacity(ENGINE_EDITS), 0);
         for i in 0..ENGINE_EDITS {
-            let v = self.from + step * (i as f64 + 0.37);
+            let v = self.from + step * (i as f64 + offset);
             view_graph.set_param(&self.node, &self.param, ParamValue::Float(v));
             let t = Instant::now();
-            engine.run(view_graph, &RunOptions { outputs: Some(outputs.clone()), ..Default::default() }).map_err(|e| e.to_string())?;
+            let opts = RunOptions { outputs: Some(outputs.clone()), memory_only: true, ..Default::default() };
+            let run = engine.run(view_graph, &opts).map_err(|e| e.to_string())?;
             times.push(t.elapsed().as_secs_f64() * 1e3);
+            if i == 0 {
+                first_ran = run.report.ran;
+            } else if run.report.ran < first_ran {
+                return Err(format!("edit {i} re-ran {} nodes, the first {first_ran}: some came from a cache", run.report.ran));
+            }
         }
         let total: f64 = times.iter().sum();
         times.sort_by(f64::total_cmp);
