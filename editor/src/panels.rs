@@ -292,9 +292,8 @@ fn viewer(p: &mut Panels, ui: &mut egui::Ui, out: &mut Vec<Action>) {
                 ui.selectable_value(p.tool, Some(t), t.label()).on_hover_text(t.hint());
             }
         });
-        if let Some(t) = p.tool {
-            ui.weak(t.hint());
-        }
+        // Always one line, so that choosing a tool does not move the image under the pointer.
+        ui.weak(p.tool.map_or("choose a tool to edit the scene in the image", |t| t.hint()));
     }
     let h = ui.available_width().min(420.0);
     ui.allocate_ui(egui::vec2(ui.available_width(), h), |ui| {
