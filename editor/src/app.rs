@@ -59,6 +59,8 @@ pub struct EditorApp {
     probe: Option<(Instant, Vec<String>)>,
     /// How long a tried run may go on before a newer edit cancels it.
     pub probe_grace: Duration,
+    /// An edit came while the first run was under way: it runs once that run's image is in.
+    after_first: bool,
     /// How long a drag may show nothing before its run is tried again (doubling after each
     /// trial cancelled, back to the first value after one that ends).
     pub reprobe_after: Duration,
@@ -131,6 +133,7 @@ impl EditorApp {
             pending_probe: None,
             probe: None,
             probe_grace: PROBE_GRACE,
+            after_first: false,
             reprobe_after: REPROBE_FIRST,
             in_flight_live: false,
             rest_at: None,
@@ -177,6 +180,7 @@ impl EditorApp {
         self.done_states = None;
         self.planned = None;
         self.costs.clear();
+        self.after_first = false;
         self.status = format!("opened {}", path.display());
         Ok(())
     }
@@ -220,7 +224,13 @@ impl EditorApp {
         if self.edit_times.len() > 256 {
             self.edit_times.pop_front();
         }
-        if !(self.auto_run && self.report.is_some()) {
+        if !self.auto_run {
+            return;
+        }
+        if self.report.is_none() {
+            // The first run has not shown its image yet: the edit runs once it has, without
+            // cancelling it (it may be a long precompute the edit does not reach).
+            self.after_first = self.runner.is_running();
             return;
         }
         let (mut when, mut nodes) = self.edit_plan();
@@ -580,6 +590,10 @@ impl EditorApp {
                     self.stats.image(ImageShown::new(f.revision, self.latency_ms(f.revision, f.started), &report));
                 }
                 self.report = Some(report);
+                if std::mem::take(&mut self.after_first) && f.revision != self.doc.revision {
+                    self.pending_run = Some(Instant::now());
+                    self.pending_live = false;
+                }
                 if f.revision == self.doc.revision {
                     if let Some(t0) = self.edit_started.take() {
                         self.edit_to_image_ms = Some(t0.elapsed().as_secs_f64() * 1e3);
@@ -594,6 +608,11 @@ impl EditorApp {
             Err(m) => {
                 if let Some(job) = &mut self.screenshot {
                     job.run_failed(&m);
+                }
+                // An edit made while it ran may be what mends it.
+                if std::mem::take(&mut self.after_first) {
+                    self.pending_run = Some(Instant::now());
+                    self.pending_live = false;
                 }
                 self.status = m;
                 self.edit_started = None;

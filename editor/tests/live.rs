@@ -229,3 +229,23 @@ fn a_dear_drag_that_shows_nothing_for_a_while_tries_its_run_again() {
     // The trial ran to its end: what it measured is the cost now.
     assert!(app.costs.measured("median"));
 }
+
+#[test]
+fn an_edit_during_the_first_run_runs_once_its_image_is_in_without_cancelling_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("live.ron");
+    std::fs::write(&path, GRAPH).unwrap();
+    let mut app = app();
+    app.open(&path).unwrap();
+    let ctx = egui::Context::default();
+    frame(&ctx, &mut app);
+    app.run();
+    let r0 = app.doc.revision;
+    let r1 = seed(&mut app, 2);
+    assert!(app.runner.is_running(), "the median at 1024² is still under way");
+    frame(&ctx, &mut app);
+    assert_eq!(app.runner.cancelled(), 0, "the first run goes on");
+    let seen = frames_until_shown(&ctx, &mut app, r1);
+    assert_eq!(seen, [r0, r1], "the first run's image, then the edit's");
+    until_idle(&ctx, &mut app);
+}
