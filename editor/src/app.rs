@@ -434,12 +434,11 @@ impl EditorApp {
         let run = self.runner.started();
         let seen = if self.partial_seen.0 == run { self.partial_seen.1 } else { 0 };
         let Some(port) = self.view_port() else { return };
-        let Some(p) = self.runner.partial_since(&port.node, seen) else { return };
-        self.partial_seen = (run, p.updates);
         let kind = self.doc.graph.node(&port.node).and_then(|n| self.registry.node(&n.kind));
-        let index = kind.and_then(|k| k.ports().outputs.iter().position(|o| o.name == port.port));
-        if let Some(img) = index.and_then(|i| p.layers.get(i)) {
-            self.viewer.set_image(Some(Arc::new(img.clone())));
+        let Some(layer) = kind.and_then(|k| k.ports().outputs.iter().position(|o| o.name == port.port)) else { return };
+        if let Some((updates, img)) = self.runner.partial_since(&port.node, layer, seen) {
+            self.partial_seen = (run, updates);
+            self.viewer.set_image(Some(Arc::new(img)));
             self.partial_shown = true;
         }
     }

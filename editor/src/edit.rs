@@ -47,20 +47,6 @@ pub fn downstream(graph: &Graph, id: &str) -> Vec<String> {
     graph.downstream(id)
 }
 
-/// Every node upstream of `id` (itself included).
-pub fn upstream(graph: &Graph, id: &str) -> std::collections::HashSet<String> {
-    let mut seen = std::collections::HashSet::from([id.to_string()]);
-    let mut todo = vec![id.to_string()];
-    while let Some(n) = todo.pop() {
-        for e in graph.edges.iter().filter(|e| e.to.node == n) {
-            if seen.insert(e.from.node.clone()) {
-                todo.push(e.from.node.clone());
-            }
-        }
-    }
-    seen
-}
-
 /// Inserts a copy of node `after` (same kind and parameters, then `params` set) between it and
 /// what read its outputs: what read `after.out` now reads the copy's, which reads `after.out`
 /// through `input` (one stroke after another in a chain of brush nodes). Returns the copy's id.

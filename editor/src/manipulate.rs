@@ -39,7 +39,7 @@ impl EditorApp {
                 return Some(id.clone());
             }
         }
-        let upstream = self.view_node().map(|n| edit::upstream(g, &n)).unwrap_or_default();
+        let upstream = self.view_node().map(|n| g.upstream(&n)).unwrap_or_default();
         let feeds_same_kind = |id: &str| g.edges.iter().any(|e| e.from.node == id && of_kind(&e.to.node));
         let mut candidates: Vec<&String> = g.nodes.iter().map(|n| &n.id).filter(|id| of_kind(id)).collect();
         candidates.sort_by_key(|id| (!upstream.contains(*id), feeds_same_kind(id)));

@@ -271,9 +271,11 @@ impl Runner {
 
     /// The images of the run under way as far as they got, when they changed since `seen`
     /// updates (of the same node).
-    pub fn partial_since(&self, node: &str, seen: u64) -> Option<PartialImages> {
+    /// Its image `layer` (output port index) alone, with the update count.
+    pub fn partial_since(&self, node: &str, layer: usize, seen: u64) -> Option<(u64, Image)> {
         let s = self.shared.lock().unwrap();
-        s.partial.as_ref().filter(|p| p.node == node && p.updates > seen && s.running).cloned()
+        let p = s.partial.as_ref().filter(|p| p.node == node && p.updates > seen && s.running)?;
+        Some((p.updates, p.layers.get(layer)?.clone()))
     }
 
     /// The partial images the latest run sent, whether or not it is still under way.

@@ -109,6 +109,8 @@ mod tests {
         let needed: Vec<&str> = g.nodes.iter().zip(&need).filter(|(_, n)| **n).map(|(d, _)| d.id.as_str()).collect();
         assert_eq!(needed, ["c", "b", "a"]);
         assert_eq!(g.downstream("b"), ["b", "c", "d"]);
+        assert_eq!(g.upstream("c"), ["a", "b", "c"]);
+        assert!(g.upstream("zz").is_empty());
         assert!(g.reaches("a", "d") && !g.reaches("d", "a") && g.reaches("lone", "lone"));
         assert_eq!(t.order(&[true, true, true, false, false]).unwrap().len(), 3, "a subset is ordered alone");
     }

@@ -193,8 +193,18 @@ impl Graph {
     /// Every node downstream of `id`, itself included, sorted: what an edit of `id` makes stale.
     pub fn downstream(&self, id: &str) -> Vec<String> {
         let Some(i) = self.node_index(id) else { return Vec::new() };
-        let reached = self.topology().downstream_of(i);
-        let mut out: Vec<String> = self.nodes.iter().zip(reached).filter(|(_, r)| *r).map(|(n, _)| n.id.clone()).collect();
+        self.ids_where(self.topology().downstream_of(i))
+    }
+
+    /// Every node upstream of `id`, itself included, sorted: what a run of `id` needs.
+    pub fn upstream(&self, id: &str) -> Vec<String> {
+        let Some(i) = self.node_index(id) else { return Vec::new() };
+        self.ids_where(self.topology().upstream_of(&[i]))
+    }
+
+    /// The ids of the nodes marked in `marks` (node order), sorted.
+    fn ids_where(&self, marks: Vec<bool>) -> Vec<String> {
+        let mut out: Vec<String> = self.nodes.iter().zip(marks).filter(|(_, m)| *m).map(|(n, _)| n.id.clone()).collect();
         out.sort();
         out
     }
