@@ -25,6 +25,9 @@ use std::time::{Duration, Instant};
 pub use crate::live::RUN_DEBOUNCE;
 /// How often unsaved work is written to the recovery file.
 const RECOVERY_EVERY: Duration = Duration::from_secs(5);
+/// How long the window holds a frame back for the run an edit waits for
+/// (`EditorApp::pace_frame`): at least 10 frames per second.
+const PACED_FRAME: Duration = Duration::from_millis(100);
 /// Graph output name used to view a port that is not one of the graph's outputs.
 const VIEW_OUTPUT: &str = "__view";
 /// Graph output that, where a graph has one (an image), is computed and shown before the
@@ -59,6 +62,10 @@ pub struct EditorApp {
     probe: Option<(Instant, Vec<String>)>,
     /// How long a tried run may go on before a newer edit cancels it.
     pub probe_grace: Duration,
+    /// How often unsaved work is written to the recovery file (`RECOVERY_EVERY`).
+    pub recovery_every: Duration,
+    /// When the window's last frame began (`pace_frame`).
+    frame_began: Instant,
     /// An edit came while the first run was under way: it runs once that run's image is in.
     after_first: bool,
     /// How long a drag may show nothing before its run is tried again (doubling after each
@@ -133,6 +140,8 @@ impl EditorApp {
             pending_probe: None,
             probe: None,
             probe_grace: PROBE_GRACE,
+            recovery_every: RECOVERY_EVERY,
+            frame_began: Instant::now(),
             after_first: false,
             reprobe_after: REPROBE_FIRST,
             in_flight_live: false,
@@ -262,9 +271,9 @@ impl EditorApp {
             self.rest_after = None;
             self.view_after_preview = None;
         }
-        // A cheap edit with nothing under way runs now, not at the next frame: a frame less
-        // between the edit and its pixels.
-        if live && !self.runner.is_running() {
+        // A cheap edit runs now, not at the next frame: a frame less between the edit and its
+        // pixels. Behind a live run under way, it starts the moment that one ends.
+        if live {
             self.start_run(true);
         }
     }
@@ -462,6 +471,8 @@ impl EditorApp {
             self.status = "the graph has no outputs: tick \"graph output\" on a port of the selected node".into();
             return;
         }
+        // A live run behind a live run under way waits for it, and starts the moment it ends.
+        let behind = live && self.in_flight_live && self.runner.is_running();
         self.pending_run = None;
         self.rest_at = None;
         self.in_flight_live = live;
@@ -477,6 +488,8 @@ impl EditorApp {
                 if !live && self.preview_output().is_some_and(|p| p != v && outputs.contains(&p)) {
                     self.view_after_preview = Some(self.doc.revision);
                     self.runner.start(g, vec![PREVIEW_OUTPUT.into()], self.doc.revision);
+                } else if behind {
+                    self.runner.start_next(g, vec![v], self.doc.revision, true);
                 } else {
                     self.runner.start_with(g, vec![v], self.doc.revision, live);
                 }
@@ -557,7 +570,8 @@ impl EditorApp {
     fn take_in(&mut self, f: crate::runner::Finished) {
         let live = self.runner.live_states();
         self.planned = None;
-        self.in_flight_live = false;
+        // A live run queued behind this one may be under way already.
+        self.in_flight_live &= self.runner.is_running();
         if self.probe.take().is_some() && f.outcome.is_ok() {
             self.reprobe_after = REPROBE_FIRST;
         }
@@ -683,7 +697,8 @@ impl EditorApp {
 
     /// Writes the recovery file when there is unsaved work that is not in it yet.
     fn keep_recovery(&mut self) {
-        if self.last_recovery.elapsed() < RECOVERY_EVERY || self.recovery_written == self.doc.revision {
+        // Closing after the work was saved or discarded: nothing to keep.
+        if self.allow_close || self.last_recovery.elapsed() < self.recovery_every || self.recovery_written == self.doc.revision {
             return;
         }
         self.last_recovery = Instant::now();
@@ -693,6 +708,20 @@ impl EditorApp {
                 Err(e) => self.status = format!("cannot write the recovery file: {e}"),
             }
         }
+    }
+
+    /// Holds the window's next frame back while the run an edit waits for is under way, until
+    /// it ends or `PACED_FRAME` after the frame before began, so a drag draws a frame per new
+    /// image. Where OpenGL is software, drawing shares the cores with the run (llvmpipe takes
+    /// about 16 ms of two cores a frame of this window), and a frame that shows the same image
+    /// again only delays the next one. The window calls it before each frame; headless use
+    /// (tests) does not.
+    pub fn pace_frame(&mut self) {
+        let until = self.frame_began + PACED_FRAME;
+        while Instant::now() < until && self.edit_started.is_some() && self.runner.is_running() {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        self.frame_began = Instant::now();
     }
 
     /// One frame of the editor.

@@ -47,11 +47,38 @@ pub enum When {
     AfterPause,
 }
 
+/// How many of a node's latest measured times its cost is the median of: one slow run (a
+/// page-fault storm, the drawing taking the cores a moment) does not make a cheap node dear,
+/// two in a row do.
+pub const COST_RUNS: usize = 3;
+
 /// A node's cost and whether it was measured in this session.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 struct Cost {
     ms: f64,
     measured: bool,
+    /// Its latest measured times, newest last (at most `COST_RUNS`).
+    recent: Vec<f64>,
+}
+
+impl Cost {
+    fn read(ms: f64) -> Cost {
+        Cost { ms, measured: false, recent: Vec::new() }
+    }
+
+    /// Takes in a measured time: the cost becomes the median of the latest ones.
+    fn measure(&mut self, ms: f64) {
+        if !self.measured {
+            self.recent.clear();
+        }
+        if self.recent.len() == COST_RUNS {
+            self.recent.remove(0);
+        }
+        self.recent.push(ms);
+        let mut sorted = self.recent.clone();
+        sorted.sort_by(f64::total_cmp);
+        (self.ms, self.measured) = (sorted[(sorted.len() - 1) / 2], true);
+    }
 }
 
 /// What each node cost when it last ran, learnt from run reports.
@@ -61,21 +88,22 @@ pub struct Costs {
 }
 
 impl Costs {
-    /// Takes in a run's report: a node that ran, its time; one from the cache, the time its
-    /// result took when it ran (kept only while nothing was measured).
+    /// Takes in a run's report: a node that ran, its time (its cost: the median of its latest
+    /// `COST_RUNS` times); one from the cache, the time its result took when it ran (kept only
+    /// while nothing was measured).
     pub fn learn(&mut self, report: &RunReport) {
         for n in &report.nodes {
             if n.status == "ran" {
-                self.ms.insert(n.id.clone(), Cost { ms: n.wall_ms, measured: true });
+                self.ms.entry(n.id.clone()).or_insert_with(|| Cost::read(n.wall_ms)).measure(n.wall_ms);
             } else if !self.ms.get(&n.id).is_some_and(|c| c.measured) {
-                self.ms.insert(n.id.clone(), Cost { ms: n.compute_ms, measured: false });
+                self.ms.insert(n.id.clone(), Cost::read(n.compute_ms));
             }
         }
     }
 
     /// Sets what a node costs, as measured (tests, and a trial cancelled after this long).
     pub fn set(&mut self, id: &str, ms: f64) {
-        self.ms.insert(id.to_string(), Cost { ms, measured: true });
+        self.ms.insert(id.to_string(), Cost { ms, measured: true, recent: vec![ms] });
     }
 
     /// Whether the node's cost was measured in this session.
@@ -129,11 +157,16 @@ mod tests {
         assert_eq!(c.when([]), When::Live, "an edit that reaches nothing viewed costs nothing");
         assert_eq!(c.when(["transfer", "relight"]), When::AfterPause);
         assert_eq!(c.when(["relight", "new_node"]), When::AfterPause, "a node that never ran has no known cost");
-        // Exactly the budget is still live; a later, dearer run of the same node is learnt.
+        // A node costs the median of its latest runs: exactly the budget is still live, one
+        // dear run does not make it dear, two in a row do.
+        c.learn(&report(&[("relight", FRAME_BUDGET_MS)]));
         c.learn(&report(&[("relight", FRAME_BUDGET_MS)]));
         assert_eq!(c.when(["relight"]), When::Live);
+        c.learn(&report(&[("relight", 4.0)]));
+        c.learn(&report(&[("relight", 400.0)]));
+        assert_eq!((c.estimate(["relight"]), c.when(["relight"])), (Some(FRAME_BUDGET_MS), When::Live));
         c.learn(&report(&[("relight", FRAME_BUDGET_MS + 0.1)]));
-        assert_eq!(c.when(["relight"]), When::AfterPause);
+        assert_eq!((c.estimate(["relight"]), c.when(["relight"])), (Some(FRAME_BUDGET_MS + 0.1), When::AfterPause));
         c.clear();
         assert_eq!(c.estimate(["relight"]), None);
     }

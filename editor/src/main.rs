@@ -176,6 +176,7 @@ struct Window {
 
 impl eframe::App for Window {
     fn update(&mut self, ctx: &egui::Context, _frame: &mut eframe::Frame) {
+        self.app.pace_frame();
         self.app.ui(ctx);
         if let Some(d) = &mut self.drive {
             d.frame(&mut self.app, ctx);
@@ -183,6 +184,10 @@ impl eframe::App for Window {
                 self.exit.store(d.exit, Ordering::SeqCst);
             }
         }
+    }
+
+    fn clear_color(&self, visuals: &egui::Visuals) -> [f32; 4] {
+        relume_editor::panels::panel_clear(visuals)
     }
 
     fn on_exit(&mut self, _gl: Option<&eframe::glow::Context>) {

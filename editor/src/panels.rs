@@ -92,25 +92,37 @@ pub struct Panels<'a> {
 }
 
 /// Draws one frame of the panels; returns what the user asked for, in order.
+/// A panel's frame without its fill: the window is cleared to the panels' colour
+/// (`panel_clear`) instead. Under software OpenGL every pixel a shape covers costs the
+/// fragment shader, and the panels' fills covered the whole window once more each frame.
+fn unfilled(ctx: &egui::Context) -> egui::Frame {
+    egui::Frame::side_top_panel(&ctx.style()).fill(egui::Color32::TRANSPARENT)
+}
+
+/// The colour the window is cleared to before the panels draw: theirs.
+pub fn panel_clear(visuals: &egui::Visuals) -> [f32; 4] {
+    visuals.panel_fill.to_normalized_gamma_f32()
+}
+
 pub fn draw(mut p: Panels, ctx: &egui::Context) -> Vec<Action> {
     let mut out = Vec::new();
     menu_bar(&mut p, ctx, &mut out);
     status_bar(&p, ctx);
-    egui::SidePanel::left("palette").default_width(170.0).show(ctx, |ui| {
+    egui::SidePanel::left("palette").frame(unfilled(ctx)).default_width(170.0).show(ctx, |ui| {
         ui.heading("Nodes");
         if let Some(kind) = p.palette.show(ui, p.registry) {
             let at = p.view.xf.to_layout(egui::pos2(300.0, 200.0) - p.view.state.pan_zoom.pan);
             out.push(Action::AddNode { kind, at });
         }
     });
-    egui::SidePanel::right("inspector").resizable(true).default_width(440.0).max_width(640.0).show(ctx, |ui| {
+    egui::SidePanel::right("inspector").frame(unfilled(ctx)).resizable(true).default_width(440.0).max_width(640.0).show(ctx, |ui| {
         egui::ScrollArea::vertical().show(ui, |ui| {
             properties(&p, ui, &mut out);
             ui.separator();
             viewer(&mut p, ui, &mut out);
         });
     });
-    egui::CentralPanel::default().frame(egui::Frame::canvas(&ctx.style())).show(ctx, |ui| {
+    egui::CentralPanel::default().frame(egui::Frame::canvas(&ctx.style()).fill(egui::Color32::TRANSPARENT)).show(ctx, |ui| {
         let edits = p.view.show(ui);
         if !edits.is_empty() {
             out.push(Action::ViewEdits(edits));
@@ -121,7 +133,7 @@ pub fn draw(mut p: Panels, ctx: &egui::Context) -> Vec<Action> {
 }
 
 fn menu_bar(p: &mut Panels, ctx: &egui::Context, out: &mut Vec<Action>) {
-    egui::TopBottomPanel::top("menu").show(ctx, |ui| {
+    egui::TopBottomPanel::top("menu").frame(unfilled(ctx)).show(ctx, |ui| {
         egui::menu::bar(ui, |ui| {
             ui.menu_button("File", |ui| {
                 if ui.button("Open...  (Ctrl+O)").clicked() {
@@ -177,7 +189,7 @@ fn menu_bar(p: &mut Panels, ctx: &egui::Context, out: &mut Vec<Action>) {
 }
 
 fn status_bar(p: &Panels, ctx: &egui::Context) {
-    egui::TopBottomPanel::bottom("status").show(ctx, |ui| {
+    egui::TopBottomPanel::bottom("status").frame(unfilled(ctx)).show(ctx, |ui| {
         ui.horizontal(|ui| {
             if p.running {
                 ui.spinner();

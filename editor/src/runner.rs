@@ -1,5 +1,5 @@
 //! Background runs through the core executor: one run at a time, a newer request cancels the
-//! older one, per-node state and progress for the node widgets, the report and the outputs
+//! older one or waits for it (started by the worker that ends it), per-node state and progress for the node widgets, the report and the outputs
 //! when it ends.
 
 use relume_base::types::{Image, ImageRows};
@@ -85,6 +85,15 @@ pub struct Finished {
     pub outcome: Result<(RunReport, Vec<(String, Value)>), String>,
 }
 
+/// A run to start: the graph, the outputs asked for, the document revision it is for, and
+/// whether what it computes stays off the disk cache.
+struct Request {
+    graph: Graph,
+    outputs: Vec<String>,
+    revision: u64,
+    memory_only: bool,
+}
+
 #[derive(Default)]
 struct Shared {
     /// Run generation these states belong to.
@@ -94,6 +103,33 @@ struct Shared {
     running: bool,
     /// The partial images of the node of the run under way that sent the latest.
     partial: Option<PartialImages>,
+    /// The run under way's cancel token.
+    cancel: Option<CancelToken>,
+    /// The run to start as soon as the one under way ends (a newer one replaces it).
+    queued: Option<Request>,
+    /// Runs started, and runs cancelled while under way, since the runner was made.
+    started: u64,
+    cancelled: u64,
+    /// The revision and outputs of the latest runs started, oldest first.
+    history: std::collections::VecDeque<(u64, Vec<String>)>,
+}
+
+impl Shared {
+    /// Makes `r` the run under way (a new generation, nothing shown of it yet); its token.
+    fn begin(&mut self, r: &Request) -> (u64, CancelToken) {
+        self.started += 1;
+        if self.history.len() == HISTORY {
+            self.history.pop_front();
+        }
+        self.history.push_back((r.revision, r.outputs.clone()));
+        let cancel = CancelToken::new();
+        self.cancel = Some(cancel.clone());
+        self.generation += 1;
+        self.live.clear();
+        self.partial = None;
+        self.running = true;
+        (self.generation, cancel)
+    }
 }
 
 struct Watch {
@@ -160,13 +196,7 @@ impl Observer for Watch {
 pub struct Runner {
     engine: Arc<Engine>,
     shared: Arc<Mutex<Shared>>,
-    cancel: Option<CancelToken>,
     repaint: Option<egui::Context>,
-    /// Runs started, and runs cancelled while under way, since the runner was made.
-    started: u64,
-    cancelled: u64,
-    /// The revision and outputs of the latest runs started, oldest first.
-    history: std::collections::VecDeque<(u64, Vec<String>)>,
 }
 
 /// How many started runs `Runner::history` keeps.
@@ -174,7 +204,7 @@ const HISTORY: usize = 256;
 
 impl Runner {
     pub fn new(engine: Arc<Engine>) -> Self {
-        Runner { engine, shared: Arc::default(), cancel: None, repaint: None, started: 0, cancelled: 0, history: Default::default() }
+        Runner { engine, shared: Arc::default(), repaint: None }
     }
 
     /// Asks for repaints on `ctx` as the run progresses.
@@ -192,17 +222,17 @@ impl Runner {
 
     /// Runs started so far.
     pub fn started(&self) -> u64 {
-        self.started
+        self.shared.lock().unwrap().started
     }
 
     /// The revision and outputs of the latest runs started, oldest first.
-    pub fn history(&self) -> impl Iterator<Item = &(u64, Vec<String>)> {
-        self.history.iter()
+    pub fn history(&self) -> Vec<(u64, Vec<String>)> {
+        self.shared.lock().unwrap().history.iter().cloned().collect()
     }
 
     /// Runs cancelled while under way so far (a newer request, or the user).
     pub fn cancelled(&self) -> u64 {
-        self.cancelled
+        self.shared.lock().unwrap().cancelled
     }
 
     /// Whether a run ended and `take_finished` has not taken it yet.
@@ -219,48 +249,80 @@ impl Runner {
     /// during a drag).
     pub fn start_with(&mut self, graph: Graph, outputs: Vec<String>, revision: u64, memory_only: bool) {
         self.cancel();
-        self.started += 1;
-        if self.history.len() == HISTORY {
-            self.history.pop_front();
+        let r = Request { graph, outputs, revision, memory_only };
+        let begun = self.shared.lock().unwrap().begin(&r);
+        self.spawn(r, begun);
+    }
+
+    /// Runs `outputs` of `graph` as soon as the run under way ends, without cancelling it (at
+    /// once when none is): the worker that ends it starts this one, so no frame of the UI
+    /// passes between them. A newer request made before then replaces this one.
+    pub fn start_next(&mut self, graph: Graph, outputs: Vec<String>, revision: u64, memory_only: bool) {
+        let r = Request { graph, outputs, revision, memory_only };
+        let mut s = self.shared.lock().unwrap();
+        if s.running {
+            s.queued = Some(r);
+            return;
         }
-        self.history.push_back((revision, outputs.clone()));
-        let cancel = CancelToken::new();
-        self.cancel = Some(cancel.clone());
-        let generation = {
-            let mut s = self.shared.lock().unwrap();
-            s.generation += 1;
-            s.live.clear();
-            s.partial = None;
-            s.running = true;
-            s.generation
-        };
+        let begun = s.begin(&r);
+        drop(s);
+        self.spawn(r, begun);
+    }
+
+    /// Runs `first` on a thread of its own, then whatever was asked for next while it ran.
+    fn spawn(&self, first: Request, begun: (u64, CancelToken)) {
         let (engine, shared, repaint) = (self.engine.clone(), self.shared.clone(), self.repaint.clone());
         std::thread::spawn(move || {
-            let started = Instant::now();
-            let watch =
-                Watch { shared: shared.clone(), generation, repaint: repaint.clone(), asked_us: Default::default(), born: Instant::now() };
-            let opts = RunOptions { outputs: Some(outputs), cancel, observer: Some(&watch), memory_only, ..Default::default() };
-            let outcome = engine.run(&graph, &opts).map(|r| (r.report, r.outputs)).map_err(|e| e.to_string());
-            let mut s = shared.lock().unwrap();
-            if s.generation == generation {
-                s.running = false;
-                s.finished = Some(Finished { revision, started, outcome });
-            }
-            drop(s);
-            if let Some(ctx) = repaint {
-                ctx.request_repaint();
+            let (mut r, (mut generation, mut cancel)) = (first, begun);
+            loop {
+                let started = Instant::now();
+                let watch = Watch {
+                    shared: shared.clone(),
+                    generation,
+                    repaint: repaint.clone(),
+                    asked_us: Default::default(),
+                    born: Instant::now(),
+                };
+                let opts = RunOptions {
+                    outputs: Some(r.outputs),
+                    cancel,
+                    observer: Some(&watch),
+                    memory_only: r.memory_only,
+                    ..Default::default()
+                };
+                let outcome = engine.run(&r.graph, &opts).map(|x| (x.report, x.outputs)).map_err(|e| e.to_string());
+                let mut s = shared.lock().unwrap();
+                let next = if s.generation == generation {
+                    s.running = false;
+                    s.finished = Some(Finished { revision: r.revision, started, outcome });
+                    s.queued.take().map(|q| {
+                        let begun = s.begin(&q);
+                        (q, begun)
+                    })
+                } else {
+                    None
+                };
+                drop(s);
+                if let Some(ctx) = &repaint {
+                    ctx.request_repaint();
+                }
+                match next {
+                    Some((q, begun)) => (r, (generation, cancel)) = (q, begun),
+                    None => return,
+                }
             }
         });
     }
 
     /// Cancels the run under way; its result is dropped.
     pub fn cancel(&mut self) {
-        if let Some(c) = self.cancel.take() {
+        let mut s = self.shared.lock().unwrap();
+        if let Some(c) = s.cancel.take() {
             c.cancel();
         }
-        let mut s = self.shared.lock().unwrap();
+        s.queued = None;
         s.generation += 1;
-        self.cancelled += s.running as u64;
+        s.cancelled += s.running as u64;
         s.running = false;
     }
 

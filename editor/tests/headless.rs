@@ -242,6 +242,25 @@ fn closing_with_unsaved_changes_asks_first_and_keeps_a_recovery_file() {
 }
 
 #[test]
+fn unsaved_work_is_kept_each_frame_it_is_due_and_not_after_a_discard() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut app = app();
+    open_copy(&mut app, "filters.ron", dir.path());
+    app.recovery_every = std::time::Duration::ZERO;
+    let ctx = egui::Context::default();
+    app.set_param("blur", "sigma", ParamValue::Float(1.5)).unwrap();
+    frame(&ctx, &mut app);
+    let rec = relume_editor::document::recovery_path(app.doc.path.as_deref());
+    assert!(rec.exists(), "the edit is kept");
+    // Discarding (as a measured drive does on its way out) removes it, and the frames before
+    // the window closes do not write it again.
+    app.set_param("blur", "sigma", ParamValue::Float(1.7)).unwrap();
+    app.discard_and_close(&ctx);
+    frame(&ctx, &mut app);
+    assert!(!rec.exists());
+}
+
+#[test]
 fn deleting_a_node_in_the_widget_is_one_undo_step() {
     let (_dir, mut app, ctx) = filters();
     let before = app.doc.graph.to_ron();
