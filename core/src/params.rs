@@ -169,6 +169,18 @@ impl ParamValue {
 }
 
 impl ParamSpec {
+    /// A value written as text for this parameter, as `--set` takes it: RON, or the bare
+    /// text for string and file parameters (unchecked: `check` follows).
+    pub fn read_text(&self, value: &str) -> Result<ParamValue, String> {
+        match crate::ron::parse_value(value).ok().and_then(|r| ParamValue::from_ron(&r).ok()) {
+            Some(v) => Ok(v),
+            None if matches!(self.kind, ParamKind::Text | ParamKind::InputFile | ParamKind::OutputFile) => {
+                Ok(ParamValue::Text(value.to_string()))
+            }
+            None => Err(format!("cannot read `{value}` as a value")),
+        }
+    }
+
     /// Checks a value against the schema and normalises it (an integer given for a float
     /// parameter becomes a float). The error says what was expected.
     pub fn check(&self, v: &ParamValue) -> Result<ParamValue, String> {

@@ -132,29 +132,37 @@ impl Graph {
     /// Sets one parameter from `node.param` and a value written as RON (or bare text for
     /// string and file parameters), checking it against the schema.
     pub fn set_param_text(&mut self, registry: &Registry, assignment: &str, value: &str) -> Result<(), GraphError> {
+        self.set_param_checked(registry, assignment, |spec| spec.read_text(value))
+    }
+
+    /// Sets one parameter from `node.param` and a value made by `value` from the parameter's
+    /// schema (a language binding's own value, read as the schema asks), checking it as
+    /// `set_param_text` does, with the same messages.
+    pub fn set_param_checked(
+        &mut self,
+        registry: &Registry,
+        assignment: &str,
+        value: impl FnOnce(&crate::params::ParamSpec) -> Result<ParamValue, String>,
+    ) -> Result<(), GraphError> {
         let (id, name) =
             assignment.split_once('.').ok_or_else(|| GraphError::new(format!("`{assignment}` is not of the form node.param")))?;
-        let node = self.node(id).ok_or_else(|| GraphError::new(format!("no node \"{id}\" in the graph")))?;
-        let kind = registry.node(&node.kind).ok_or_else(|| GraphError::new(format!("unknown node kind \"{}\"", node.kind)).node(id))?;
-        let spec = kind.schema().get(name).ok_or_else(|| {
-            let names: Vec<_> = kind.schema().0.iter().map(|p| p.name).collect();
-            let near = crate::registry::closest(name, names.iter().copied()).map(|n| format!("did you mean `{n}`? ")).unwrap_or_default();
-            GraphError::new(format!("{} has no parameter `{name}` ({near}it has: {})", node.kind, names.join(", "))).node(id)
-        })?;
-        let parsed = match crate::ron::parse_value(value).ok().and_then(|r| ParamValue::from_ron(&r).ok()) {
-            Some(v) => v,
-            None if matches!(
-                spec.kind,
-                crate::params::ParamKind::Text | crate::params::ParamKind::InputFile | crate::params::ParamKind::OutputFile
-            ) =>
-            {
-                ParamValue::Text(value.to_string())
-            }
-            None => return Err(GraphError::new(format!("cannot read `{value}` as a value")).node(id).param(name)),
-        };
+        let spec = self.param_spec(registry, id, name)?;
+        let parsed = value(spec).map_err(|m| GraphError::new(m).node(id).param(name))?;
         let checked = spec.check(&parsed).map_err(|m| GraphError::new(m).node(id).param(name))?;
         self.set_param(id, name, checked);
         Ok(())
+    }
+
+    /// The schema of parameter `name` of node `id`: errors say which node is missing, or which
+    /// parameters the node has (with the closest name).
+    pub fn param_spec<'r>(&self, registry: &'r Registry, id: &str, name: &str) -> Result<&'r crate::params::ParamSpec, GraphError> {
+        let node = self.node(id).ok_or_else(|| GraphError::new(format!("no node \"{id}\" in the graph")))?;
+        let kind = registry.node(&node.kind).ok_or_else(|| GraphError::new(format!("unknown node kind \"{}\"", node.kind)).node(id))?;
+        kind.schema().get(name).ok_or_else(|| {
+            let names: Vec<_> = kind.schema().0.iter().map(|p| p.name).collect();
+            let near = crate::registry::closest(name, names.iter().copied()).map(|n| format!("did you mean `{n}`? ")).unwrap_or_default();
+            GraphError::new(format!("{} has no parameter `{name}` ({near}it has: {})", node.kind, names.join(", "))).node(id)
+        })
     }
 
     /// Sets every parameter that declares a test value (`#[param(test = …)]`) to it: the graph
