@@ -710,15 +710,15 @@ impl EditorApp {
         }
     }
 
-    /// Holds the window's next frame back while the run an edit waits for is under way, until
-    /// it ends or `PACED_FRAME` after the frame before began, so a drag draws a frame per new
-    /// image. Where OpenGL is software, drawing shares the cores with the run (llvmpipe takes
+    /// Holds the window's next frame back while the live run an edit waits for is under way
+    /// (a drag's, not a first run or the references after it), until it ends or `PACED_FRAME`
+    /// after the frame before began, so a drag draws a frame per new image. Where OpenGL is software, drawing shares the cores with the run (llvmpipe takes
     /// about 16 ms of two cores a frame of this window), and a frame that shows the same image
     /// again only delays the next one. The window calls it before each frame; headless use
     /// (tests) does not.
     pub fn pace_frame(&mut self) {
         let until = self.frame_began + PACED_FRAME;
-        while Instant::now() < until && self.edit_started.is_some() && self.runner.is_running() {
+        while Instant::now() < until && self.in_flight_live && self.runner.is_running() {
             std::thread::sleep(Duration::from_millis(1));
         }
         self.frame_began = Instant::now();
