@@ -8,9 +8,10 @@ The layers, from the ground up (docs/ARCHITECTURE.md draws them):
   relume-pbgi, relume-relight,     one crate per pipeline family: each depends on core and base
   relume-ptt, relume-volume        only, never on another pipeline
   relume-cli, relume-editor,       the applications: they alone may depend on pipeline crates
-  relume-tests, relume-benches
+  relume-python, relume-tests,
+  relume-benches
 Only relume-cli may depend on clap, timely, plotters or ctrlc (the command line's libraries);
-egui and eframe only in relume-editor.
+egui and eframe only in relume-editor; pyo3 and numpy only in relume-python.
 
 usage: crate_layers.py            (reads `cargo metadata`; exit 1 on a violation)
 """
@@ -19,7 +20,7 @@ import subprocess
 import sys
 
 PIPELINES = {'relume-pbgi', 'relume-relight', 'relume-ptt', 'relume-volume'}
-APPS = {'relume-cli', 'relume-editor', 'relume-tests', 'relume-benches'}
+APPS = {'relume-cli', 'relume-editor', 'relume-python', 'relume-tests', 'relume-benches'}
 ALLOWED = {
     'relume-macros': set(),
     'relume-build': set(),
@@ -29,6 +30,7 @@ ALLOWED = {
 }
 CLI_ONLY = {'clap', 'timely', 'plotters', 'ctrlc'}
 EDITOR_ONLY = {'egui', 'eframe', 'egui_node_graph2'}
+PYTHON_ONLY = {'pyo3', 'numpy'}
 
 
 def main():
@@ -53,6 +55,8 @@ def main():
             problems.append(f'{name} depends on {", ".join(sorted(external & CLI_ONLY))}, which only relume-cli may use')
         if name != 'relume-editor' and external & EDITOR_ONLY:
             problems.append(f'{name} depends on {", ".join(sorted(external & EDITOR_ONLY))}, which only relume-editor may use')
+        if name != 'relume-python' and external & PYTHON_ONLY:
+            problems.append(f'{name} depends on {", ".join(sorted(external & PYTHON_ONLY))}, which only relume-python may use')
     for p in problems:
         print('layer violation: ' + p, file=sys.stderr)
     print('the crates keep their layers' if not problems else f'{len(problems)} layer violations')

@@ -1,0 +1,129 @@
+//! `relume.Graph`: a graph file loaded and validated as `relume run` loads it, its parameters
+//! set with `--set`'s checks and messages, run through an engine it keeps (so that after an
+//! edit the next run re-runs only what the edit reaches, in memory), sharing the command
+//! line's disk cache.
+
+use crate::errors::{graph_error, graph_errors};
+use crate::values::{param_to_py, py_to_param};
+use pyo3::exceptions::PyOSError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use relume_core::Engine;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// A node graph and the engine that runs it. `Graph(path)` (or `Graph.load(path)`) reads a
+/// `.ron` graph file; `cache=` names the disk-cache folder (default: `$RELUME_CACHE`, else
+/// `.relume-cache` in the current folder, as `relume run`), `no_disk_cache=True` keeps every
+/// result in memory.
+#[pyclass(module = "relume", subclass)]
+pub struct Graph {
+    pub graph: relume_core::Graph,
+    pub engine: Arc<Engine>,
+}
+
+/// The disk-cache folder a graph's engine uses: `cache`, else `$RELUME_CACHE` (set and not
+/// empty), else `.relume-cache`; none with `no_disk_cache`.
+fn cache_dir(cache: Option<PathBuf>, no_disk_cache: bool) -> Option<PathBuf> {
+    if no_disk_cache {
+        return None;
+    }
+    cache
+        .or_else(|| std::env::var_os("RELUME_CACHE").filter(|d| !d.is_empty()).map(PathBuf::from))
+        .or_else(|| Some(PathBuf::from(".relume-cache")))
+}
+
+#[pymethods]
+impl Graph {
+    #[new]
+    #[pyo3(signature = (path, *, cache = None, no_disk_cache = false))]
+    fn new(py: Python<'_>, path: PathBuf, cache: Option<PathBuf>, no_disk_cache: bool) -> PyResult<Self> {
+        let reg = relume_cli::registry();
+        let graph = relume_core::Graph::load(&path, &reg).map_err(|e| graph_errors(py, &e))?;
+        let mut engine = Engine::new(reg);
+        if let Some(dir) = cache_dir(cache, no_disk_cache) {
+            engine = engine.with_disk_cache(dir);
+        }
+        Ok(Graph { graph, engine: Arc::new(engine) })
+    }
+
+    /// The file the graph was read from.
+    #[getter]
+    fn path(&self) -> Option<PathBuf> {
+        self.graph.file.clone()
+    }
+
+    /// The nodes, in file order: dicts of `id`, `kind` and `params` (the values the file or
+    /// an edit set; the others are at their defaults, which `relume.nodes()` lists).
+    #[getter]
+    fn nodes(&self, py: Python<'_>) -> PyResult<Vec<Py<PyAny>>> {
+        self.graph
+            .nodes
+            .iter()
+            .map(|n| {
+                let d = PyDict::new(py);
+                d.set_item("id", &n.id)?;
+                d.set_item("kind", &n.kind)?;
+                let params = PyDict::new(py);
+                for (name, v) in &n.params {
+                    params.set_item(name, param_to_py(py, v)?)?;
+                }
+                d.set_item("params", params)?;
+                Ok(d.into_any().unbind())
+            })
+            .collect()
+    }
+
+    /// The names of the graph's outputs.
+    #[getter]
+    fn outputs(&self) -> Vec<String> {
+        self.graph.outputs.iter().map(|o| o.name.clone()).collect()
+    }
+
+    /// Sets `node.param` to `value`, checked against the parameter's schema as `relume run
+    /// --set` checks it: an unknown node, an unknown parameter (with the closest name), a
+    /// value out of range or of the wrong type raise `GraphError` with `--set`'s message.
+    fn set(&mut self, py: Python<'_>, assignment: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let reg = self.engine.registry().clone();
+        self.graph.set_param_checked(&reg, assignment, |spec| py_to_param(spec, value)).map_err(|e| graph_error(py, &e))
+    }
+
+    /// The value of `node.param`: the one set, else its default.
+    fn get(&self, py: Python<'_>, assignment: &str) -> PyResult<Py<PyAny>> {
+        let bad = |m: String| graph_error(py, &relume_core::GraphError::new(m));
+        let (id, name) = assignment.split_once('.').ok_or_else(|| bad(format!("`{assignment}` is not of the form node.param")))?;
+        let spec = self.graph.param_spec(self.engine.registry(), id, name).map_err(|e| graph_error(py, &e))?;
+        let node = self.graph.node(id).expect("param_spec found it");
+        match node.params.iter().find(|(n, _)| n == name).map(|(_, v)| v).or(spec.default.as_ref()) {
+            Some(v) => param_to_py(py, v),
+            None => Ok(py.None()),
+        }
+    }
+
+    /// Runs the graph (`outputs`: those names only; default all) and returns its outputs,
+    /// metrics and report. The engine is kept: after `set`, the next run re-runs only what the
+    /// edit reaches. The GIL is released while the run goes on; `progress(node, fraction)` is
+    /// called from the calling thread as nodes advance; Ctrl-C cancels the run and raises
+    /// `KeyboardInterrupt`.
+    #[pyo3(signature = (outputs = None, *, progress = None))]
+    fn run(&self, py: Python<'_>, outputs: Option<Vec<String>>, progress: Option<Py<PyAny>>) -> PyResult<crate::run::RunResult> {
+        crate::run::run(py, &self.graph, &self.engine, outputs, progress)
+    }
+
+    /// The graph as the RON text the command line and the editor read.
+    fn to_ron(&self) -> String {
+        self.graph.to_ron()
+    }
+
+    /// Writes the graph to `path` (atomically: a reader never sees half a file). File
+    /// parameters keep their text: relative ones name files beside the graph it was read from.
+    fn save(&self, path: PathBuf) -> PyResult<()> {
+        relume_core::graph::write_atomic(&path, self.graph.to_ron().as_bytes())
+            .map_err(|e| PyOSError::new_err(format!("cannot write {}: {e}", path.display())))
+    }
+
+    fn __repr__(&self) -> String {
+        let file = self.graph.file.as_deref().map_or("(built in Python)".to_string(), |p: &Path| p.display().to_string());
+        format!("<relume.Graph {file}: {} nodes, outputs {:?}>", self.graph.nodes.len(), self.outputs())
+    }
+}
