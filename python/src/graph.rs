@@ -110,6 +110,13 @@ impl Graph {
         crate::run::run(py, &self.graph, &self.engine, outputs, progress)
     }
 
+    /// Sets every parameter that declares a test value to it: the graph at the size the
+    /// tests and CI run it at (samples, resolutions and iterations turned down), in seconds.
+    fn shrink_to_test_size(&mut self, py: Python<'_>) -> PyResult<()> {
+        let reg = self.engine.registry().clone();
+        self.graph.shrink_to_test_size(&reg).map_err(|e| graph_error(py, &e))
+    }
+
     /// The graph as the RON text the command line and the editor read.
     fn to_ron(&self) -> String {
         self.graph.to_ron()

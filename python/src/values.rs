@@ -84,7 +84,8 @@ pub fn node_kind(py: Python<'_>, n: &dyn DynNode) -> PyResult<Py<PyAny>> {
     Ok(d.into_any().unbind())
 }
 
-/// One parameter's schema: name, type, default (None: required), range or choices, unit, help.
+/// One parameter's schema: name, type, default (None: required), range or choices, the value
+/// tests run it at (None: its own), unit, help.
 fn param_schema<'py>(py: Python<'py>, p: &ParamSpec) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("name", p.name)?;
@@ -96,6 +97,7 @@ fn param_schema<'py>(py: Python<'py>, p: &ParamSpec) -> PyResult<Bound<'py, PyDi
         ParamKind::Enum(choices) => d.set_item("choices", choices.to_vec())?,
         _ => {}
     }
+    d.set_item("test", p.test.as_ref().map(|v| param_to_py(py, v)).transpose()?)?;
     d.set_item("unit", p.unit)?;
     d.set_item("help", p.help)?;
     Ok(d)

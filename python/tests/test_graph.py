@@ -123,3 +123,12 @@ def test_images_round_trip_through_exr_exactly_and_png_within_a_step(tmp_path):
         relume.write_image(tmp_path / "b.exr", np.zeros((2, 2, 2)))
     with pytest.raises(OSError):
         relume.read_image(tmp_path / "missing.exr")
+
+
+def test_a_graph_shrinks_to_the_size_the_tests_run_it_at():
+    g = relume.Graph.load(GRAPHS / "reference_cornell.ron", no_disk_cache=True)
+    assert g.get("truth.spp") == 4096
+    g.shrink_to_test_size()
+    schema = {n["kind"]: {p["name"]: p for p in n["params"]} for n in relume.nodes()}
+    assert g.get("truth.spp") == schema["PathTrace"]["spp"]["test"] < 4096
+    assert g.get("scene.width") == schema["LoadScene"]["width"]["test"] > 0
