@@ -415,6 +415,8 @@ mod tests {
         let (core, a, u_o) = (brdf.core_for(&brdf.u_h_at(&h)), lobes.amplitudes(&h, wo), brdf.u_o(wo));
         let (Material::BlinnPhong { kd, ks, .. } | Material::CookTorrance { kd, ks, .. }) = *material else { unreachable!() };
         let (mut truth, mut rep) = (Vec3::ZERO, s.environment_radiance(m) * ks * a[0]);
+        // Each lobe's normalisation once, not per texel (a quadrature of its own).
+        let norms: Vec<f64> = lobes.sigmas.iter().map(|&s| if s > 0.0 { gaussian_norm(s) } else { 1.0 }).collect();
         for k in 0..cube.texels.len() {
             let d = cube.direction(k);
             let wi = f.to_local(d);
@@ -428,8 +430,9 @@ mod tests {
                 .sigmas
                 .iter()
                 .zip(a)
-                .filter(|(s, _)| **s > 0.0 && th <= 4.0 * **s)
-                .map(|(s, a)| a as f64 * (-(th * th) / (2.0 * s * s)).exp() / gaussian_norm(*s))
+                .zip(&norms)
+                .filter(|((s, _), _)| **s > 0.0 && th <= 4.0 * **s)
+                .map(|((s, a), norm)| a as f64 * (-(th * th) / (2.0 * s * s)).exp() / norm)
                 .sum();
             rep += l * (kd / PI * wi.z + ks * (brdf.contract(&core, &u_o, &brdf.u_i(wi)) as f32 * wi.z + g as f32));
         }
