@@ -76,3 +76,33 @@ fn saving_replaces_the_file_whole_and_leaves_no_temporary_files() {
     assert!(g.save(&blocked).is_err());
     assert_eq!(std::fs::read_to_string(&path).unwrap(), g.to_ron());
 }
+
+#[test]
+fn a_graph_built_from_code_checks_kinds_ids_connections_and_runs() {
+    use relume_core::graph::PortRef;
+    let reg = relume_cli::registry();
+    let port = |s: &str| PortRef::parse(s).unwrap();
+    let mut g = Graph::default();
+    let pattern = g.add_node(&reg, "TestPattern", None).unwrap();
+    assert_eq!(pattern, "test_pattern");
+    assert_eq!(g.unique_id("TestPattern"), "test_pattern_2");
+    assert_eq!(g.add_node(&reg, "GaussianBlur", Some("blur")).unwrap(), "blur");
+    assert!(g.add_node(&reg, "GaussianBlur", Some("blur")).unwrap_err().msg.contains("already"));
+    assert!(g.add_node(&reg, "GaussianBlur", Some("a.b")).unwrap_err().msg.contains("not a node id"));
+    let e = g.add_node(&reg, "GausianBlur", None).unwrap_err();
+    assert!(e.msg.contains("did you mean \"GaussianBlur\""), "{}", e.msg);
+    // Types and cycles are checked; a second connection into an input replaces the first.
+    assert!(g.connect(&reg, port("blur.image"), port("blur.image")).is_err());
+    g.connect(&reg, port("test_pattern.image"), port("blur.image")).unwrap();
+    g.connect(&reg, port("test_pattern.image"), port("blur.image")).unwrap();
+    assert_eq!(g.edges.len(), 1);
+    g.set_output(&port("blur.image"), "image", true);
+    g.set_output(&port("blur.image"), "image", true);
+    assert_eq!(g.outputs.len(), 1);
+    g.validate(&reg).unwrap();
+    // Saved and read back, it is the same graph, and it runs.
+    let back = Graph::parse(&g.to_ron(), None).unwrap();
+    assert_eq!(back.to_ron(), g.to_ron());
+    let r = run(&engine(), &back);
+    assert_eq!(ran(&r), ["blur", "test_pattern"]);
+}

@@ -2,23 +2,13 @@
 //! and cycle check, disconnect, mark outputs. The core `Graph` is the document; the node-graph
 //! widget only shows it.
 
-use relume_core::graph::{Edge, NodeDecl, Output, PortRef};
+use relume_core::graph::{Edge, NodeDecl, PortRef};
 use relume_core::ron::Pos;
 use relume_core::{Graph, ParamValue, Registry};
 
-/// A fresh node id from the kind's name: `gaussian_blur`, `gaussian_blur_2`, ….
+/// A fresh node id from the kind's name: `gaussian_blur`, `gaussian_blur_2`, … (core's).
 pub fn unique_id(graph: &Graph, kind: &str) -> String {
-    let mut base = String::new();
-    for (i, c) in kind.chars().enumerate() {
-        if c.is_uppercase() && i > 0 {
-            base.push('_');
-        }
-        base.extend(c.to_lowercase());
-    }
-    if graph.node(&base).is_none() {
-        return base;
-    }
-    (2..).map(|n| format!("{base}_{n}")).find(|id| graph.node(id).is_none()).expect("unbounded")
+    graph.unique_id(kind)
 }
 
 /// Adds a node of `kind` with default parameters at `pos`; returns its id.
@@ -71,14 +61,9 @@ pub fn insert_copy_after(graph: &mut Graph, after: &str, out: &str, input: &str,
     Some(id)
 }
 
-/// Connects `from` to `to` (replacing what fed `to`), after `check_connect`.
+/// Connects `from` to `to` (replacing what fed `to`), after `check_connect` (core's).
 pub fn connect(graph: &mut Graph, reg: &Registry, from: PortRef, to: PortRef) -> Result<(), String> {
-    check_connect(graph, reg, &from, &to)?;
-    match graph.edges.iter_mut().find(|e| e.to == to) {
-        Some(e) => e.from = from,
-        None => graph.edges.push(Edge { from, to, pos: Pos::default() }),
-    }
-    Ok(())
+    graph.connect(reg, from, to)
 }
 
 /// Removes the edge into `to`, if any.
@@ -88,12 +73,10 @@ pub fn disconnect(graph: &mut Graph, to: &PortRef) -> bool {
     before != graph.edges.len()
 }
 
-/// Makes `port` a graph output named `name`, or (with `on` false) removes the outputs naming it.
+/// Makes `port` a graph output named `name`, or (with `on` false) removes the outputs naming it
+/// (core's).
 pub fn set_output(graph: &mut Graph, port: &PortRef, name: &str, on: bool) {
-    graph.outputs.retain(|o| &o.port != port && (!on || o.name != name));
-    if on {
-        graph.outputs.push(Output { name: name.to_string(), port: port.clone(), pos: Pos::default() });
-    }
+    graph.set_output(port, name, on)
 }
 
 /// A fresh output name for a port: the port's name if free, else `node_port`.

@@ -1,6 +1,7 @@
 //! The graph model: nodes with explicit parameters, typed edges, named outputs and the
 //! editor's layout (which never enters a cache key).
 
+mod edit;
 mod load;
 mod migrate;
 mod save;
