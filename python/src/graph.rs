@@ -13,7 +13,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// A node graph and the engine that runs it. `Graph(path)` (or `Graph.load(path)`) reads a
-/// `.ron` graph file; `cache=` names the disk-cache folder (default: `$RELUME_CACHE`, else
+/// `.ron` graph file, `Graph()` starts an empty one to build with `add`, `connect` and
+/// `output`; `cache=` names the disk-cache folder (default: `$RELUME_CACHE`, else
 /// `.relume-cache` in the current folder, as `relume run`), `no_disk_cache=True` keeps every
 /// result in memory.
 #[pyclass(module = "relume", subclass)]
@@ -36,10 +37,14 @@ fn cache_dir(cache: Option<PathBuf>, no_disk_cache: bool) -> Option<PathBuf> {
 #[pymethods]
 impl Graph {
     #[new]
-    #[pyo3(signature = (path, *, cache = None, no_disk_cache = false))]
-    fn new(py: Python<'_>, path: PathBuf, cache: Option<PathBuf>, no_disk_cache: bool) -> PyResult<Self> {
+    #[pyo3(signature = (path = None, *, cache = None, no_disk_cache = false))]
+    fn new(py: Python<'_>, path: Option<PathBuf>, cache: Option<PathBuf>, no_disk_cache: bool) -> PyResult<Self> {
         let reg = relume_cli::registry();
-        let graph = relume_core::Graph::load(&path, &reg).map_err(|e| graph_errors(py, &e))?;
+        let graph = match path {
+            Some(path) => relume_core::Graph::load(&path, &reg).map_err(|e| graph_errors(py, &e))?,
+            // A graph to build: relative file parameters name files in the current folder.
+            None => relume_core::Graph { base_dir: std::env::current_dir()?, ..Default::default() },
+        };
         let mut engine = Engine::new(reg);
         if let Some(dir) = cache_dir(cache, no_disk_cache) {
             engine = engine.with_disk_cache(dir);
@@ -115,6 +120,47 @@ impl Graph {
     fn shrink_to_test_size(&mut self, py: Python<'_>) -> PyResult<()> {
         let reg = self.engine.registry().clone();
         self.graph.shrink_to_test_size(&reg).map_err(|e| graph_error(py, &e))
+    }
+
+    /// Adds a node of `kind` (`id`: a fresh one from the kind's name when left out), its
+    /// parameters set from the keywords with `set`'s checks; returns the id. An unknown kind
+    /// (with the closest name), a taken or malformed id, or a refused value raise `GraphError`
+    /// and leave the graph as it was.
+    #[pyo3(signature = (kind, *, id = None, **params))]
+    fn add(&mut self, py: Python<'_>, kind: &str, id: Option<String>, params: Option<&Bound<'_, PyDict>>) -> PyResult<String> {
+        let reg = self.engine.registry().clone();
+        let id = self.graph.add_node(&reg, kind, id.as_deref()).map_err(|e| graph_error(py, &e))?;
+        for (name, value) in params.into_iter().flat_map(|d| d.iter()) {
+            let name: String = name.extract()?;
+            if let Err(e) = self.set(py, &format!("{id}.{name}"), &value) {
+                self.graph.nodes.retain(|n| n.id != id);
+                return Err(e);
+            }
+        }
+        Ok(id)
+    }
+
+    /// Connects output port `source` (`node.port`) to input port `target`, replacing what fed
+    /// it; the types must agree and no cycle may close (`GraphError` says why not).
+    fn connect(&mut self, py: Python<'_>, source: &str, target: &str) -> PyResult<()> {
+        let reg = self.engine.registry().clone();
+        let port = |s: &str| {
+            relume_core::graph::PortRef::parse(s)
+                .ok_or_else(|| graph_error(py, &relume_core::GraphError::new(format!("`{s}` is not of the form node.port"))))
+        };
+        let (from, to) = (port(source)?, port(target)?);
+        self.graph.connect(&reg, from, to).map_err(|m| graph_error(py, &relume_core::GraphError::new(m)))
+    }
+
+    /// Makes port `port` (`node.port`) the graph output `name`.
+    fn output(&mut self, py: Python<'_>, name: &str, port: &str) -> PyResult<()> {
+        let p = relume_core::graph::PortRef::parse(port)
+            .ok_or_else(|| graph_error(py, &relume_core::GraphError::new(format!("`{port}` is not of the form node.port"))))?;
+        if self.graph.node(&p.node).is_none() {
+            return Err(graph_error(py, &relume_core::GraphError::new(format!("no node \"{}\" in the graph", p.node))));
+        }
+        self.graph.set_output(&p, name, true);
+        Ok(())
     }
 
     /// The graph as the RON text the command line and the editor read.

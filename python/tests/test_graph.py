@@ -132,3 +132,30 @@ def test_a_graph_shrinks_to_the_size_the_tests_run_it_at():
     schema = {n["kind"]: {p["name"]: p for p in n["params"]} for n in relume.nodes()}
     assert g.get("truth.spp") == schema["PathTrace"]["spp"]["test"] < 4096
     assert g.get("scene.width") == schema["LoadScene"]["width"]["test"] > 0
+
+
+def test_a_graph_built_in_python_is_saved_and_the_command_line_runs_it_to_the_same_bytes(relume_bin, tmp_path):
+    g = relume.Graph(no_disk_cache=True)
+    pattern = g.add("TestPattern", width=40, height=30, pattern="Checker", noise=0.2, seed=3)
+    assert pattern == "test_pattern"
+    assert g.add("GaussianBlur", id="blur", sigma=1.5) == "blur"
+    g.connect("test_pattern.image", "blur.image")
+    g.output("image", "blur.image")
+    with pytest.raises(relume.GraphError, match="already"):
+        g.add("GaussianBlur", id="blur")
+    with pytest.raises(relume.GraphError, match='did you mean "GaussianBlur"'):
+        g.add("GausianBlur")
+    with pytest.raises(relume.GraphError, match="out of range"):
+        g.add("GaussianBlur", id="wide", sigma=-1.0)
+    assert "wide" not in [n["id"] for n in g.nodes], "a refused node is not left behind"
+    with pytest.raises(relume.GraphError):
+        g.connect("blur.image", "test_pattern.image")  # TestPattern has no image input
+    img = g.run().images["image"]
+    assert img.shape == (30, 40, 3)
+    path = tmp_path / "built.ron"
+    g.save(path)
+    out = tmp_path / "out"
+    run = cli(relume_bin, "run", path, "--no-disk-cache", "--out", out, "-q")
+    assert run.returncode == 0, run.stderr
+    assert relume.read_image(out / "image.exr").tobytes() == img.tobytes()
+    assert relume.Graph.load(path, no_disk_cache=True).to_ron() == g.to_ron()
