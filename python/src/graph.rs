@@ -23,17 +23,6 @@ pub struct Graph {
     pub engine: Arc<Engine>,
 }
 
-/// The disk-cache folder a graph's engine uses: `cache`, else `$RELUME_CACHE` (set and not
-/// empty), else `.relume-cache`; none with `no_disk_cache`.
-fn cache_dir(cache: Option<PathBuf>, no_disk_cache: bool) -> Option<PathBuf> {
-    if no_disk_cache {
-        return None;
-    }
-    cache
-        .or_else(|| std::env::var_os("RELUME_CACHE").filter(|d| !d.is_empty()).map(PathBuf::from))
-        .or_else(|| Some(PathBuf::from(".relume-cache")))
-}
-
 #[pymethods]
 impl Graph {
     #[new]
@@ -46,7 +35,7 @@ impl Graph {
             None => relume_core::Graph { base_dir: std::env::current_dir()?, ..Default::default() },
         };
         let mut engine = Engine::new(reg);
-        if let Some(dir) = cache_dir(cache, no_disk_cache) {
+        if let Some((dir, _)) = relume_cli::cache_dir(cache.as_deref(), no_disk_cache) {
             engine = engine.with_disk_cache(dir);
         }
         Ok(Graph { graph, engine: Arc::new(engine) })

@@ -159,16 +159,7 @@ impl GraphArgs {
 
     /// The disk cache folder and where it came from; `None` with --no-disk-cache.
     pub(crate) fn cache_dir(&self) -> Option<(PathBuf, &'static str)> {
-        if self.no_disk_cache {
-            return None;
-        }
-        // Set but empty is unset: an empty folder name would put the cache's key folders in
-        // the current folder.
-        Some(match (&self.cache, std::env::var_os("RELUME_CACHE").filter(|d| !d.is_empty())) {
-            (Some(d), _) => (d.clone(), "from --cache"),
-            (None, Some(d)) => (PathBuf::from(d), "from RELUME_CACHE"),
-            (None, None) => (Path::new(".relume-cache").to_path_buf(), "the default"),
-        })
+        crate::cache_dir(self.cache.as_deref(), self.no_disk_cache)
     }
 
     pub(crate) fn disk_policy(&self) -> relume_core::DiskPolicy {
