@@ -159,7 +159,7 @@ impl GraphArgs {
 
     /// The disk cache folder and where it came from; `None` with --no-disk-cache.
     pub(crate) fn cache_dir(&self) -> Option<(PathBuf, &'static str)> {
-        crate::cache_dir(self.cache.as_deref(), self.no_disk_cache)
+        crate::cache_folder::cache_dir(self.cache.as_deref(), self.no_disk_cache)
     }
 
     pub(crate) fn disk_policy(&self) -> relume_core::DiskPolicy {

@@ -4,6 +4,7 @@
 mod terminal;
 
 mod args;
+mod cache_folder;
 mod catalog;
 mod cluster;
 mod error;
@@ -17,6 +18,8 @@ mod shard;
 mod slurm;
 mod sweep;
 
+pub use cache_folder::cache_dir;
+
 /// A registry with every node kind: the base's and each pipeline's.
 pub fn registry() -> Registry {
     let mut r = relume_base::registry();
@@ -25,22 +28,6 @@ pub fn registry() -> Registry {
     relume_relight::register(&mut r);
     relume_volume::register(&mut r);
     r
-}
-
-/// The disk-cache folder a run uses and where that came from: `cache` (`--cache`), else
-/// `$RELUME_CACHE` (set and not empty), else `.relume-cache` in the current folder; none with
-/// `no_disk_cache`. The command line and the Python package both take it from here.
-pub fn cache_dir(cache: Option<&std::path::Path>, no_disk_cache: bool) -> Option<(std::path::PathBuf, &'static str)> {
-    if no_disk_cache {
-        return None;
-    }
-    // Set but empty is unset: an empty folder name would put the cache's key folders in the
-    // current folder.
-    Some(match (cache, std::env::var_os("RELUME_CACHE").filter(|d| !d.is_empty())) {
-        (Some(d), _) => (d.to_path_buf(), "from --cache"),
-        (None, Some(d)) => (std::path::PathBuf::from(d), "from RELUME_CACHE"),
-        (None, None) => (std::path::PathBuf::from(".relume-cache"), "the default"),
-    })
 }
 
 use args::{CheckArgs, RunArgs, COMMAND_LINE};
