@@ -195,6 +195,12 @@ impl Engine {
     pub fn registry(&self) -> &Registry {
         &self.registry
     }
+    /// The registry to change: kinds defined at run time (Python nodes) join or replace
+    /// theirs between runs. Cached results of a replaced kind stay valid only where its
+    /// `definition` is unchanged, which the cache keys check.
+    pub fn registry_mut(&mut self) -> &mut Registry {
+        &mut self.registry
+    }
 
     /// Estimates, before running anything, what the plan will hold at once (`budget::estimate`).
     pub fn estimate(&self, graph: &Graph, plan: &Plan) -> crate::budget::RunEstimate {
@@ -235,6 +241,9 @@ impl Engine {
         })?;
         let mut h = Hasher::new();
         h.str("relume-key-v1").str(kind.kind()).u64(kind.version() as u64);
+        if let Some(d) = kind.definition() {
+            h.str("definition").hash(&d);
+        }
         params.canonical_hash(kind.schema(), &mut h).map_err(|m| GraphError::new(m).at(decl.pos).node(&decl.id))?;
         for (port, fp) in kind.ports().inputs.iter().zip(inputs) {
             h.str(port.name).hash(fp);

@@ -102,6 +102,12 @@ pub trait DynNode: Send + Sync {
     fn sharded(&self) -> Option<&dyn DynSharded> {
         None
     }
+    /// For a kind defined at run time (a function written in Python), a hash of its
+    /// definition (the function's source): part of every cache key of the kind, so that an
+    /// edited definition gives new results. `None` for compiled kinds, whose `version` says it.
+    fn definition(&self) -> Option<crate::Hash> {
+        None
+    }
 }
 
 pub(crate) struct NodeEntry<N: Node> {

@@ -40,6 +40,12 @@ impl Registry {
         self
     }
 
+    /// Removes a kind (one defined at run time, before its new definition is added); the
+    /// removed entry.
+    pub fn remove(&mut self, kind: &str) -> Option<Arc<dyn DynNode>> {
+        self.nodes.remove(kind)
+    }
+
     /// Registers a port type (done by `add` for every port a node declares).
     pub fn add_port_type(&mut self, info: PortTypeInfo) {
         if let Some(old) = self.port_types.get(info.name) {

@@ -11,13 +11,29 @@ engine and disk cache as ``relume run``, and get its images as numpy arrays::
     r.metrics["metrics"]["rel_mse"]      # the graph's error figures
     r.ran                                # the nodes the edit re-ran
 
-``relume.nodes()`` is the catalogue of node kinds, with each parameter's schema.
+``relume.nodes()`` is the catalogue of node kinds, with each parameter's schema. A numpy
+array feeds an image input with ``g.feed("blur.image", array)``; ``@relume.node`` makes a
+Python function a node kind (see ``relume.node``).
 """
 
 from ._relume import GraphError, RunError, RunResult, nodes, read_image, write_image
 from ._relume import Graph as _NativeGraph
+from ._nodes import Image, Metrics, node, param
 
-__all__ = ["Graph", "Node", "GraphError", "RunError", "RunResult", "nodes", "read_image", "write_image"]
+__all__ = [
+    "Graph",
+    "Node",
+    "GraphError",
+    "RunError",
+    "RunResult",
+    "nodes",
+    "read_image",
+    "write_image",
+    "node",
+    "param",
+    "Image",
+    "Metrics",
+]
 
 
 class Node:

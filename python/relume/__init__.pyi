@@ -8,6 +8,10 @@ from ._relume import RunResult as RunResult
 from ._relume import nodes as nodes
 from ._relume import read_image as read_image
 from ._relume import write_image as write_image
+from ._nodes import Image as Image
+from ._nodes import Metrics as Metrics
+from ._nodes import node as node
+from ._nodes import param as param
 
 class Node:
     id: str

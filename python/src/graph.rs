@@ -4,8 +4,9 @@
 //! line's disk cache.
 
 use crate::errors::{graph_error, graph_errors};
+use crate::feed::ArrayInput;
 use crate::values::{param_to_py, py_to_param};
-use pyo3::exceptions::PyOSError;
+use pyo3::exceptions::{PyOSError, PyRuntimeError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use relume_core::Engine;
@@ -21,6 +22,29 @@ use std::sync::Arc;
 pub struct Graph {
     pub graph: relume_core::Graph,
     pub engine: Arc<Engine>,
+    /// The arrays fed with `feed`, registered as this graph's `ArrayInput` kind.
+    feeds: Arc<ArrayInput>,
+}
+
+impl Graph {
+    /// Takes in the Python node kinds defined (or redefined) since the last call.
+    fn sync(&mut self) -> PyResult<()> {
+        if crate::pynode::stale(self.engine.registry()) {
+            let engine = Arc::get_mut(&mut self.engine)
+                .ok_or_else(|| PyRuntimeError::new_err("a node kind cannot be defined while the graph runs"))?;
+            crate::pynode::sync(engine.registry_mut());
+        }
+        Ok(())
+    }
+}
+
+/// The registry a Python graph runs with: every compiled kind, its own `ArrayInput` and the
+/// Python node kinds defined so far.
+pub fn registry(feeds: Option<Arc<ArrayInput>>) -> relume_core::Registry {
+    let mut reg = relume_cli::registry();
+    reg.add_dyn(feeds.unwrap_or_else(|| Arc::new(ArrayInput::new())));
+    crate::pynode::sync(&mut reg);
+    reg
 }
 
 #[pymethods]
@@ -28,7 +52,8 @@ impl Graph {
     #[new]
     #[pyo3(signature = (path = None, *, cache = None, no_disk_cache = false))]
     fn new(py: Python<'_>, path: Option<PathBuf>, cache: Option<PathBuf>, no_disk_cache: bool) -> PyResult<Self> {
-        let reg = relume_cli::registry();
+        let feeds = Arc::new(ArrayInput::new());
+        let reg = registry(Some(feeds.clone()));
         let graph = match path {
             Some(path) => relume_core::Graph::load(&path, &reg).map_err(|e| graph_errors(py, &e))?,
             // A graph to build: relative file parameters name files in the current folder.
@@ -38,7 +63,7 @@ impl Graph {
         if let Some((dir, _)) = relume_cli::cache_dir(cache.as_deref(), no_disk_cache) {
             engine = engine.with_disk_cache(dir);
         }
-        Ok(Graph { graph, engine: Arc::new(engine) })
+        Ok(Graph { graph, engine: Arc::new(engine), feeds })
     }
 
     /// The file the graph was read from.
@@ -78,6 +103,7 @@ impl Graph {
     /// --set` checks it: an unknown node, an unknown parameter (with the closest name), a
     /// value out of range or of the wrong type raise `GraphError` with `--set`'s message.
     fn set(&mut self, py: Python<'_>, assignment: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.sync()?;
         let reg = self.engine.registry().clone();
         self.graph.set_param_checked(&reg, assignment, |spec| py_to_param(spec, value)).map_err(|e| graph_error(py, &e))
     }
@@ -100,7 +126,8 @@ impl Graph {
     /// called from the calling thread as nodes advance; Ctrl-C cancels the run and raises
     /// `KeyboardInterrupt`.
     #[pyo3(signature = (outputs = None, *, progress = None))]
-    fn run(&self, py: Python<'_>, outputs: Option<Vec<String>>, progress: Option<Py<PyAny>>) -> PyResult<crate::run::RunResult> {
+    fn run(&mut self, py: Python<'_>, outputs: Option<Vec<String>>, progress: Option<Py<PyAny>>) -> PyResult<crate::run::RunResult> {
+        self.sync()?;
         crate::run::run(py, &self.graph, &self.engine, outputs, progress)
     }
 
@@ -117,6 +144,7 @@ impl Graph {
     /// and leave the graph as it was.
     #[pyo3(signature = (kind, *, id = None, **params))]
     fn add(&mut self, py: Python<'_>, kind: &str, id: Option<String>, params: Option<&Bound<'_, PyDict>>) -> PyResult<String> {
+        self.sync()?;
         let reg = self.engine.registry().clone();
         let id = self.graph.add_node(&reg, kind, id.as_deref()).map_err(|e| graph_error(py, &e))?;
         for (name, value) in params.into_iter().flat_map(|d| d.iter()) {
@@ -132,6 +160,7 @@ impl Graph {
     /// Connects output port `source` (`node.port`) to input port `target`, replacing what fed
     /// it; the types must agree and no cycle may close (`GraphError` says why not).
     fn connect(&mut self, py: Python<'_>, source: &str, target: &str) -> PyResult<()> {
+        self.sync()?;
         let reg = self.engine.registry().clone();
         let port = |s: &str| {
             relume_core::graph::PortRef::parse(s)
@@ -139,6 +168,36 @@ impl Graph {
         };
         let (from, to) = (port(source)?, port(target)?);
         self.graph.connect(&reg, from, to).map_err(|m| graph_error(py, &relume_core::GraphError::new(m)))
+    }
+
+    /// Feeds `array` (height × width × 3, × 4 or height × width; any real type, read as
+    /// float32 linear RGB) to the image input `target` (`node.port`) through a node
+    /// `<node>_<port>_array` of kind `ArrayInput`, added and connected the first time; returns
+    /// its id. The array is copied; the cache knows it by the hash of its pixels, so feeding the
+    /// same pixels again re-runs nothing. A graph with fed arrays runs only from this session.
+    fn feed(&mut self, py: Python<'_>, target: &str, array: &Bound<'_, PyAny>) -> PyResult<String> {
+        self.sync()?;
+        let bad = |m: String| graph_error(py, &relume_core::GraphError::new(m));
+        let to = relume_core::graph::PortRef::parse(target).ok_or_else(|| bad(format!("`{target}` is not of the form node.port")))?;
+        let img = crate::images::from_numpy(array)?;
+        let id = format!("{}_{}_array", to.node, to.port);
+        let reg = self.engine.registry().clone();
+        let added = self.graph.node(&id).is_none();
+        if added {
+            self.graph.add_node(&reg, crate::kinds::ARRAY_INPUT, Some(&id)).map_err(|e| graph_error(py, &e))?;
+        }
+        let from = relume_core::graph::PortRef::parse(&format!("{id}.image")).expect("a port name");
+        if let Err(m) = self.graph.connect(&reg, from, to) {
+            if added {
+                self.graph.nodes.retain(|n| n.id != id);
+            }
+            return Err(bad(m));
+        }
+        let key = self.feeds.put(&id, img);
+        self.graph
+            .set_param_checked(&reg, &format!("{id}.key"), |_| Ok(relume_core::ParamValue::Text(key)))
+            .map_err(|e| graph_error(py, &e))?;
+        Ok(id)
     }
 
     /// Makes port `port` (`node.port`) the graph output `name`.

@@ -4,19 +4,22 @@
 //! (`python/relume/`) re-exports it and adds what is easier written in Python.
 
 mod errors;
+mod feed;
 mod graph;
 mod images;
+mod kinds;
+mod pynode;
 mod run;
 mod timing;
 mod values;
 
 use pyo3::prelude::*;
 
-/// The catalogue: every node kind the registry knows, as dicts (kind, category, version,
+/// The catalogue: every node kind the registry knows (the Python ones defined so far too), as dicts (kind, category, version,
 /// doc, inputs, outputs, params, metrics).
 #[pyfunction]
 fn nodes(py: Python<'_>) -> PyResult<Vec<Py<PyAny>>> {
-    let reg = relume_cli::registry();
+    let reg = graph::registry(None);
     reg.nodes().map(|n| values::node_kind(py, n.as_ref())).collect()
 }
 
@@ -30,5 +33,6 @@ fn _relume(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(images::read_image, m)?)?;
     m.add_function(wrap_pyfunction!(images::write_image, m)?)?;
     m.add_function(wrap_pyfunction!(timing::_time_edits, m)?)?;
+    m.add_function(wrap_pyfunction!(pynode::_define_node, m)?)?;
     Ok(())
 }
