@@ -50,8 +50,27 @@ class Node:
     def __setitem__(self, param, value):
         self._graph.set(f"{self.id}.{param}", value)
 
+    @property
+    def kind(self):
+        """The node's kind, e.g. ``"GaussianBlur"``."""
+        return next(n["kind"] for n in self._graph.nodes if n["id"] == self.id)
+
+    @property
+    def doc(self):
+        """The kind's documentation (the node's doc comment, as the editor's tooltip shows it)."""
+        kind = self.kind
+        return next(n["doc"] for n in nodes() if n["kind"] == kind)
+
+    @property
+    def params(self):
+        """The kind's parameter schemas (name, type, default, range, unit, help) with each
+        parameter's value in this graph under ``value``."""
+        kind = self.kind
+        schema = next(n["params"] for n in nodes() if n["kind"] == kind)
+        return [dict(p, value=self[p["name"]]) for p in schema]
+
     def __repr__(self):
-        return f"<relume.Node {self.id}>"
+        return f"<relume.Node {self.id}: {self.kind}>"
 
 
 class Graph(_NativeGraph):

@@ -1,4 +1,4 @@
-from typing import Any, Callable, Literal, Optional, Sequence, Union
+from typing import Any, Callable, Dict, List, Literal, Optional, Sequence, Union
 
 from ._relume import Graph as _NativeGraph
 from ._relume import GraphError as GraphError
@@ -15,6 +15,12 @@ from ._nodes import param as param
 
 class Node:
     id: str
+    @property
+    def kind(self) -> str: ...
+    @property
+    def doc(self) -> str: ...
+    @property
+    def params(self) -> List[Dict[str, Any]]: ...
     def __getitem__(self, param: str) -> Any: ...
     def __setitem__(self, param: str, value: ParamValue) -> None: ...
 

@@ -159,3 +159,13 @@ def test_a_graph_built_in_python_is_saved_and_the_command_line_runs_it_to_the_sa
     assert run.returncode == 0, run.stderr
     assert relume.read_image(out / "image.exr").tobytes() == img.tobytes()
     assert relume.Graph.load(path, no_disk_cache=True).to_ron() == g.to_ron()
+
+
+def test_a_node_shows_its_kind_doc_and_parameters_with_their_values(filters):
+    g = relume.Graph.load(filters, no_disk_cache=True)
+    blur = g["blur"]
+    assert blur.kind == "GaussianBlur"
+    catalogue = {n["kind"]: n for n in relume.nodes()}
+    assert blur.doc == catalogue["GaussianBlur"]["doc"] and "Gaussian" in blur.doc
+    sigma = next(p for p in blur.params if p["name"] == "sigma")
+    assert sigma["value"] == g.get("blur.sigma") and sigma["type"] == "float"
