@@ -32,6 +32,7 @@ impl Observer for Recorder {
             Event::Finished { id, status, .. } => format!("finished {id} {}", status.as_str()),
             Event::Failed { id, .. } => format!("failed {id}"),
             Event::Partial { id, .. } => format!("partial {id}"),
+            Event::Output { name, .. } => format!("output {name}"),
         };
         let mut ev = self.events.lock().unwrap();
         if ev.last() != Some(&line) {
@@ -92,6 +93,38 @@ fn every_needed_node_reports_start_and_finish_and_cached_nodes_only_finish() {
     let events = rec.events.lock().unwrap().clone();
     assert_eq!(
         events,
-        ["planned 2", "started a", "finished a ran", "started b", "finished b ran", "planned 2", "finished a cached", "finished b cached"]
+        [
+            "planned 2",
+            "started a",
+            "finished a ran",
+            "started b",
+            "finished b ran",
+            "output x",
+            "planned 2",
+            "finished a cached",
+            "finished b cached",
+            "output x"
+        ]
     );
+}
+
+#[test]
+fn each_output_is_announced_once_as_soon_as_its_node_finishes() {
+    let log = Log::default();
+    let mut reg = test_registry(&log);
+    reg.add::<UntilCancelled>();
+    // "early" is ready long before "late", whose node waits for a cancel that comes only
+    // after "early" was announced.
+    let g = Graph::parse(
+        r#"(version: 1, nodes: { "a": (kind: "Mix0", params: ()), "slow": (kind: "UntilCancelled", params: ()) },
+           edges: [("a.out", "slow.in0")], outputs: { "early": "a.out", "late": "slow.out", "again": "a.out" })"#,
+        None,
+    )
+    .unwrap();
+    let engine = Engine::new(reg);
+    let rec = Recorder { events: Mutex::default(), cancel: CancelToken::new() };
+    let opts = RunOptions { cancel: rec.cancel.clone(), observer: Some(&rec), ..Default::default() };
+    assert!(matches!(engine.run(&g, &opts), Err(RunError::Cancelled)));
+    let events = rec.events.lock().unwrap().clone();
+    assert_eq!(events, ["planned 2", "started a", "finished a ran", "output early", "output again", "started slow", "progress slow"]);
 }

@@ -157,6 +157,13 @@ pub enum Event<'a> {
         kind: &'a str,
         message: &'a str,
     },
+    /// A graph output is ready: its node finished or was found in a cache. Sent once per
+    /// requested output, as soon as it exists, so that a watcher can show or write it while
+    /// the rest of the run goes on (the command line writes each output file at once).
+    Output {
+        name: &'a str,
+        value: &'a Value,
+    },
     /// A result before the node's end, for display while it runs: a sharded node's chunk
     /// once it is done (or a pass of it), or a node's whole output so far. `chunk`: the items
     /// the value covers and the node's item count, for a sharded node (an `ImageRows` band of

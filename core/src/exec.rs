@@ -337,6 +337,7 @@ impl Engine {
                             let ms = t0.elapsed().as_secs_f64() * 1e3;
                             if let Some(o) = opts.observer {
                                 o.event(&Event::Finished { id: &graph.nodes[i].id, kind: kind.kind(), status, wall_ms: ms });
+                                announce_outputs(o, &plan, i, &entry);
                             }
                             ready.extend(state.complete(i, entry, status, prepared.key, ms, None));
                         }
@@ -404,7 +405,10 @@ impl Engine {
                         if whole {
                             self.store(kind.as_ref(), id, state.keys[i], entry.clone(), opts.memory_only);
                         }
-                        if let Some(o) = opts.observer {
+                        if let Some(o) = opts.observer.filter(|_| whole) {
+                            o.event(&Event::Finished { id, kind: kind.kind(), status: NodeStatus::Ran, wall_ms: ms });
+                            announce_outputs(o, &plan, i, &entry);
+                        } else if let Some(o) = opts.observer {
                             o.event(&Event::Finished { id, kind: kind.kind(), status: NodeStatus::Ran, wall_ms: ms });
                         }
                         let key = state.keys[i];
@@ -470,6 +474,15 @@ impl Engine {
         let plan = make_plan(graph, &self.registry, outputs)?;
         self.check_memory(graph, &plan)?;
         Ok(plan)
+    }
+}
+
+/// Tells `o` of each requested graph output that node `i` produced (`Event::Output`).
+fn announce_outputs(o: &dyn Observer, plan: &Plan, i: usize, entry: &CacheEntry) {
+    for (name, _, port) in plan.outputs.iter().filter(|(_, n, _)| *n == i) {
+        if let Some(value) = entry.outputs.get(*port) {
+            o.event(&Event::Output { name, value });
+        }
     }
 }
 

@@ -176,7 +176,7 @@ impl Observer for Watch {
             return;
         }
         let (id, state) = match e {
-            Event::Planned { .. } | Event::Partial { .. } => return,
+            Event::Planned { .. } | Event::Partial { .. } | Event::Output { .. } => return,
             Event::Started { id, .. } => (*id, NodeState::Running(0.0)),
             Event::Progress { id, fraction } => (*id, NodeState::Running(*fraction)),
             Event::Finished { id, status: NodeStatus::Ran, wall_ms, .. } => (*id, NodeState::Done(*wall_ms)),

@@ -18,6 +18,13 @@ impl Bars {
     }
 }
 
+impl Bars {
+    /// A line above the bars (nothing when they are hidden: stderr is not a terminal).
+    pub fn note(&self, line: &str) {
+        let _ = self.multi.println(line);
+    }
+}
+
 impl Observer for Bars {
     fn event(&self, e: &Event<'_>) {
         match *e {
@@ -51,7 +58,7 @@ impl Observer for Bars {
                     t.inc(1);
                 }
             }
-            Event::Started { .. } | Event::Partial { .. } => {}
+            Event::Started { .. } | Event::Partial { .. } | Event::Output { .. } => {}
         }
     }
 }

@@ -1,15 +1,16 @@
 //! `relume run`, `relume plan` and `relume check`.
 
 use crate::args::{CheckArgs, RunArgs};
+use crate::early_writes::EarlyWrites;
 use crate::error::CliError;
 use crate::files::{prepare_file, prepare_out_dir, write_refusals};
 use crate::interrupt::Watch;
-use crate::outputs::{planned_outputs, write_outputs};
+use crate::outputs::planned_outputs;
 use crate::progress::Bars;
 use relume_base::image::exr_layers::layers_path;
 use relume_core::shard::ShardPeers;
 use relume_core::{
-    make_plan, Graph, GraphErrors, Observer, PlanAction, Registry, RunError, RunFiles, RunOptions, ShardMode, WritePolicy, WriteRoots,
+    make_plan, Graph, GraphErrors, PlanAction, Registry, RunError, RunFiles, RunOptions, ShardMode, WritePolicy, WriteRoots,
 };
 use std::path::{Path, PathBuf};
 
@@ -54,17 +55,21 @@ pub(crate) fn run_graph(reg: &Registry, a: &RunArgs, peers: Option<&dyn ShardPee
         Some(_) if !writer => (Some(Vec::new()), sharded_nodes(reg, &graph, a.g.requested().as_deref())?),
         _ => (a.g.requested(), Vec::new()),
     };
+    // The process that writes writes each output as soon as it exists; the others only watch.
+    let early = EarlyWrites::new(&a.out, bars.as_ref(), writer);
     let opts = RunOptions {
         outputs,
         nodes,
         shards: peers.map_or(ShardMode::All, ShardMode::Peers),
-        observer: bars.as_ref().map(|b| b as &dyn Observer),
+        observer: Some(&early),
         cancel: watch.token.clone(),
         writes,
 
         ..Default::default()
     };
     let result = engine.run(&graph, &opts).map_err(|e| run_error(&graph, e));
+    drop(opts);
+    let finished = result.as_ref().ok().map(|r| early.finish(&r.outputs));
     drop(bars);
     let mut result = result?;
     // What the run says of itself (a disk cache that could not store results, …), once, on
@@ -79,7 +84,7 @@ pub(crate) fn run_graph(reg: &Registry, a: &RunArgs, peers: Option<&dyn ShardPee
         }
         return Ok(());
     }
-    let mut files = write_outputs(&a.out, &result.outputs).map_err(CliError::run)?;
+    let mut files = finished.expect("a run that succeeded").map_err(CliError::run)?;
     if a.exr_layers {
         let path =
             relume_base::image::exr_layers::write_run_layers(reg, &graph, &result.outputs, &a.out, a.exr_half).map_err(CliError::run)?;
