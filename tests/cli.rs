@@ -1,5 +1,6 @@
 //! The `relume` command line, in process: run twice (second run all cached), plan, check,
-//! nodes, and exit codes with messages a person can act on.
+//! nodes, and exit codes with messages a person can act on; and in a process of its own where
+//! its output is read (`relume nodes --markdown`, the page committed as docs/reference/nodes.md).
 
 use relume_cli::main_from;
 use relume_tests::graphs_dir;
@@ -116,6 +117,24 @@ fn a_node_failure_exits_1_and_a_request_over_a_limit_exits_2() {
     )
     .unwrap();
     assert_eq!(relume(&["run", g.to_str().unwrap(), "--no-disk-cache", "-q", "--out", o.to_str().unwrap()]), 2);
+}
+
+#[test]
+fn each_output_is_written_as_soon_as_it_exists_even_when_a_later_node_fails() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = dir.path().join("o");
+    let g = dir.path().join("g.ron");
+    // `early` is ready once `a` has run; the error node, which needs `b` too, fails after it.
+    std::fs::write(
+        &g,
+        r#"Graph(version: 1, nodes: { "a": (kind: "TestPattern", params: (width: 8, height: 8)), "b": (kind: "TestPattern", params: (width: 9, height: 8)), "e": (kind: "ImageError") }, edges: [("a.image", "e.image"), ("b.image", "e.reference")], outputs: { "early": "a.image", "x": "e.metrics" })"#,
+    )
+    .unwrap();
+    assert_eq!(relume(&["run", g.to_str().unwrap(), "--no-disk-cache", "-q", "--out", o.to_str().unwrap()]), 1);
+    let img = relume_base::image::io::read_image(&o.join("early.exr")).expect("the output that existed before the failure was written");
+    assert_eq!((img.width, img.height), (8, 8));
+    assert!(o.join("early.png").exists());
+    assert!(!o.join("x.json").exists(), "the failed output is not written");
 }
 
 /// `relume run` of `filters.ron` into `dir` with a disk cache that keeps every result
@@ -276,4 +295,76 @@ fn exr_layers_hold_every_image_output_of_a_real_run_bit_identical_with_its_prove
     assert_eq!(layers[0]["kind"], "PathTrace");
     assert!(layers[0]["params"].as_str().unwrap().contains("spp: 4"), "{layers}");
     assert!(layer.attributes.software_name.as_ref().unwrap().to_string().starts_with("relume "));
+}
+
+/// Set by [`relume_output`]: the arguments, as JSON, of the `relume` command line that this
+/// test binary, started again, runs in `child_process_runs_the_relume_command_line`.
+const CHILD_ARGS: &str = "RELUME_CLI_CHILD_ARGS";
+
+/// When started by [`relume_output`]: runs the arguments as the `relume` command line
+/// (`relume_cli::main_from`, what the binary runs) and exits with its code. Otherwise nothing.
+#[test]
+fn child_process_runs_the_relume_command_line() {
+    let Ok(json) = std::env::var(CHILD_ARGS) else { return };
+    let args: Vec<String> = serde_json::from_str(&json).expect("RELUME_CLI_CHILD_ARGS is a JSON list of strings");
+    std::process::exit(main_from(std::iter::once("relume".to_string()).chain(args)));
+}
+
+/// What `relume ARGS` prints on stdout, run in a process of its own (this test binary, see
+/// above: its stdout starts with the test harness' "running 1 test" line); panics on failure.
+fn relume_output(args: &[&str]) -> String {
+    let out = std::process::Command::new(std::env::current_exe().unwrap())
+        .args(["--exact", "child_process_runs_the_relume_command_line", "--nocapture", "--test-threads", "1", "-q"])
+        .env(CHILD_ARGS, serde_json::to_string(args).unwrap())
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (String::from_utf8(out.stdout).unwrap(), String::from_utf8_lossy(&out.stderr).into_owned());
+    assert!(out.status.success(), "relume {args:?} failed ({}):\n{stdout}\n{stderr}", out.status);
+    stdout
+}
+
+/// The Markdown page in what `relume nodes --markdown` printed: from its title to the end.
+fn markdown_page(stdout: &str) -> &str {
+    &stdout[stdout.find("# Node catalogue\n").unwrap_or_else(|| panic!("no page title in:\n{stdout}"))..]
+}
+
+/// Checks that `page` has exactly one `## Kind` section and one contents line for each kind.
+fn assert_one_section_per_kind(page: &str, kinds: &[String], what: &str) {
+    for k in kinds {
+        let sections = page.lines().filter(|l| *l == format!("## {k}")).count();
+        assert_eq!(sections, 1, "{what}: {sections} sections \"## {k}\"");
+        let links = page.lines().filter(|l| *l == format!("- [{k}](#{})", k.to_lowercase())).count();
+        assert_eq!(links, 1, "{what}: {links} contents lines for {k}");
+    }
+    let sections = page.lines().filter(|l| l.starts_with("## ") && *l != "## Contents").count();
+    assert_eq!(sections, kinds.len(), "{what}: sections for kinds that `relume nodes` does not list");
+}
+
+#[test]
+fn nodes_markdown_has_a_section_per_kind_and_the_committed_page_is_its_output() {
+    // The kinds `relume nodes` lists: its header lines, "Kind vN [category]".
+    let kinds: Vec<String> = relume_output(&["nodes"])
+        .lines()
+        .filter(|l| l.split(' ').nth(1).is_some_and(|v| v.starts_with('v')) && l.ends_with(']') && !l.starts_with(' '))
+        .map(|l| l.split(' ').next().unwrap().to_string())
+        .collect();
+    assert!(kinds.len() > 50 && kinds.iter().any(|k| k == "PathTrace"), "{kinds:?}");
+    let stdout = relume_output(&["nodes", "--markdown"]);
+    let page = markdown_page(&stdout);
+    assert_one_section_per_kind(page, &kinds, "relume nodes --markdown");
+    // A parameter row: its type, default, range and unit, in GaussianBlur's section.
+    let blur = &page[page.find("\n## GaussianBlur\n").unwrap()..];
+    let blur = &blur[..blur[1..].find("\n## ").map_or(blur.len(), |e| e + 1)];
+    assert!(blur.contains("\n| `sigma` | float | `1.0` | `[0, 256]` | px |  | standard deviation of the Gaussian |\n"), "{blur}");
+    // With a kind, the page holds that kind alone.
+    let one = relume_output(&["nodes", "GaussianBlur", "--markdown"]);
+    assert_one_section_per_kind(markdown_page(&one), &["GaussianBlur".to_string()], "relume nodes GaussianBlur --markdown");
+    // The committed page is this output (regenerate it as its first paragraph says).
+    let committed = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/reference/nodes.md")).unwrap();
+    assert_one_section_per_kind(&committed, &kinds, "docs/reference/nodes.md");
+    assert!(
+        committed == page,
+        "docs/reference/nodes.md is not what `relume nodes --markdown` prints: regenerate it with \
+         `cargo build --release --bin relume && target/release/relume nodes --markdown > docs/reference/nodes.md`"
+    );
 }

@@ -1,17 +1,23 @@
-//! `relume nodes`: the catalogue of node kinds, ports and parameter schemas.
+//! `relume nodes`: the catalogue of node kinds, ports and parameter schemas, as text or (with
+//! `--markdown`) as one Markdown page (`catalog_markdown`).
 
+use crate::catalog_markdown;
 use crate::error::CliError;
 use relume_core::{DynNode, Registry};
 
-pub(crate) fn print(reg: &Registry, kind: Option<&str>) -> Result<(), CliError> {
-    let nodes: Vec<_> = reg.nodes().filter(|n| kind.is_none_or(|k| n.kind() == k)).collect();
+pub(crate) fn print(reg: &Registry, kind: Option<&str>, markdown: bool) -> Result<(), CliError> {
+    let nodes: Vec<&dyn DynNode> = reg.nodes().map(|n| n.as_ref()).filter(|n| kind.is_none_or(|k| n.kind() == k)).collect();
     if nodes.is_empty() {
         let k = kind.unwrap_or_default();
         let hint = reg.suggest(k).map(|s| format!(" (did you mean \"{s}\"?)")).unwrap_or_default();
         return Err(CliError::graph(format!("no node kind \"{k}\"{hint}; `relume nodes` lists them all")));
     }
+    if markdown {
+        say_part!("{}", catalog_markdown::page(&nodes));
+        return Ok(());
+    }
     for n in nodes {
-        say_part!("{}", describe(n.as_ref()));
+        say_part!("{}", describe(n));
     }
     Ok(())
 }
@@ -54,7 +60,7 @@ mod tests {
 
     #[test]
     fn an_unknown_kind_gets_the_closest_name() {
-        let e = print(&crate::registry(), Some("Tonemapp")).err().unwrap();
+        let e = print(&crate::registry(), Some("Tonemapp"), false).err().unwrap();
         assert!(e.msg.contains("no node kind \"Tonemapp\" (did you mean \"Tonemap\"?)"), "{}", e.msg);
     }
 

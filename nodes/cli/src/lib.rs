@@ -6,7 +6,9 @@ mod terminal;
 mod args;
 mod cache_folder;
 mod catalog;
+mod catalog_markdown;
 mod cluster;
+mod early_writes;
 mod error;
 mod files;
 mod interrupt;
@@ -53,6 +55,9 @@ enum Cmd {
     Nodes {
         /// Show only this kind.
         kind: Option<String>,
+        /// Print the catalogue as one Markdown page (docs/reference/nodes.md is this output).
+        #[arg(long)]
+        markdown: bool,
     },
     /// Run a graph once per combination of --vary values (one engine, cache shared) and write
     /// error against time as CSV and a log-log plot, optionally with a --baseline curve.
@@ -94,7 +99,7 @@ where
         Cmd::Run(a) => run::run_graph(&reg, &a, None),
         Cmd::Plan(a) => run::plan(&reg, &a),
         Cmd::Check(a) => run::check(&reg, &a),
-        Cmd::Nodes { kind } => catalog::print(&reg, kind.as_deref()),
+        Cmd::Nodes { kind, markdown } => catalog::print(&reg, kind.as_deref(), markdown),
         Cmd::Sweep(a) => sweep::sweep(&reg, &a),
         Cmd::Shard(a) => shard::shard(&reg, &a),
         Cmd::Slurm(a) => slurm::slurm(&reg, &a),
