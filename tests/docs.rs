@@ -1,5 +1,6 @@
-//! The documentation stays true to the tree: the README's node example is a real node file,
-//! quoted whole, and no document or source file points outside the repository.
+//! The documentation stays true to the tree: the book's node example is a real node file,
+//! quoted whole; every link of the README and the book resolves, anchors included; the book
+//! lists every page it holds; and no document or source file points outside the repository.
 
 use std::path::{Path, PathBuf};
 
@@ -8,14 +9,11 @@ fn root() -> PathBuf {
 }
 
 #[test]
-fn the_readme_quotes_a_real_node_file_whole() {
-    let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
+fn the_book_quotes_a_real_node_file_whole() {
+    let page = std::fs::read_to_string(root().join("docs/guide/writing-a-node.md")).unwrap();
     let node = std::fs::read_to_string(root().join("nodes/base/src/image/combine.rs")).unwrap();
     assert!(node.contains("#[node("), "the quoted file is a node");
-    assert!(
-        readme.contains(&format!("```rust\n{node}```")),
-        "README's \"Writing a node\" must quote nodes/base/src/image/combine.rs whole"
-    );
+    assert!(page.contains(&format!("```rust\n{node}```")), "docs/guide/writing-a-node.md must quote nodes/base/src/image/combine.rs whole");
 }
 
 /// Every text file the repository tracks, by extension.
@@ -46,4 +44,124 @@ fn nothing_points_outside_the_repository() {
         .map(|p| p.strip_prefix(root()).unwrap_or(p).display().to_string())
         .collect();
     assert!(bad.is_empty(), "files that point outside the repository: {bad:?}");
+}
+
+/// The heading ids a Markdown page offers to `#anchor` links, as mdBook and GitHub make them:
+/// lower case, letters, digits, `-` and `_` kept, spaces to `-`, the rest dropped (a repeated
+/// heading gets `-1`, `-2`, …).
+fn anchors(text: &str) -> Vec<String> {
+    let mut seen: Vec<String> = Vec::new();
+    let mut fenced = false;
+    for line in text.lines() {
+        if line.trim_start().starts_with("```") {
+            fenced = !fenced;
+        }
+        let Some(title) = line.strip_prefix('#').filter(|_| !fenced).map(|t| t.trim_start_matches('#')) else { continue };
+        if !title.starts_with(' ') {
+            continue;
+        }
+        let title = title.trim().replace('`', "");
+        let slug: String = title
+            .to_lowercase()
+            .chars()
+            .filter_map(|c| match c {
+                ' ' => Some('-'),
+                c if c.is_alphanumeric() || c == '-' || c == '_' => Some(c),
+                _ => None,
+            })
+            .collect();
+        let n =
+            seen.iter().filter(|s| **s == slug || s.strip_prefix(&format!("{slug}-")).is_some_and(|r| r.parse::<u32>().is_ok())).count();
+        seen.push(if n == 0 { slug } else { format!("{slug}-{n}") });
+    }
+    seen
+}
+
+/// The link targets of a Markdown page, outside code: `[text](target)`, `![alt](target)` and
+/// `[label]: target`, with their line numbers.
+fn links(text: &str) -> Vec<(usize, String)> {
+    let mut out = Vec::new();
+    let mut fenced = false;
+    for (i, line) in text.lines().enumerate() {
+        if line.trim_start().starts_with("```") {
+            fenced = !fenced;
+            continue;
+        }
+        if fenced || line.starts_with("    ") && !line.trim_start().starts_with(['-', '*', '|']) {
+            continue;
+        }
+        // Inline code holds no links: drop what lies between backticks.
+        let plain: String = line.split('`').step_by(2).collect::<Vec<_>>().join(" ");
+        let mut rest = plain.as_str();
+        while let Some(at) = rest.find("](") {
+            let tail = &rest[at + 2..];
+            let end = tail.find(')').unwrap_or(tail.len());
+            out.push((i + 1, tail[..end].split_whitespace().next().unwrap_or("").to_string()));
+            rest = &tail[end..];
+        }
+        if let Some(def) = plain.trim_start().strip_prefix('[').and_then(|l| l.split_once("]: ")) {
+            out.push((i + 1, def.1.split_whitespace().next().unwrap_or("").to_string()));
+        }
+    }
+    out
+}
+
+/// Every Markdown page of the README and the book (`docs/`).
+fn pages() -> Vec<PathBuf> {
+    let mut all = vec![root().join("README.md")];
+    let mut docs = Vec::new();
+    files(&root().join("docs"), &mut docs);
+    all.extend(docs.into_iter().filter(|p| p.extension().is_some_and(|e| e == "md")));
+    all
+}
+
+#[test]
+fn every_link_in_the_readme_and_the_book_resolves() {
+    let mut bad = Vec::new();
+    let mut checked = 0;
+    for page in pages() {
+        let text = std::fs::read_to_string(&page).unwrap();
+        let name = page.strip_prefix(root()).unwrap_or(&page).display().to_string();
+        for (line, target) in links(&text) {
+            if target.is_empty() || target.contains("://") || target.starts_with("mailto:") {
+                continue;
+            }
+            checked += 1;
+            let (path, anchor) = target.split_once('#').map_or((target.as_str(), None), |(p, a)| (p, Some(a)));
+            let file = if path.is_empty() { page.clone() } else { page.parent().unwrap().join(path) };
+            if !file.exists() {
+                bad.push(format!("{name}:{line}: {target} (no such file)"));
+                continue;
+            }
+            if let Some(a) = anchor.filter(|_| file.extension().is_some_and(|e| e == "md")) {
+                let target_text = std::fs::read_to_string(&file).unwrap_or_default();
+                if !anchors(&target_text).iter().any(|h| h == a) {
+                    bad.push(format!("{name}:{line}: {target} (no heading with that anchor)"));
+                }
+            }
+        }
+    }
+    assert!(checked > 20, "only {checked} links found: the scanner is broken");
+    assert!(bad.is_empty(), "{} broken links:\n{}", bad.len(), bad.join("\n"));
+}
+
+#[test]
+fn the_link_scanner_finds_links_and_anchors_as_mdbook_makes_them() {
+    let page = "# A `Title`: here\n\nSee [x](a.md#b-c), ![p](../p.png) and `[not](code)`.\n```\n[no](fence)\n```\n[ref]: guide/x.md\n## A Title: here\n";
+    let found: Vec<String> = links(page).into_iter().map(|(_, t)| t).collect();
+    assert_eq!(found, ["a.md#b-c", "../p.png", "guide/x.md"]);
+    assert_eq!(anchors(page), ["a-title-here", "a-title-here-1"]);
+}
+
+#[test]
+fn the_book_lists_every_page_it_holds() {
+    let summary = std::fs::read_to_string(root().join("docs/SUMMARY.md")).unwrap();
+    let listed: Vec<String> = links(&summary).into_iter().map(|(_, t)| t).collect();
+    let unlisted: Vec<String> = pages()
+        .iter()
+        .filter_map(|p| p.strip_prefix(root().join("docs")).ok())
+        .map(|p| p.display().to_string())
+        .filter(|p| p != "SUMMARY.md" && !listed.contains(p))
+        .collect();
+    assert!(unlisted.is_empty(), "pages in docs/ that docs/SUMMARY.md does not list (mdBook would not render them): {unlisted:?}");
 }

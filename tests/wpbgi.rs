@@ -159,7 +159,7 @@ fn on_the_glossy_cornell_bunny_the_lobes_bring_the_image_closer_than_classic_pbg
 fn on_the_glossy_cornell_bunny_the_adaptive_buffer_lowers_the_error_over_the_same_traversal() {
     // The coarse cut opens the tree as the 8² buffer does, so the same nodes are rasterised
     // per receiver; the finer pixels around the BRDF's lobe (the s = 180 bunny's) and the
-    // bright nodes bring the image closer (at 256²: 8.73e-4 against 9.69e-4, README).
+    // bright nodes bring the image closer (at 256²: 8.73e-4 against 9.69e-4, docs/pipelines/pbgi.md).
     let sets = [("scene.width", "64"), ("scene.height", "64"), ("points.count", "8000"), ("reference.spp", "1024")];
     let e = engine();
     let measure = |max_level: &str| {

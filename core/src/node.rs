@@ -2,7 +2,7 @@
 //!
 //! A node is one struct that derives `Params` (its fields are its parameters, its doc comment
 //! the editor tooltip), its ports declared with `inputs!` / `outputs!`, and `#[node]` on the
-//! `impl` holding `run`. See the README's "Writing a node".
+//! `impl` holding `run`. See docs/guide/writing-a-node.md.
 
 use crate::ctx::RunCtx;
 use crate::error::NodeError;

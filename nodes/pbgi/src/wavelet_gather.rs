@@ -20,7 +20,7 @@ params! {
     /// a node's radiance over 2^(splits by light) exceeds `gamma`; the nodes a split pixel held
     /// are visited again. With `coarse_cut` the nodes are chosen against the base pixels' size:
     /// the finer pixels sharpen the BRDF's and the light's detail without opening more of the
-    /// tree (the thesis opens nodes to each pixel's own size). Measured (README): on
+    /// tree (the thesis opens nodes to each pixel's own size). Measured (docs/pipelines/pbgi.md): on
     /// `cornell-bunny` the coarse cut is 1.15–1.44× faster than the uniform buffer at equal
     /// error; on `ring`, where little of the error is the microbuffer's, 0.9×.
     /// Receivers on smooth dielectrics (a `GBuffer` with `dielectrics`)
