@@ -51,6 +51,8 @@ pub struct EditorApp {
     done_states: Option<(u64, HashMap<String, NodeState>)>,
     /// Re-run automatically after edits.
     pub auto_run: bool,
+    /// The viewer-only layout (`Panels::viewer_only`).
+    pub viewer_only: bool,
     /// When to start the next automatic run.
     pending_run: Option<Instant>,
     /// Whether that run starts at once (it fits the frame budget, or is tried: see
@@ -135,6 +137,7 @@ impl EditorApp {
             planned: None,
             done_states: None,
             auto_run: true,
+            viewer_only: false,
             pending_run: None,
             pending_live: false,
             pending_probe: None,
@@ -748,6 +751,7 @@ impl EditorApp {
             palette: &mut self.palette,
             dialog: &mut self.dialog,
             auto_run: &mut self.auto_run,
+            viewer_only: &mut self.viewer_only,
             running: self.runner.is_running(),
             status: &self.status,
             edit_to_image_ms: self.edit_to_image_ms,
@@ -819,6 +823,9 @@ impl EditorApp {
         }
         if ctx.input_mut(|i| i.consume_key(Modifiers::NONE, Key::F5)) {
             self.run();
+        }
+        if ctx.input_mut(|i| i.consume_key(Modifiers::NONE, Key::F11)) {
+            self.viewer_only = !self.viewer_only;
         }
         let typing = ctx.wants_keyboard_input();
         if !typing && ctx.input_mut(|i| i.consume_key(Modifiers::NONE, Key::Delete)) {

@@ -29,7 +29,9 @@ const USAGE: &str = "usage: relume-editor [GRAPH.ron] [--run] [--select NODE] [-
   --record OUT.csv   write every frame's time and each new image's latency to OUT.csv (with
                      --drive: during the drive; alone: from start to close)
   --cache DIR        disk cache folder, shared with `relume run` (default: $RELUME_CACHE or .relume-cache)
-  --no-disk-cache    keep results in memory only";
+  --no-disk-cache    keep results in memory only
+  --viewer-only      open in the viewer-only layout (F11 toggles it): the viewer in the centre,
+                     the parameters beside it, no palette or node graph";
 
 struct Args {
     graph: Option<PathBuf>,
@@ -44,6 +46,7 @@ struct Args {
     sets: Vec<String>,
     strip: Option<PathBuf>,
     record: Option<PathBuf>,
+    viewer_only: bool,
 }
 
 fn parse_args() -> Result<Args, String> {
@@ -60,6 +63,7 @@ fn parse_args() -> Result<Args, String> {
         sets: Vec::new(),
         strip: None,
         record: None,
+        viewer_only: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
@@ -78,6 +82,7 @@ fn parse_args() -> Result<Args, String> {
                 a.drive_seconds = value("--drive-seconds")?.parse().map_err(|_| "--drive-seconds needs a number of seconds")?
             }
             "--record" => a.record = Some(value("--record")?.into()),
+            "--viewer-only" => a.viewer_only = true,
             "-h" | "--help" => return Err(String::new()),
             s if s.starts_with('-') => return Err(format!("unknown option {s}")),
             s => a.graph = Some(s.into()),
@@ -124,6 +129,7 @@ fn main() {
         app.view.rebuild(&app.doc.graph, app.doc.revision);
         app.view.select(id);
     }
+    app.viewer_only = args.viewer_only;
     let exit = Arc::new(AtomicI32::new(0));
     if let Some(out) = &args.screenshot {
         app.screenshot = Some(ScreenshotJob::new(out.clone(), Duration::from_secs(args.timeout), exit.clone()));

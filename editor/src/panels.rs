@@ -75,6 +75,10 @@ pub struct Panels<'a> {
     pub palette: &'a mut Palette,
     pub dialog: &'a mut Option<FileDialog>,
     pub auto_run: &'a mut bool,
+    /// The viewer-only layout: the viewer fills the centre, the parameters stay on the right,
+    /// the palette and the node graph are hidden (F11). For drags at the pipeline's rate:
+    /// under software OpenGL the node graph is about half of a frame.
+    pub viewer_only: &'a mut bool,
     pub running: bool,
     pub status: &'a str,
     pub edit_to_image_ms: Option<f64>,
@@ -108,6 +112,16 @@ pub fn draw(mut p: Panels, ctx: &egui::Context) -> Vec<Action> {
     let mut out = Vec::new();
     menu_bar(&mut p, ctx, &mut out);
     status_bar(&p, ctx);
+    if *p.viewer_only {
+        egui::SidePanel::right("parameters").frame(unfilled(ctx)).resizable(true).default_width(440.0).max_width(640.0).show(ctx, |ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| properties(&p, ui, &mut out));
+        });
+        egui::CentralPanel::default().frame(unfilled(ctx)).show(ctx, |ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| viewer(&mut p, ui, &mut out));
+        });
+        dialogs(&mut p, ctx, &mut out);
+        return out;
+    }
     egui::SidePanel::left("palette").frame(unfilled(ctx)).default_width(170.0).show(ctx, |ui| {
         ui.heading("Nodes");
         if let Some(kind) = p.palette.show(ui, p.registry) {
@@ -172,6 +186,15 @@ fn menu_bar(p: &mut Panels, ctx: &egui::Context, out: &mut Vec<Action>) {
                 }
                 if ui.button("Delete selected  (Del)").clicked() {
                     out.push(Action::DeleteSelected);
+                    ui.close_menu();
+                }
+            });
+            ui.menu_button("View", |ui| {
+                if ui
+                    .checkbox(p.viewer_only, "Viewer only  (F11)")
+                    .on_hover_text("the viewer in the centre, the parameters beside it; the palette and the node graph hidden")
+                    .changed()
+                {
                     ui.close_menu();
                 }
             });

@@ -223,3 +223,27 @@ fn a_pick_selects_the_material_node_and_a_paint_stroke_is_saved_and_read_back_by
     again.save();
     assert_eq!(std::fs::read(&path).unwrap(), saved);
 }
+
+#[test]
+fn the_viewer_only_layout_shows_the_image_in_the_centre_and_its_manipulators_still_edit() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut app = refract_glass_small(dir.path());
+    let ctx = egui::Context::default();
+    first_run(&ctx, &mut app);
+    frame(&ctx, &mut app);
+    let beside = app.viewer.image_rect.expect("the viewer shows the image");
+    let f11 =
+        |pressed| egui::Event::Key { key: egui::Key::F11, physical_key: None, pressed, repeat: false, modifiers: egui::Modifiers::NONE };
+    frame_with(&ctx, &mut app, vec![f11(true), f11(false)], egui::Modifiers::NONE);
+    frame(&ctx, &mut app);
+    assert!(app.viewer_only, "F11 switches to the viewer-only layout");
+    let centred = app.viewer.image_rect.expect("the viewer still shows the image");
+    assert!(centred.min.x < beside.min.x - 100.0, "the image moved from the right panel ({beside:?}) to the centre ({centred:?})");
+    app.tool = Some(Tool::Orbit);
+    drag_on_image(&ctx, &mut app, (0.5, 0.5), (0.75, 0.5), 8, false);
+    assert!((float(&app, "camera", "azimuth") + 45.0).abs() < 0.5, "{}", float(&app, "camera", "azimuth"));
+    frame_with(&ctx, &mut app, vec![f11(true), f11(false)], egui::Modifiers::NONE);
+    frame(&ctx, &mut app);
+    assert!(!app.viewer_only, "F11 again brings the node graph back");
+    assert!(app.viewer.image_rect.expect("shown").min.x > centred.min.x + 100.0);
+}
