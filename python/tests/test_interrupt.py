@@ -20,7 +20,10 @@ SLOW = """Graph(
 """
 
 SCRIPT = """
-import sys, relume
+import signal, sys, relume
+# Ctrl-C as in a terminal: a process started from a background job inherits SIGINT ignored,
+# and Python then installs no handler for it.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 g = relume.Graph.load(sys.argv[1], cache=sys.argv[2])
 started = False
 def progress(node, fraction):
