@@ -209,14 +209,14 @@ impl Ports {
     }
 }
 
-/// A node's inputs as one typed struct borrowing the values (declared with [`inputs!`]).
+/// A node's inputs as one typed struct borrowing the values (declared with [`inputs!`](crate::inputs!)).
 pub trait InputPorts<'a>: Sized {
     fn decls() -> Vec<PortDecl>;
     /// `values` in declaration order.
     fn from_values(values: &'a [Value]) -> Result<Self, NodeError>;
 }
 
-/// A node's outputs as one typed struct (declared with [`outputs!`]).
+/// A node's outputs as one typed struct (declared with [`outputs!`](crate::outputs!)).
 pub trait OutputPorts: Sized {
     fn decls() -> Vec<PortDecl>;
     /// The values in declaration order.

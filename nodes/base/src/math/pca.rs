@@ -338,7 +338,7 @@ fn jacobi_eigen(g: &Mat<f64>) -> (Vec<f64>, Mat<f64>) {
 /// eigenvalues, decreasing: `(eigenvalues, vectors)`, the vectors as rows of length n,
 /// row-major. No more than the numerical rank are returned (eigenvalues > 0 and ≥
 /// [`RANK_TOLERANCE`] × the largest: a zero matrix gives none), and each vector's entry of
-/// largest magnitude (the first on ties) is positive. Sequential, as [`symmetric_eigen`].
+/// largest magnitude (the first on ties) is positive. Sequential, as `symmetric_eigen`.
 pub fn leading_eigenvectors(g: &Mat<f64>, r: usize) -> Result<(Vec<f64>, Vec<f64>), NodeError> {
     let n = g.nrows();
     let (ascending, u) = symmetric_eigen(g)?;
