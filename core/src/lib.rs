@@ -4,6 +4,19 @@
 //! the RON graph format ([`Graph`]), a demand-driven planner ([`make_plan`]), a concurrent
 //! executor with an incremental cache ([`Engine`]) and the run report ([`RunReport`]).
 //! No rendering code lives here.
+//!
+//! A graph is text; the registry says which node kinds exist, and a graph naming one it does
+//! not know is refused before anything runs, with the kind's name (the node crates register
+//! kinds; docs/guide/writing-a-node.md writes one):
+//!
+//! ```
+//! use relume_core::{Graph, Registry};
+//!
+//! let g = Graph::parse(r#"(version: 1, nodes: { "a": (kind: "Nothing") }, outputs: { "x": "a.out" })"#, None).unwrap();
+//! assert_eq!(g.nodes.len(), 1);
+//! let refused = g.validate(&Registry::new()).unwrap_err();
+//! assert!(refused.to_string().contains("Nothing"), "{refused}");
+//! ```
 
 mod budget;
 pub mod cache;

@@ -2,6 +2,17 @@
 //! widget (egui_node_graph2) is a view of it; runs go through the core `Engine` in the
 //! background. `EditorApp::ui` draws a frame on any egui context, so everything but the
 //! window itself is tested headlessly.
+//!
+//! Headless, as its tests drive it: open a graph, run it, wait, and read what the viewer
+//! would show.
+//!
+//! ```
+//! let mut app = relume_editor::EditorApp::new(relume_editor::registry(), relume_core::Engine::new(relume_editor::registry()));
+//! app.open(std::path::Path::new("../graphs/filters.ron")).unwrap();
+//! app.run();
+//! app.wait_for_run();
+//! assert!(app.last_output_image("image").is_some());
+//! ```
 
 pub mod app;
 pub mod document;

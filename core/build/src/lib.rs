@@ -3,6 +3,18 @@
 //! `$OUT_DIR/register.rs`, a `pub fn register(reg)` that adds each of those kinds. The crate
 //! includes it (`include!(concat!(env!("OUT_DIR"), "/register.rs"));`), so adding a node takes
 //! its own file and the one `pub mod` line that declares it: nothing lists it a second time.
+//!
+//! What it reads of a node file, and the module path it registers the node under:
+//!
+//! ```
+//! use relume_build::{module_path, node_type};
+//! use std::path::Path;
+//!
+//! let file = "params! { pub struct Blur { pub sigma: f32 = 1.0; } }\n#[node(category = \"image\")]\nimpl Blur {}\n";
+//! assert_eq!(node_type(file).as_deref(), Some("Blur"));
+//! assert_eq!(node_type("fn main() {}"), None);
+//! assert_eq!(module_path(Path::new("src"), Path::new("src/image/blur.rs")), "image::blur");
+//! ```
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

@@ -3,6 +3,30 @@
 //! library (camera, lights, surface interaction, the integrator core), and the nodes every
 //! pipeline uses: scene loading and edits, geometry, images and their error figures, the BRDF
 //! space and basis, and the reference renderers.
+//!
+//! A graph of two of its nodes, run twice through one engine: the second run takes everything
+//! from the memory cache.
+//!
+//! ```
+//! use relume_base::types::Image;
+//! use relume_core::{Engine, Graph, RunOptions};
+//!
+//! let g = Graph::parse(
+//!     r#"(version: 1,
+//!         nodes: { "pattern": (kind: "TestPattern", params: (width: 32, height: 16)),
+//!                  "blur": (kind: "GaussianBlur", params: (sigma: 1.5)) },
+//!         edges: [("pattern.image", "blur.image")],
+//!         outputs: { "image": "blur.image" })"#,
+//!     None,
+//! )
+//! .unwrap();
+//! let engine = Engine::new(relume_base::registry());
+//! let run = engine.run(&g, &RunOptions::default()).unwrap();
+//! let image = run.output("image").unwrap().get::<Image>().unwrap();
+//! assert_eq!((image.width, image.height), (32, 16));
+//! assert_eq!(run.report.ran, 2);
+//! assert_eq!(engine.run(&g, &RunOptions::default()).unwrap().report.ran, 0);
+//! ```
 
 pub mod brdf;
 pub mod brdf_space;

@@ -1,4 +1,16 @@
 //! The `relume` command line: run, plan, check, nodes, sweep, shard, slurm.
+//!
+//! [`registry`] holds every node kind; a graph file loads against it and runs through an
+//! engine as `relume run` runs it (without the files and the table):
+//!
+//! ```
+//! use relume_core::{Engine, Graph, RunOptions};
+//!
+//! let reg = relume_cli::registry();
+//! let g = Graph::load(std::path::Path::new("../../graphs/filters.ron"), &reg).unwrap();
+//! let run = Engine::new(reg).run(&g, &RunOptions::default()).unwrap();
+//! assert!(run.output("image").is_some());
+//! ```
 
 #[macro_use]
 mod terminal;

@@ -1,4 +1,14 @@
 //! Point-based global illumination (docs/PIPELINES.md pipeline 4; [P] chapters 2–3).
+//!
+//! The crate's nodes join a registry beside relume-base's, which they build on:
+//!
+//! ```
+//! let mut reg = relume_base::registry();
+//! relume_pbgi::register(&mut reg);
+//! for kind in ["PbgiGather", "FactorizedGather", "WaveletGather", "ViewTree"] {
+//!     assert!(reg.node(kind).is_some(), "{kind}");
+//! }
+//! ```
 
 pub mod adaptive_microbuffer;
 pub mod brdf_wavelets;

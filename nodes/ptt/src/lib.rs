@@ -4,6 +4,16 @@
 //! vertex's visibility times the BRDF tensor's incoming factor (T0), one bounce in 4-band SH
 //! (T1) and two bounces as a scalar (T2); shading with the Tucker-decomposed BRDF tensor plus
 //! the separated specular lobes; then rasterised.
+//!
+//! The crate's nodes join a registry beside relume-base's, which they build on:
+//!
+//! ```
+//! let mut reg = relume_base::registry();
+//! relume_ptt::register(&mut reg);
+//! for kind in ["TransferT0", "PttRelight"] {
+//!     assert!(reg.node(kind).is_some(), "{kind}");
+//! }
+//! ```
 
 pub mod bounce;
 pub mod brdf_factors;

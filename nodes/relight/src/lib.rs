@@ -4,6 +4,16 @@
 //! same-seed render that measures the basis error alone (`RelightReference`), material edits
 //! (`ApplyMaterials`, `PaintMaterial`) and the spatially varying extension (`SvTransferPrecompute`,
 //! `SvRelight`).
+//!
+//! The crate's nodes join a registry beside relume-base's, which they build on:
+//!
+//! ```
+//! let mut reg = relume_base::registry();
+//! relume_relight::register(&mut reg);
+//! for kind in ["TransferPrecompute", "Relight"] {
+//!     assert!(reg.node(kind).is_some(), "{kind}");
+//! }
+//! ```
 
 pub mod apply_materials;
 pub mod paint_material;

@@ -7,6 +7,16 @@
 //! `VolumeSource`, `VolumePaint`, `Octree`, `EmitPhotons`, `MarchPhotons`, `EikonalPaths`,
 //! `EikonalRender`,
 //! and `VolumeSlice` to look inside a volume.
+//!
+//! The crate's nodes join a registry beside relume-base's, which they build on:
+//!
+//! ```
+//! let mut reg = relume_base::registry();
+//! relume_volume::register(&mut reg);
+//! for kind in ["Voxelize", "MarchPhotons", "EikonalPaths", "EikonalRender"] {
+//!     assert!(reg.node(kind).is_some(), "{kind}");
+//! }
+//! ```
 
 pub mod blur;
 pub mod eikonal_paths;
