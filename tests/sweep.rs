@@ -1,6 +1,6 @@
 //! `relume sweep`, in process: the CSV's rows and columns, the PNG plot, a generic integer
 //! baseline, cache reuse between variants (a repeated variant costs 0 ms) and exit code 2
-//! for input a person can correct.
+//! for input a person can correct; `relume results` drawing a sweep again from its CSV.
 
 use relume_base::image::io::read_image;
 use relume_cli::main_from;
@@ -75,6 +75,35 @@ fn sweeping_blur_sigma_writes_three_method_rows_with_different_errors_and_a_png_
     assert_eq!((img.width, img.height), (1024, 720));
     let first = img.pixels[0];
     assert!(img.pixels.iter().any(|p| *p != first), "the plot is not a single colour");
+}
+
+/// `relume results` draws a sweep from its CSV and its command alone: the plot the sweep drew,
+/// byte for byte, and a table with the baseline beside each method row.
+#[test]
+fn results_draw_a_sweep_again_byte_for_byte_from_its_csv_and_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("results");
+    std::fs::create_dir_all(&folder).unwrap();
+    let (csv, drawn) = (folder.join("sweep_blur.csv"), dir.path().join("drawn_by_the_sweep.png"));
+    let command = format!("relume sweep {} --vary blur.sigma=0.5,1.5 --baseline median.radius --baseline-max 4 --no-disk-cache", filters());
+    let mut args: Vec<&str> = command.split(' ').skip(1).collect();
+    args.extend(["--csv", csv.to_str().unwrap(), "--plot", drawn.to_str().unwrap(), "-q"]);
+    assert_eq!(relume(&args), 0);
+    let (header, rows) = read_csv(&csv);
+    for name in ["date", "machine", "threads", "commit"] {
+        let c = col(&header, name);
+        assert!(rows.iter().all(|r| !r[c].is_empty()), "every row says its {name}");
+    }
+    let manifest = format!("SweepResults(sweeps: [(name: \"blur\", caption: \"Blur\", command: \"{command}\")])");
+    std::fs::write(folder.join("sweeps.ron"), manifest).unwrap();
+    let folder_arg = folder.to_str().unwrap();
+    assert_eq!(relume(&["results", folder_arg, "--check"]), 1, "nothing drawn yet");
+    assert_eq!(relume(&["results", folder_arg]), 0);
+    assert_eq!(std::fs::read(folder.join("sweep_blur.png")).unwrap(), std::fs::read(&drawn).unwrap());
+    assert_eq!(relume(&["results", folder_arg, "--check"]), 0);
+    let md = std::fs::read_to_string(folder.join("sweep_blur.md")).unwrap();
+    assert!(md.contains("| blur.sigma=0.5 |") && md.contains("| median.radius=4 |"), "{md}");
+    assert!(md.contains("speed-up at equal error"), "{md}");
 }
 
 #[test]

@@ -1,4 +1,4 @@
-//! The `relume` command line: run, plan, check, nodes, sweep, shard, slurm.
+//! The `relume` command line: run, plan, check, nodes, sweep, results, shard, slurm.
 //!
 //! [`registry`] holds every node kind; a graph file loads against it and runs through an
 //! engine as `relume run` runs it (without the files and the table):
@@ -27,6 +27,8 @@ mod interrupt;
 mod outputs;
 mod plot;
 mod progress;
+mod provenance;
+mod results;
 mod run;
 mod shard;
 mod slurm;
@@ -74,6 +76,9 @@ enum Cmd {
     /// Run a graph once per combination of --vary values (one engine, cache shared) and write
     /// error against time as CSV and a log-log plot, optionally with a --baseline curve.
     Sweep(sweep::SweepArgs),
+    /// Draw the book's results pages from the committed sweeps: each sweep's plot and table
+    /// from its CSV and the command that measured it (`--check`: fail where they differ).
+    Results(results::ResultsArgs),
     /// Run one shard of a sharded node (PathTrace, DirectLight, …) into the disk cache: the
     /// shard given by --index/--shards or by Slurm's SLURM_ARRAY_TASK_ID/COUNT. A later
     /// `relume run` on the same cache gathers the shards.
@@ -113,6 +118,7 @@ where
         Cmd::Check(a) => run::check(&reg, &a),
         Cmd::Nodes { kind, markdown } => catalog::print(&reg, kind.as_deref(), markdown),
         Cmd::Sweep(a) => sweep::sweep(&reg, &a),
+        Cmd::Results(a) => results::results(&a),
         Cmd::Shard(a) => shard::shard(&reg, &a),
         Cmd::Slurm(a) => slurm::slurm(&reg, &a),
     };

@@ -43,6 +43,17 @@ fn register_font() -> Result<(), String> {
 /// show (x or y not finite or ≤ 0) are left out; each curve that lost points gets one line in
 /// the returned warnings (for stderr).
 pub(crate) fn plot_log_log(path: &Path, axes: &Axes, curves: &[Curve]) -> Result<Vec<String>, String> {
+    let (png, warnings) = log_log_png(axes, curves)?;
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    }
+    relume_core::graph::write_atomic(path, &png).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    Ok(warnings)
+}
+
+/// The PNG bytes of `plot_log_log`'s figure, and its warnings: the same curves give the same
+/// bytes from the same build (the font is embedded and the drawing is done in software).
+pub(crate) fn log_log_png(axes: &Axes, curves: &[Curve]) -> Result<(Vec<u8>, Vec<String>), String> {
     register_font()?;
     let mut warnings = Vec::new();
     let kept: Vec<Curve> = curves
@@ -77,11 +88,7 @@ pub(crate) fn plot_log_log(path: &Path, axes: &Axes, curves: &[Curve]) -> Result
     let mut png = Vec::new();
     image::ImageEncoder::write_image(image::codecs::png::PngEncoder::new(&mut png), &buf, w, h, image::ExtendedColorType::Rgb8)
         .map_err(|e| format!("encoding the plot: {e}"))?;
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-    }
-    relume_core::graph::write_atomic(path, &png).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-    Ok(warnings)
+    Ok((png, warnings))
 }
 
 fn plottable(v: f64) -> bool {

@@ -7,18 +7,23 @@
 //! from the same sweep.
 
 mod axes;
+pub(crate) mod csv_table;
+mod replay;
 mod rows;
 
 use crate::args::GraphArgs;
 use crate::error::CliError;
 use crate::files::{prepare_file, prepare_out_dir};
 use crate::interrupt::Watch;
-use crate::plot::{plot_log_log, Axes};
+use crate::plot::plot_log_log;
 use crate::progress::Bars;
 use crate::run::{refuse_files, run_error, CommandWrites};
+pub(crate) use axes::{Plotted, XAxis};
 use clap::Args;
+use csv_table::{csv_line, CsvTable};
 use relume_core::graph::{Output, PortRef};
 use relume_core::{make_plan, Graph, Observer, ParamKind, Registry, RunOptions, RunReport};
+pub(crate) use replay::replay;
 use rows::{Row, Series, TimeAxis, Vary};
 use std::collections::BTreeSet;
 use std::path::PathBuf;
@@ -108,10 +113,6 @@ struct Variant {
     series: Series,
     /// `node.param=value` of what was changed, space-separated.
     label: String,
-    /// The values changed (for the plot's point labels).
-    short: String,
-    /// The value of each --vary, as given (empty for the baseline).
-    values: Vec<String>,
     graph: Graph,
 }
 
@@ -121,7 +122,6 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
     let varies = a.varies.iter().map(|s| parse_vary(s)).collect::<Result<Vec<_>, _>>()?;
     let mut variants = method_variants(reg, &base, &varies)?;
     let mut columns: Vec<String> = varies.iter().flat_map(|v| v.targets.iter().cloned()).collect();
-    let vary_columns = columns.len();
     if let Some(b) = &a.baseline {
         variants.extend(baseline_variants(reg, &base, b, a.baseline_max)?);
         if !columns.contains(b) {
@@ -197,16 +197,7 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
         }
         let params = columns.iter().map(|c| param_text(reg, &v.graph, c)).collect();
         let time_ms = result.report.nodes.iter().filter(|n| n.status == "ran").fold(0.0, |t, n| t + n.wall_ms);
-        rows.push(Row {
-            series: v.series,
-            label: v.label,
-            short: v.short,
-            values: v.values,
-            params,
-            time_ms,
-            pipeline_ms: 0.0,
-            report: result.report,
-        });
+        rows.push(Row { series: v.series, label: v.label, params, time_ms, pipeline_ms: 0.0, report: result.report });
     }
     let error_node = error_node.expect("a sweep runs at least one variant");
     if watch.interrupted() {
@@ -228,19 +219,23 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
     relume_core::graph::write_atomic(&csv_path, csv.as_bytes())
         .map_err(|e| CliError::run(format!("cannot write {}: {e}", csv_path.display())))?;
 
-    let plotted = axes::Plotted { x: &x_axis, series, varies: &varies, columns: &columns[..vary_columns] };
-    let mut curves = plotted.method_curves(&rows, &error_node, &a.metric);
-    if let Some(b) = &a.baseline {
-        let of = if baseline_node != error_node { format!(", error of \"{baseline_node}\"") } else { String::new() };
-        curves.push(plotted.baseline_curve(&rows, &baseline_node, &a.metric, format!("baseline ({b} = 1, 2, 4, …{of})")));
-    }
     let title = a.g.graph.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_else(|| a.g.graph.display().to_string());
-    let axes = Axes { title, x_label: x_axis.label(), y_label: format!("{}{} of node \"{error_node}\"", a.metric, unit_of(&a.metric)) };
-    let warnings = plot_log_log(&plot_path, &axes, &curves).map_err(CliError::run)?;
+    let plotted = Plotted {
+        x: x_axis,
+        series,
+        varies,
+        error_node: error_node.clone(),
+        metric: a.metric.clone(),
+        baseline: a.baseline.clone().map(|b| (b, baseline_node)),
+        title,
+    };
+    // Drawn from the CSV as written, as `relume results` draws it.
+    let written = CsvTable::parse(&csv).map_err(|e| CliError::run(format!("the CSV just written does not read back: {e}")))?;
+    let warnings = plot_log_log(&plot_path, &plotted.axes(), &plotted.curves(&written)).map_err(CliError::run)?;
     for w in warnings {
         say_err!("warning: {w}");
     }
-    if x_axis == axes::XAxis::Time(TimeAxis::Ran) && rows.iter().any(|r| r.time_ms <= 0.0) && !a.quiet {
+    if plotted.x == XAxis::Time(TimeAxis::Ran) && rows.iter().any(|r| r.time_ms <= 0.0) && !a.quiet {
         say_err!(
             "note: variants whose nodes all came from the cache cost 0 ms; to time every variant from scratch use --no-disk-cache or a fresh --cache folder"
         );
@@ -309,17 +304,15 @@ fn method_variants(reg: &Registry, base: &Graph, varies: &[Vary]) -> Result<Vec<
     let mut idx = vec![0usize; varies.len()];
     loop {
         let mut graph = base.clone();
-        let (mut label, mut short) = (Vec::new(), Vec::new());
+        let mut label = Vec::new();
         for (v, &i) in varies.iter().zip(&idx) {
             let value = &v.values[i];
             for t in &v.targets {
                 graph.set_param_text(reg, t, value).map_err(|e| CliError::graph(format!("--vary {t}={value}: {e}")))?;
                 label.push(format!("{t}={value}"));
             }
-            short.push(value.clone());
         }
-        let values = short.clone();
-        out.push(Variant { series: Series::Method, label: label.join(" "), short: short.join(", "), values, graph });
+        out.push(Variant { series: Series::Method, label: label.join(" "), graph });
         // Odometer: the last list turns fastest.
         let mut k = varies.len();
         loop {
@@ -359,7 +352,7 @@ fn baseline_variants(reg: &Registry, base: &Graph, target: &str, max: i64) -> Re
         graph
             .set_param_text(reg, target, &n.to_string())
             .map_err(|e| CliError::graph(format!("{flag} at {n}: {e} (lower --baseline-max)")))?;
-        out.push(Variant { series: Series::Baseline, label: format!("{target}={n}"), short: n.to_string(), values: Vec::new(), graph });
+        out.push(Variant { series: Series::Baseline, label: format!("{target}={n}"), graph });
         n = match n.checked_mul(2) {
             Some(m) => m,
             None => break,
@@ -467,19 +460,7 @@ fn in_graph_order<'r>(graph: &Graph, report: &'r RunReport) -> Vec<&'r relume_co
 }
 
 /// A unit suffix for the axis label, from the metric's name.
-fn unit_of(metric: &str) -> &'static str {
-    if metric.ends_with("_db") {
-        " (dB)"
-    } else if metric.ends_with("_percent") {
-        " (%)"
-    } else if metric.starts_with("rel_") {
-        " (relative, no unit)"
-    } else {
-        ""
-    }
-}
-
-/// `series,variant,<params>,time_ms,total_ms,<node.metric>…,ms:<node>…`.
+/// `series,variant,<params>,time_ms,pipeline_ms,total_ms,<node.metric>…,ms:<node>…,date,machine,threads,commit`.
 fn write_csv(graph: &Graph, columns: &[String], rows: &[Row]) -> String {
     // Metric and node columns: every one any row has, in graph order (metrics by name).
     let mut metrics: Vec<(String, String)> = Vec::new();
@@ -503,6 +484,8 @@ fn write_csv(graph: &Graph, columns: &[String], rows: &[Row]) -> String {
     header.extend(["time_ms".to_string(), "pipeline_ms".to_string(), "total_ms".to_string()]);
     header.extend(metrics.iter().map(|(n, m)| format!("{n}.{m}")));
     header.extend(nodes.iter().map(|n| format!("ms:{n}")));
+    header.extend(crate::provenance::COLUMNS.map(String::from));
+    let provenance = crate::provenance::cells();
     let mut out = csv_line(&header);
     for r in rows {
         let mut cells: Vec<String> = vec![r.series.as_str().into(), r.label.clone()];
@@ -519,17 +502,10 @@ fn write_csv(graph: &Graph, columns: &[String], rows: &[Row]) -> String {
                 r.report.node(n).map(|n| if n.status == "ran" { format!("{:.4}", n.wall_ms) } else { "0".to_string() }).unwrap_or_default(),
             );
         }
+        cells.extend(provenance.iter().cloned());
         out.push_str(&csv_line(&cells));
     }
     out
-}
-
-fn csv_line(cells: &[String]) -> String {
-    let quoted: Vec<String> = cells
-        .iter()
-        .map(|c| if c.contains([',', '"', '\n', '\r']) { format!("\"{}\"", c.replace('"', "\"\"")) } else { c.clone() })
-        .collect();
-    quoted.join(",") + "\n"
 }
 
 /// The rows as a terminal table.
@@ -609,10 +585,5 @@ mod tests {
         assert!(check_metric(&reg, &g, "ssim", None, None).is_ok());
         let e = check_metric(&reg, &g, "ssim", Some("a"), None).err().unwrap().msg;
         assert!(e.contains("reports no metric"), "{e}");
-    }
-
-    #[test]
-    fn csv_cells_with_commas_or_quotes_are_quoted() {
-        assert_eq!(csv_line(&["a".into(), "(1, 2)".into(), "x\"y".into()]), "a,\"(1, 2)\",\"x\"\"y\"\n");
     }
 }

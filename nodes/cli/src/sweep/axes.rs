@@ -1,18 +1,20 @@
 //! What a sweep's plot draws: the x axis (time, a varied parameter or a metric, `--x`) and the
-//! curves (one for the method's rows, or one per value of a varied parameter, `--series`).
+//! curves (one for the method's rows, or one per value of a varied parameter, `--series`), read
+//! from the sweep's CSV so that `relume sweep` and `relume results` draw the same figure.
 
-use super::rows::{Row, Series, TimeAxis, Vary};
+use super::csv_table::CsvTable;
+use super::rows::{TimeAxis, Vary};
 use crate::error::CliError;
-use crate::plot::Curve;
+use crate::plot::{Axes, Curve};
 use plotters::style::RGBColor;
 use relume_core::{Graph, Registry};
 
 /// The plot's x axis.
-#[derive(PartialEq)]
-pub(super) enum XAxis {
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) enum XAxis {
     Time(TimeAxis),
-    /// A parameter column (its index among the CSV's parameter columns).
-    Param(usize, String),
+    /// A varied parameter's column.
+    Param(String),
     /// `node.metric`.
     Metric(String, String),
 }
@@ -21,49 +23,60 @@ impl XAxis {
     /// `--x COLUMN` checked against the parameter columns and the metrics the graph's nodes
     /// report, before anything runs; without it, the `--time` axis.
     pub(super) fn parse(x: Option<&str>, time: TimeAxis, columns: &[String], graph: &Graph, reg: &Registry) -> Result<XAxis, CliError> {
-        let Some(x) = x else { return Ok(XAxis::Time(time)) };
-        match x {
-            "time_ms" => return Ok(XAxis::Time(TimeAxis::Ran)),
-            "pipeline_ms" => return Ok(XAxis::Time(TimeAxis::Pipeline)),
-            _ => {}
-        }
-        if let Some(i) = columns.iter().position(|c| c == x) {
-            return Ok(XAxis::Param(i, x.to_string()));
-        }
+        let axis = XAxis::of_column(x, time, columns);
+        let XAxis::Metric(id, metric) = &axis else { return Ok(axis) };
+        let x = x.unwrap_or_default();
         let refuse = |why: String| {
             CliError::graph(format!(
                 "--x {x}: {why}; give a varied parameter ({}), a metric as node.metric, time_ms or pipeline_ms",
                 if columns.is_empty() { "none".to_string() } else { columns.join(", ") }
             ))
         };
-        let (id, metric) = x.split_once('.').ok_or_else(|| refuse("not a column".into()))?;
+        if id.is_empty() {
+            return Err(refuse("not a column".into()));
+        }
         let node = graph.node(id).ok_or_else(|| refuse(format!("no node \"{id}\" in the graph")))?;
         let have = reg.node(&node.kind).map_or(&[][..], |k| k.metrics());
-        if !have.contains(&metric) {
+        if !have.contains(&metric.as_str()) {
             return Err(refuse(if have.is_empty() {
                 format!("node \"{id}\" ({}) reports no metric and `{metric}` is not a varied parameter", node.kind)
             } else {
                 format!("node \"{id}\" ({}) reports no `{metric}` (it reports: {})", node.kind, have.join(", "))
             }));
         }
-        Ok(XAxis::Metric(id.to_string(), metric.to_string()))
+        Ok(axis)
     }
 
-    /// The row's x value (NaN where there is none; the plot leaves such points out).
-    fn of(&self, r: &Row) -> f64 {
-        match self {
-            XAxis::Time(TimeAxis::Ran) => r.time_ms,
-            XAxis::Time(TimeAxis::Pipeline) => r.pipeline_ms,
-            XAxis::Param(i, _) => r.params[*i].parse().unwrap_or(f64::NAN),
-            XAxis::Metric(node, m) => r.report.node(node).and_then(|n| n.metrics.get(m)).copied().unwrap_or(f64::NAN),
+    /// `--x COLUMN` as a column of the CSV, unchecked (a name without a dot is a metric of no
+    /// node, which `parse` refuses).
+    pub(crate) fn of_column(x: Option<&str>, time: TimeAxis, columns: &[String]) -> XAxis {
+        match x {
+            None => XAxis::Time(time),
+            Some("time_ms") => XAxis::Time(TimeAxis::Ran),
+            Some("pipeline_ms") => XAxis::Time(TimeAxis::Pipeline),
+            Some(x) if columns.iter().any(|c| c == x) => XAxis::Param(x.to_string()),
+            Some(x) => {
+                let (id, metric) = x.split_once('.').unwrap_or(("", x));
+                XAxis::Metric(id.to_string(), metric.to_string())
+            }
         }
     }
 
-    pub(super) fn label(&self) -> String {
+    /// The CSV column the axis reads.
+    pub(crate) fn column(&self) -> String {
+        match self {
+            XAxis::Time(TimeAxis::Ran) => "time_ms".into(),
+            XAxis::Time(TimeAxis::Pipeline) => "pipeline_ms".into(),
+            XAxis::Param(name) => name.clone(),
+            XAxis::Metric(node, m) => format!("{node}.{m}"),
+        }
+    }
+
+    pub(crate) fn label(&self) -> String {
         match self {
             XAxis::Time(TimeAxis::Ran) => "time (ms): wall time of the nodes that ran, cached nodes cost 0".into(),
             XAxis::Time(TimeAxis::Pipeline) => "time (ms): compute time of the pipeline that made the image (reference excluded)".into(),
-            XAxis::Param(_, name) => name.clone(),
+            XAxis::Param(name) => name.clone(),
             XAxis::Metric(node, m) => format!("{m} of node \"{node}\""),
         }
     }
@@ -93,73 +106,111 @@ const PALETTE: [RGBColor; 8] = [
 ];
 const BASELINE: RGBColor = RGBColor(214, 39, 40);
 
-/// How the rows become curves.
-pub(super) struct Plotted<'a> {
-    pub x: &'a XAxis,
+/// A sweep's figure: which columns of its CSV are drawn, and how its rows become curves.
+pub(crate) struct Plotted {
+    pub x: XAxis,
     /// Index of the --vary that `--series` splits by.
     pub series: Option<usize>,
-    pub varies: &'a [Vary],
-    /// The varied parameters' columns.
-    pub columns: &'a [String],
+    pub varies: Vec<Vary>,
+    /// The node whose metric is the y axis, for the method's rows.
+    pub error_node: String,
+    pub metric: String,
+    /// The baseline's parameter and its error node.
+    pub baseline: Option<(String, String)>,
+    pub title: String,
 }
 
-impl Plotted<'_> {
+impl Plotted {
+    /// The rows of `series` ("method" or "baseline").
+    pub(crate) fn rows<'t>(&self, t: &'t CsvTable, series: &'t str) -> impl Iterator<Item = usize> + 't {
+        (0..t.rows.len()).filter(move |&r| t.text(r, "series") == series)
+    }
+
+    /// The y column of a row of `series`.
+    pub(crate) fn y_column(&self, series: &str) -> String {
+        match (&self.baseline, series) {
+            (Some((_, node)), "baseline") => format!("{node}.{}", self.metric),
+            _ => format!("{}.{}", self.error_node, self.metric),
+        }
+    }
+
     /// A method point's label: the values of the --vary lists that neither the x axis nor the
     /// series already shows.
-    fn point_label(&self, r: &Row) -> String {
-        let x_vary = match self.x {
-            XAxis::Param(i, _) => self.varies.iter().position(|v| v.targets.contains(&self.columns[*i])),
+    fn point_label(&self, t: &CsvTable, r: usize) -> String {
+        let x_vary = match &self.x {
+            XAxis::Param(name) => self.varies.iter().position(|v| v.targets.contains(name)),
             _ => None,
         };
         let shown = |k: usize| Some(k) == x_vary || Some(k) == self.series;
-        r.values.iter().enumerate().filter(|(k, _)| !shown(*k)).map(|(_, v)| v.as_str()).collect::<Vec<_>>().join(", ")
+        let values = self.varies.iter().enumerate().filter(|(k, _)| !shown(*k)).map(|(_, v)| t.text(r, &v.targets[0]));
+        values.collect::<Vec<_>>().join(", ")
     }
 
-    fn points<'r>(
+    fn points(
         &self,
-        rows: impl Iterator<Item = &'r Row>,
-        node: &str,
-        metric: &str,
-        label: impl Fn(&Row) -> String,
+        t: &CsvTable,
+        rows: impl Iterator<Item = usize>,
+        series: &str,
+        label: impl Fn(usize) -> String,
     ) -> Vec<(f64, f64, String)> {
-        rows.map(|r| {
-            let y = r.report.node(node).and_then(|n| n.metrics.get(metric)).copied().unwrap_or(f64::NAN);
-            (self.x.of(r), y, label(r))
-        })
-        .collect()
+        let (x, y) = (self.x.column(), self.y_column(series));
+        rows.map(|r| (t.number(r, &x), t.number(r, &y), label(r))).collect()
     }
 
     /// The method's rows as one curve, or one per value of the `--series` vary (in the order
-    /// of its list), each in the order the rows ran.
-    pub(super) fn method_curves(&self, rows: &[Row], node: &str, metric: &str) -> Vec<Curve> {
-        let method = || rows.iter().filter(|r| r.series == Series::Method);
-        if self.varies.is_empty() {
-            return Vec::new();
-        }
-        let Some(k) = self.series else {
-            let name = format!("method ({})", self.columns.join(", "));
-            return vec![Curve { name, color: PALETTE[0], points: self.points(method(), node, metric, |r| self.point_label(r)) }];
-        };
-        let vary = &self.varies[k];
-        let mut values: Vec<&String> = Vec::new();
-        for v in &vary.values {
-            if !values.contains(&v) {
-                values.push(v);
+    /// its values first appear), each in the order the rows ran; then the baseline's.
+    pub(crate) fn curves(&self, t: &CsvTable) -> Vec<Curve> {
+        let mut curves = Vec::new();
+        let method = || self.rows(t, "method");
+        if let Some(k) = self.series {
+            let vary = &self.varies[k];
+            let column = &vary.targets[0];
+            let mut values: Vec<String> = Vec::new();
+            for r in method() {
+                let v = t.text(r, column);
+                if !values.iter().any(|x| x == v) {
+                    values.push(v.to_string());
+                }
             }
+            for (c, value) in values.iter().enumerate() {
+                let rows = method().filter(|&r| t.text(r, column) == value);
+                curves.push(Curve {
+                    name: format!("{} = {value}", vary.targets.join(" = ")),
+                    color: PALETTE[c % PALETTE.len()],
+                    points: self.points(t, rows, "method", |r| self.point_label(t, r)),
+                });
+            }
+        } else if !self.varies.is_empty() {
+            let columns: Vec<&str> = self.varies.iter().flat_map(|v| v.targets.iter().map(String::as_str)).collect();
+            let name = format!("method ({})", columns.join(", "));
+            curves.push(Curve { name, color: PALETTE[0], points: self.points(t, method(), "method", |r| self.point_label(t, r)) });
         }
-        values
-            .into_iter()
-            .enumerate()
-            .map(|(c, value)| Curve {
-                name: format!("{} = {value}", vary.targets.join(" = ")),
-                color: PALETTE[c % PALETTE.len()],
-                points: self.points(method().filter(|r| &r.values[k] == value), node, metric, |r| self.point_label(r)),
-            })
-            .collect()
+        if let Some((param, node)) = &self.baseline {
+            let of = if *node != self.error_node { format!(", error of \"{node}\"") } else { String::new() };
+            let points = self.points(t, self.rows(t, "baseline"), "baseline", |r| t.text(r, param).to_string());
+            curves.push(Curve { name: format!("baseline ({param} = 1, 2, 4, …{of})"), color: BASELINE, points });
+        }
+        curves
     }
 
-    pub(super) fn baseline_curve(&self, rows: &[Row], node: &str, metric: &str, name: String) -> Curve {
-        let points = self.points(rows.iter().filter(|r| r.series == Series::Baseline), node, metric, |r| r.short.clone());
-        Curve { name, color: BASELINE, points }
+    pub(crate) fn axes(&self) -> Axes {
+        Axes {
+            title: self.title.clone(),
+            x_label: self.x.label(),
+            y_label: format!("{}{} of node \"{}\"", self.metric, unit_of(&self.metric), self.error_node),
+        }
+    }
+}
+
+/// The unit a metric's name implies, for an axis label.
+fn unit_of(metric: &str) -> &'static str {
+    if metric.ends_with("_db") {
+        " (dB)"
+    } else if metric.ends_with("_percent") {
+        " (%)"
+    } else if metric.starts_with("rel_") {
+        " (relative, no unit)"
+    } else {
+        ""
     }
 }

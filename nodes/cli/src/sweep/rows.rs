@@ -4,7 +4,7 @@
 use relume_core::RunReport;
 
 /// What the plot's time axis measures.
-#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum TimeAxis {
     Pipeline,
     Ran,
@@ -30,9 +30,6 @@ impl Series {
 pub(crate) struct Row {
     pub(crate) series: Series,
     pub(crate) label: String,
-    pub(crate) short: String,
-    /// The value of each --vary, as given (empty for the baseline).
-    pub(crate) values: Vec<String>,
     /// Value of each parameter column, as canonical RON text.
     pub(crate) params: Vec<String>,
     pub(crate) time_ms: f64,
