@@ -106,6 +106,35 @@ fn links(text: &str) -> Vec<(usize, String)> {
     out
 }
 
+/// The files a page includes with mdBook's `{{#include path}}`, with their line numbers.
+fn includes(text: &str) -> Vec<(usize, String)> {
+    let mut out = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let mut rest = line;
+        while let Some(at) = rest.find("{{#include ") {
+            let tail = &rest[at + 11..];
+            let end = tail.find("}}").unwrap_or(tail.len());
+            // `path:anchor` or `path:from:to` name a part of the file.
+            out.push((i + 1, tail[..end].trim().split(':').next().unwrap_or("").to_string()));
+            rest = &tail[end..];
+        }
+    }
+    out
+}
+
+/// `p` with its `..` parts resolved, on the path alone.
+fn normalized(p: &Path) -> PathBuf {
+    let mut out = PathBuf::new();
+    for c in p.components() {
+        if c == std::path::Component::ParentDir {
+            out.pop();
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
 /// Every Markdown page of the README and the book (`docs/`).
 fn pages() -> Vec<PathBuf> {
     let mut all = vec![root().join("README.md")];
@@ -141,6 +170,16 @@ fn every_link_in_the_readme_and_the_book_resolves() {
             }
         }
     }
+    for page in pages() {
+        let text = std::fs::read_to_string(&page).unwrap();
+        let name = page.strip_prefix(root()).unwrap_or(&page).display().to_string();
+        for (line, target) in includes(&text) {
+            checked += 1;
+            if !page.parent().unwrap().join(&target).is_file() {
+                bad.push(format!("{name}:{line}: {{{{#include {target}}}}} (no such file)"));
+            }
+        }
+    }
     assert!(checked > 20, "only {checked} links found: the scanner is broken");
     assert!(bad.is_empty(), "{} broken links:\n{}", bad.len(), bad.join("\n"));
 }
@@ -150,13 +189,25 @@ fn the_link_scanner_finds_links_and_anchors_as_mdbook_makes_them() {
     let page = "# A `Title`: here\n\nSee [x](a.md#b-c), ![p](../p.png) and `[not](code)`.\n```\n[no](fence)\n```\n[ref]: guide/x.md\n## A Title: here\n";
     let found: Vec<String> = links(page).into_iter().map(|(_, t)| t).collect();
     assert_eq!(found, ["a.md#b-c", "../p.png", "guide/x.md"]);
+    let included = includes("text\n{{#include ../results/a.md}}\n{{#include b.rs:anchor}} {{#include c.md}}\n");
+    assert_eq!(included, [(2, "../results/a.md".to_string()), (3, "b.rs".to_string()), (3, "c.md".to_string())]);
     assert_eq!(anchors(page), ["a-title-here", "a-title-here-1"]);
 }
 
 #[test]
 fn the_book_lists_every_page_it_holds() {
     let summary = std::fs::read_to_string(root().join("docs/SUMMARY.md")).unwrap();
-    let listed: Vec<String> = links(&summary).into_iter().map(|(_, t)| t).collect();
+    let mut listed: Vec<String> = links(&summary).into_iter().map(|(_, t)| t).collect();
+    // A part another page includes is not a page of its own.
+    let docs = normalized(&root().join("docs"));
+    for page in pages() {
+        let text = std::fs::read_to_string(&page).unwrap();
+        for (_, target) in includes(&text) {
+            if let Ok(rel) = normalized(&page.parent().unwrap().join(target)).strip_prefix(&docs) {
+                listed.push(rel.display().to_string());
+            }
+        }
+    }
     let unlisted: Vec<String> = pages()
         .iter()
         .filter_map(|p| p.strip_prefix(root().join("docs")).ok())
