@@ -72,6 +72,50 @@ pub(crate) fn section(name: &str, command: &str, p: &Plotted, t: &CsvTable) -> R
     Ok(out)
 }
 
+/// A benchmark's section body: provenance, command, and a table of its cases (median, runs a
+/// second at the median, range, samples × iterations, and each median against the case `against` names, measured in the
+/// same run).
+pub(crate) fn bench_section(name: &str, command: &str, against: Option<&str>, t: &CsvTable) -> Result<String, String> {
+    let mut out = format!("{} ([csv](../results/bench_{name}.csv)):\n\n```text\n{command}\n```\n\n", provenance(t)?);
+    let rows = 0..t.rows.len();
+    let base = match against {
+        Some(case) => {
+            Some(rows.clone().find(|&r| t.text(r, "case") == case).map(|r| (case, t.number(r, "median_ms"))).ok_or_else(|| {
+                format!(
+                    "no case `{case}` to divide by (the cases: {})",
+                    rows.clone().map(|r| t.text(r, "case")).collect::<Vec<_>>().join(", ")
+                )
+            })?)
+        }
+        None => None,
+    };
+    let mut head = vec![
+        "case".to_string(),
+        "median".into(),
+        "per second (at the median)".into(),
+        "fastest – slowest".into(),
+        "samples × iterations".into(),
+    ];
+    if let Some((case, _)) = base {
+        head.push(format!("median against `{case}`"));
+    }
+    out += &header(&head);
+    for r in rows {
+        let mut cells = vec![
+            t.text(r, "case").to_string(),
+            ms(t.number(r, "median_ms")),
+            num(1000.0 / t.number(r, "median_ms")),
+            format!("{} – {}", ms(t.number(r, "fastest_ms")), ms(t.number(r, "slowest_ms"))),
+            format!("{} × {}", t.text(r, "samples"), t.text(r, "iters")),
+        ];
+        if let Some((_, m)) = base {
+            cells.push(format!("{:.2}×", t.number(r, "median_ms") / m));
+        }
+        out += &line(&cells);
+    }
+    Ok(out)
+}
+
 /// "Measured DATE on MACHINE, N threads", each part listing the distinct values.
 fn provenance(t: &CsvTable) -> Result<String, String> {
     let missing: Vec<&str> = crate::provenance::COLUMNS.into_iter().filter(|c| t.column(c).is_none()).collect();

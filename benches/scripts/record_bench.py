@@ -1,0 +1,98 @@
+#!/usr/bin/env python3
+"""Measures one divan benchmark and keeps its figures as data: runs
+`cargo bench -p relume-benches --bench BENCH -- FILTER...`, reads divan's table (every case's
+fastest, slowest, median and mean, its samples and iterations) and writes it, one row a case,
+with the date, machine, threads and commit of the measurement, to
+docs/results/bench_NAME.csv. `relume results` draws the book's tables from such files.
+
+usage: python3 benches/scripts/record_bench.py BENCH NAME [FILTER ...] [--from-output FILE]
+       (run from the repository's root; --from-output reads a saved divan output instead of
+       running cargo, for a measurement already made)
+"""
+import argparse
+import csv
+import os
+import platform
+import re
+import subprocess
+import sys
+import time
+
+UNITS = {"ns": 1e-6, "µs": 1e-3, "us": 1e-3, "ms": 1.0, "s": 1e3}
+TREE = "├╰─│ "
+
+
+def to_ms(cell):
+    m = re.fullmatch(r"\s*([0-9.]+)\s*(ns|µs|us|ms|s)\s*", cell)
+    return float(m.group(1)) * UNITS[m.group(2)] if m else None
+
+
+def parse(text):
+    """The cases of divan's table: (path, fastest, slowest, median, mean, samples, iters), the
+    path joining the tree's names with '/'. Lines the benchmarks print themselves are skipped."""
+    rows, stack = [], []
+    for line in text.splitlines():
+        if "│" not in line:
+            continue
+        # The tree's drawing, then the cells: the name (and a case's fastest time), slowest,
+        # median, mean, samples, iterations.
+        body = line.lstrip(TREE)
+        depth = (len(line) - len(body)) // 3
+        cells = body.split("│")
+        if len(cells) != 6:
+            continue
+        parts = cells[0].split()
+        if not parts or parts[0] == "fastest":
+            continue
+        # The first cell holds the name, then (for a case) the fastest time.
+        name = parts[0]
+        fastest = to_ms(" ".join(parts[1:])) if len(parts) > 1 else None
+        del stack[depth:]
+        stack.append(name)
+        if fastest is None:
+            continue
+        slowest, median, mean = (to_ms(c) for c in cells[1:4])
+        samples, iters = (int(c.strip()) for c in cells[4:6])
+        rows.append(("/".join(stack[1:]) if len(stack) > 1 else stack[0], fastest, slowest, median, mean, samples, iters))
+    return rows
+
+
+def commit():
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True).stdout.strip()
+        return head + ("-dirty" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("bench")
+    ap.add_argument("name")
+    ap.add_argument("filters", nargs="*")
+    ap.add_argument("--from-output")
+    a = ap.parse_args()
+    if a.from_output:
+        text = open(a.from_output, encoding="utf-8").read()
+    else:
+        cmd = ["cargo", "bench", "-p", "relume-benches", "--bench", a.bench, "--", *a.filters]
+        print("running", " ".join(cmd), file=sys.stderr)
+        text = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
+    rows = parse(text)
+    if not rows:
+        sys.exit("no benchmark case found in divan's output")
+    provenance = [time.strftime("%Y-%m-%d", time.gmtime()), f"{platform.machine()} {sys.platform} with {os.cpu_count()} cores",
+                  str(os.cpu_count()), commit()]
+    path = os.path.join("docs", "results", f"bench_{a.name}.csv")
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(["bench", "case", "fastest_ms", "slowest_ms", "median_ms", "mean_ms", "samples", "iters",
+                    "date", "machine", "threads", "commit"])
+        for r in rows:
+            w.writerow([a.bench, r[0], *(f"{v:.6g}" for v in r[1:5]), r[5], r[6], *provenance])
+    print(f"wrote {path}: {len(rows)} cases")
+
+
+if __name__ == "__main__":
+    main()
