@@ -61,6 +61,11 @@ struct Tracer<'a> {
     has_kappa: bool,
     eps: f32,
     obstacles: Option<(Vec3, Vec3)>,
+    /// Steps after which a walk ends where it is (a ray caught in the medium).
+    max_steps: usize,
+    /// The voxel's sides and the marching step (world units).
+    h: Vec3,
+    ds0: f32,
 }
 
 impl Tracer<'_> {
@@ -69,83 +74,99 @@ impl Tracer<'_> {
         self.accel.intersect(o - u * self.eps, u, 0.0, tmax + self.eps).is_some()
     }
 
-    /// The path of the camera ray `o + t d`: where it enters the box (∞: never) and its end;
-    /// its in-scattering samples go to `gathers`.
-    fn trace(&self, o: Vec3, d: Vec3, gathers: &mut Vec<Gather>) -> (f32, PathEnd) {
+    /// A walk along the camera ray `o + t d`: to the box, then (if it enters) through it.
+    fn start(&self, o: Vec3, d: Vec3) -> Walk {
         let m = self.m;
-        let past = PathEnd { o, d, tmax: f32::INFINITY, tr: 1.0 };
-        let Some((t0, _)) = box_interval(o, d, m.min, m.max) else {
-            return (f32::INFINITY, past);
-        };
-        let mut tr = 1.0f32;
-        let mut ray = Ray::new(&self.oct_s, o + d * t0, d);
-        let ds0 = self.p.step * m.voxel().min_element();
-        let ch = m.channels as usize;
-        let max_steps = 64 * m.dims.iter().sum::<u32>() as usize * (1.0 / self.p.step).ceil().max(1.0) as usize;
-        let h = m.voxel();
-        let mut end = PathEnd { o, d, tmax: 0.0, tr: 0.0 };
-        for _ in 0..max_steps {
-            let (x, u) = (ray.x, ray.dir());
-            let mut ds = ds0;
-            let mut straight = false;
-            if self.p.adaptive {
-                let q = self.oct_s.to_grid(x);
-                let c = voxel_of(m, q);
-                let oi = self.oct.index(c[0], c[1], c[2]);
-                let smax = self.oct.data[oi + MAX_STEP];
-                if !self.has_kappa && smax == f32::INFINITY && self.oct.data[oi + CLEARANCE] > 0.0 {
-                    // Nothing to gather anywhere, and no ray bends here: straight on to the
-                    // first voxel that may bend it, as MarchPhotons.
-                    let run = self.clearance.straight_run(x, u, f32::INFINITY);
-                    if run > 0.0 {
-                        (ds, straight) = (run, true);
-                    }
-                }
-                if !straight && self.oct.data[oi + CLEAR] > 0.0 {
-                    let hi = smax.max(self.p.step) * h.min_element();
-                    ds = leaf_exit(q, u / h, c, self.oct.data[oi + LEVEL].max(0.0) as u32).max(ds0).min(hi);
-                }
+        match box_interval(o, d, m.min, m.max) {
+            None => {
+                Walk { o, d, entry: f32::INFINITY, ray: None, tr: 1.0, steps: 0, end: Some(PathEnd { o, d, tmax: f32::INFINITY, tr: 1.0 }) }
             }
-            let t_box = box_interval(x, u, m.min, m.max).map_or(0.0, |(_, t1)| t1);
-            let leaving = ds >= t_box;
-            if leaving {
-                ds = t_box;
-            } else if let Some((lo, hi)) = self.obstacles {
-                // A surface up to half a voxel past the step's end is taken now: the next step
-                // would start too close to it to be found.
-                let reach = ds + 0.5 * h.min_element();
-                let far = x + u * reach;
-                if x.min(far).cmple(hi + self.eps).all() && x.max(far).cmpge(lo - self.eps).all() && self.blocked(x, u, reach) {
-                    end = PathEnd { o: x, d: u, tmax: reach, tr };
-                    break;
-                }
-            }
-            if ch > 2 && self.has_kappa {
-                let mid = x + u * (ds / 2.0);
-                let [_, kappa, sigma] = m.sample_n::<3>(mid, 0);
-                let (kappa, sigma) = (kappa.max(0.0), sigma.max(0.0));
-                let att = (-kappa * ds).exp();
-                if sigma > 0.0 {
-                    let w = if kappa * ds > 1e-6 { (1.0 - att) / kappa } else { ds };
-                    gathers.push(Gather { p: mid, u, w: sigma * w * tr });
-                }
-                tr *= att;
-            }
-            if leaving {
-                // Traced on from the step's start: the exit point may lie in a floor's plane.
-                end = PathEnd { o: x, d: u, tmax: f32::INFINITY, tr };
-                break;
-            }
-            // Longer steps (through clear leaves) are midpoint steps, as in MarchPhotons.
-            ray = if straight {
-                Ray::new(&self.oct_s, x + u * ds, u)
-            } else {
-                let integrator = if ds > ds0 * 1.0001 { Integrator::Midpoint } else { self.p.integrator };
-                ray_step(&self.oct_s, &ray, ds, integrator)
-            };
+            Some((t0, _)) => Walk { o, d, entry: t0, ray: Some(Ray::new(&self.oct_s, o + d * t0, d)), tr: 1.0, steps: 0, end: None },
         }
-        (t0, end)
     }
+
+    /// One step of a walk that has not ended (its in-scattering samples go to `gathers`); at
+    /// its end, or after `max_steps` steps, `walk.end` is set.
+    fn step(&self, walk: &mut Walk, gathers: &mut Vec<Gather>) {
+        let m = self.m;
+        let Some(ray) = walk.ray else { return };
+        if walk.steps >= self.max_steps {
+            walk.end = Some(PathEnd { o: walk.o, d: walk.d, tmax: 0.0, tr: 0.0 });
+            return;
+        }
+        walk.steps += 1;
+        let (ds0, h) = (self.ds0, self.h);
+        let (x, u) = (ray.x, ray.dir());
+        let mut ds = ds0;
+        let mut straight = false;
+        if self.p.adaptive {
+            let q = self.oct_s.to_grid(x);
+            let c = voxel_of(m, q);
+            let oi = self.oct.index(c[0], c[1], c[2]);
+            let smax = self.oct.data[oi + MAX_STEP];
+            if !self.has_kappa && smax == f32::INFINITY && self.oct.data[oi + CLEARANCE] > 0.0 {
+                // Nothing to gather anywhere, and no ray bends here: straight on to the
+                // first voxel that may bend it, as MarchPhotons.
+                let run = self.clearance.straight_run(x, u, f32::INFINITY);
+                if run > 0.0 {
+                    (ds, straight) = (run, true);
+                }
+            }
+            if !straight && self.oct.data[oi + CLEAR] > 0.0 {
+                let hi = smax.max(self.p.step) * h.min_element();
+                ds = leaf_exit(q, u / h, c, self.oct.data[oi + LEVEL].max(0.0) as u32).max(ds0).min(hi);
+            }
+        }
+        let t_box = box_interval(x, u, m.min, m.max).map_or(0.0, |(_, t1)| t1);
+        let leaving = ds >= t_box;
+        if leaving {
+            ds = t_box;
+        } else if let Some((lo, hi)) = self.obstacles {
+            // A surface up to half a voxel past the step's end is taken now: the next step
+            // would start too close to it to be found.
+            let reach = ds + 0.5 * h.min_element();
+            let far = x + u * reach;
+            if x.min(far).cmple(hi + self.eps).all() && x.max(far).cmpge(lo - self.eps).all() && self.blocked(x, u, reach) {
+                walk.end = Some(PathEnd { o: x, d: u, tmax: reach, tr: walk.tr });
+                return;
+            }
+        }
+        if m.channels > 2 && self.has_kappa {
+            let mid = x + u * (ds / 2.0);
+            let [_, kappa, sigma] = m.sample_n::<3>(mid, 0);
+            let (kappa, sigma) = (kappa.max(0.0), sigma.max(0.0));
+            let att = (-kappa * ds).exp();
+            if sigma > 0.0 {
+                let w = if kappa * ds > 1e-6 { (1.0 - att) / kappa } else { ds };
+                gathers.push(Gather { p: mid, u, w: sigma * w * walk.tr });
+            }
+            walk.tr *= att;
+        }
+        if leaving {
+            // Traced on from the step's start: the exit point may lie in a floor's plane.
+            walk.end = Some(PathEnd { o: x, d: u, tmax: f32::INFINITY, tr: walk.tr });
+            return;
+        }
+        // Longer steps (through clear leaves) are midpoint steps, as in MarchPhotons.
+        walk.ray = Some(if straight {
+            Ray::new(&self.oct_s, x + u * ds, u)
+        } else {
+            let integrator = if ds > ds0 * 1.0001 { Integrator::Midpoint } else { self.p.integrator };
+            ray_step(&self.oct_s, &ray, ds, integrator)
+        });
+    }
+}
+
+/// A camera sample's path in the making: the camera ray, where it enters the box (∞: never),
+/// the ray in the medium, its transmittance so far, and its end once it has one.
+struct Walk {
+    o: Vec3,
+    d: Vec3,
+    entry: f32,
+    ray: Option<Ray>,
+    tr: f32,
+    steps: usize,
+    end: Option<PathEnd>,
 }
 
 /// The paths of `camera`'s rays through the medium (see the node's doc).
@@ -169,6 +190,9 @@ pub fn trace(i: &EikonalPathsIn, p: &EikonalPaths, cx: &RunCtx) -> Result<ViewPa
         has_kappa: m.channels > 1 && m.data.chunks(m.channels as usize).any(|c| c[1] > 0.0),
         eps: 1e-5 * extent.max((m.max - m.min).length()),
         obstacles: i.accel.bounds_within(m.min, m.max),
+        max_steps: 64 * m.dims.iter().sum::<u32>() as usize * (1.0 / p.step).ceil().max(1.0) as usize,
+        h: m.voxel(),
+        ds0: p.step * m.voxel().min_element(),
     };
     let cam = CameraRays::new(i.camera);
     let (w, h, s) = (i.camera.width, i.camera.height, p.samples as usize);
@@ -181,23 +205,40 @@ pub fn trace(i: &EikonalPathsIn, p: &EikonalPaths, cx: &RunCtx) -> Result<ViewPa
         });
     }
     let held = AtomicU64::new(fixed);
+    // A row's samples walk together, one step of each in turn: independent lookups of
+    // neighbouring voxels the processor overlaps (each walk's steps are its own, so the bytes
+    // do not depend on the order).
     let rows = cx.par_map(h, |y| {
-        let mut row: Vec<Path> = Vec::with_capacity(w * s * s);
-        let mut gathers = Vec::new();
+        let mut walks: Vec<Walk> = Vec::with_capacity(w * s * s);
         for x in 0..w {
             for k in 0..s * s {
                 let (fx, fy) = (x as f32 + ((k % s) as f32 + 0.5) / s as f32, y as f32 + ((k / s) as f32 + 0.5) / s as f32);
                 let (o, d) = cam.ray(fx, fy);
-                gathers.clear();
-                let (entry, end) = t.trace(o, d, &mut gathers);
-                let bytes = gathers.len() as u64 * ViewPaths::GATHER_BYTES;
-                if bytes > 0 && held.fetch_add(bytes, Ordering::Relaxed) + bytes > budget {
-                    return None;
-                }
-                row.push(Path { o, d, entry, gathers: gathers.clone(), end });
+                walks.push(t.start(o, d));
             }
         }
-        Some(row)
+        let mut gathers: Vec<Vec<Gather>> = vec![Vec::new(); walks.len()];
+        let mut live: Vec<usize> = (0..walks.len()).filter(|&k| walks[k].end.is_none()).collect();
+        while !live.is_empty() {
+            for &k in &live {
+                t.step(&mut walks[k], &mut gathers[k]);
+                if walks[k].end.is_some() {
+                    let bytes = gathers[k].len() as u64 * ViewPaths::GATHER_BYTES;
+                    if bytes > 0 && held.fetch_add(bytes, Ordering::Relaxed) + bytes > budget {
+                        return None;
+                    }
+                }
+            }
+            live.retain(|&k| walks[k].end.is_none());
+        }
+        let paths = walks.into_iter().zip(gathers).map(|(w, gathers)| Path {
+            o: w.o,
+            d: w.d,
+            entry: w.entry,
+            gathers,
+            end: w.end.expect("every walk ends"),
+        });
+        Some(paths.collect::<Vec<Path>>())
     })?;
     let mut out = ViewPaths {
         width: w as u32,

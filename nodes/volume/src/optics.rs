@@ -86,7 +86,8 @@ pub fn leaf_exit(q: Vec3, u: Vec3, cell: [usize; 3], level: u32) -> f32 {
 /// The voxel holding grid point `q`, clamped to the grid.
 pub fn voxel_of(v: &Volume, q: Vec3) -> [usize; 3] {
     let q = if q.is_finite() { q } else { Vec3::ZERO };
-    [0, 1, 2].map(|a| (q[a].max(0.0) as usize).min(v.dims[a] as usize - 1))
+    let at = |a: usize| (q[a].max(0.0) as usize).min(v.dims[a] as usize - 1);
+    [at(0), at(1), at(2)]
 }
 
 /// How the ray equation ([S] 6-1 … 6-3: v = n dx/ds, dv/ds = ∇n) is stepped.
@@ -117,6 +118,7 @@ pub struct Ray {
 }
 
 /// n and ∇n at `p`, one trilinear lookup of the octree's `INDEX` and `GRADIENT` channels.
+#[inline]
 pub fn index_at(octree: &Sampler, p: Vec3) -> (f32, Vec3) {
     let v = octree.sample4(p, INDEX);
     (v.x.max(1e-3), Vec3::new(v.y, v.z, v.w))
@@ -257,7 +259,8 @@ impl Clearance {
             if !(q.cmpge(Vec3::splat(-1e-4)).all() && q.cmplt(dims + 1e-4).all()) || t > len {
                 return f32::INFINITY;
             }
-            let c = [0, 1, 2].map(|k| (q[k].max(0.0) as usize).min(self.dims[k] - 1));
+            let at = |k: usize| (q[k].max(0.0) as usize).min(self.dims[k] - 1);
+            let c = [at(0), at(1), at(2)];
             let clearance = self.at(c);
             if clearance == 0 {
                 return t;

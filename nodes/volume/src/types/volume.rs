@@ -153,8 +153,10 @@ impl Volume {
     fn cell(&self, g: Vec3, top: Vec3, c: usize) -> (usize, [usize; 3], Vec3) {
         let g = g.clamp(Vec3::ZERO, top);
         let g = if g.is_finite() { g } else { Vec3::ZERO };
-        let i = g.floor();
-        let (x0, y0, z0) = (i.x as usize, i.y as usize, i.z as usize);
+        // g ≥ 0: truncation is the floor (and no call into libm where the target lacks a
+        // rounding instruction).
+        let (x0, y0, z0) = (g.x as usize, g.y as usize, g.z as usize);
+        let i = Vec3::new(x0 as f32, y0 as f32, z0 as f32);
         let step = |v: usize, axis: usize, s: usize| if v + 1 < self.dims[axis] as usize { s } else { 0 };
         let ch = self.channels as usize;
         let sx = step(x0, 0, ch);
