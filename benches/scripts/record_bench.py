@@ -3,7 +3,9 @@
 `cargo bench -p relume-benches --bench BENCH -- FILTER...`, reads divan's table (every case's
 fastest, slowest, median and mean, its samples and iterations) and writes it, one row a case,
 with the date, machine, threads and commit of the measurement, to
-docs/results/bench_NAME.csv. `relume results` draws the book's tables from such files.
+docs/results/bench_NAME.csv, and what the benchmark prints itself (counts, errors measured in
+the same run) to docs/results/bench_NAME.txt. `relume results` draws the book's tables from
+such files.
 
 usage: python3 benches/scripts/record_bench.py BENCH NAME [FILTER ...] [--from-output FILE]
        (run from the repository's root; --from-output reads a saved divan output instead of
@@ -73,12 +75,17 @@ def main():
     ap.add_argument("filters", nargs="*")
     ap.add_argument("--from-output")
     a = ap.parse_args()
+    notes = []
     if a.from_output:
         text = open(a.from_output, encoding="utf-8").read()
     else:
         cmd = ["cargo", "bench", "-p", "relume-benches", "--bench", a.bench, "--", *a.filters]
         print("running", " ".join(cmd), file=sys.stderr)
-        text = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
+        done = subprocess.run(cmd, capture_output=True, text=True, check=True)
+        text = done.stdout
+        # What the benchmark itself printed (counts, errors), without cargo's and divan's own lines.
+        cargo = ("Compiling", "Finished", "Running", "Executable", "Blocking", "Updating", "Downloaded", "Timer precision", "warning")
+        notes = [l.rstrip() for l in done.stderr.splitlines() if l.strip() and not l.strip().startswith(cargo)]
     rows = parse(text)
     if not rows:
         sys.exit("no benchmark case found in divan's output")
@@ -92,6 +99,13 @@ def main():
         for r in rows:
             w.writerow([a.bench, r[0], *(f"{v:.6g}" for v in r[1:5]), r[5], r[6], *provenance])
     print(f"wrote {path}: {len(rows)} cases")
+    notes_path = os.path.join("docs", "results", f"bench_{a.name}.txt")
+    if notes:
+        with open(notes_path, "w", encoding="utf-8") as f:
+            f.write("\n".join(notes) + "\n")
+        print(f"wrote {notes_path}: what the benchmark printed")
+    elif os.path.exists(notes_path) and not a.from_output:
+        os.remove(notes_path)
 
 
 if __name__ == "__main__":

@@ -120,8 +120,13 @@ fn bench_files(dir: &Path, benches: &[Entry]) -> Result<Vec<(PathBuf, Vec<u8>)>,
     );
     for b in benches {
         let (csv, table) = read_csv(dir, &BENCHES, &b.name)?;
-        let body = tables::bench_section(&b.name, &b.command, b.against.as_deref(), &table)
+        let mut body = tables::bench_section(&b.name, &b.command, b.against.as_deref(), &table)
             .map_err(|e| CliError::run(format!("{}: {e}", csv.display())))?;
+        // What the benchmark printed itself in the same run, kept beside its CSV.
+        let notes = dir.join(format!("bench_{}.txt", b.name));
+        if let Ok(text) = std::fs::read_to_string(&notes) {
+            body += &format!("\nPrinted by the benchmark in the same run:\n\n```text\n{}\n```\n", text.trim_end());
+        }
         files.push(section_file(dir, &BENCHES, b, &body));
         overview += &format!("\n## {}\n\n{body}", b.caption);
     }
@@ -229,6 +234,10 @@ mod tests {
         assert!(md.contains("| edit_256/camera.azimuth | 158 ms | 6.31 | 145 ms – 176 ms | 10 × 10 | 4.55× |"), "{md}");
         assert!(md.contains("| shade_256_only | 35 ms | 28.7 | 28 ms – 44 ms | 10 × 10 | 1.00× |"), "{md}");
         assert!(std::fs::read_to_string(dir.path().join("benches.md")).unwrap().contains("## Edits"));
+        std::fs::write(dir.path().join("bench_refract.txt"), "69968 photons\n").unwrap();
+        results(&ResultsArgs { dir: dir.path().to_path_buf(), check: false }).unwrap();
+        let md = std::fs::read_to_string(dir.path().join("bench_refract.md")).unwrap();
+        assert!(md.ends_with("Printed by the benchmark in the same run:\n\n```text\n69968 photons\n```\n"), "{md}");
         let bad = BENCH_MANIFEST.replace("shade_256_only", "nosuch");
         std::fs::write(dir.path().join("benches.ron"), bad).unwrap();
         let e = results(&ResultsArgs { dir: dir.path().to_path_buf(), check: true }).unwrap_err();
