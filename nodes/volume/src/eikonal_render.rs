@@ -49,7 +49,7 @@ struct Render<'a> {
     accel: &'a Accel,
     m: &'a Volume,
     /// The octree's clearance, for shadow rays.
-    clearance: Clearance,
+    clearance: std::sync::Arc<Clearance>,
     radiance: &'a Volume,
     caustics: &'a CausticMap,
     lights: Vec<PhotonLight>,
@@ -198,12 +198,12 @@ pub fn render(i: &EikonalRenderIn, p: &EikonalRender, cx: &RunCtx) -> Result<(Im
         scene: i.scene,
         accel: i.accel,
         m,
-        clearance: Clearance::of(o),
+        clearance: Clearance::shared(o),
         radiance: i.radiance,
         caustics: i.caustics,
         lights: photon_lights(i.scene),
         p,
-        has_kappa: m.channels > 1 && m.data.chunks(m.channels as usize).any(|c| c[1] > 0.0),
+        has_kappa: m.absorbs(),
         eps: 1e-5 * i.scene.extent().max((m.max - m.min).length()),
     };
     let s2 = (paths.samples as usize).pow(2);

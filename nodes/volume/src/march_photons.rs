@@ -117,7 +117,7 @@ struct Setup<'a> {
     /// Lookups of n and ∇n in `oct`.
     oct_s: Sampler<'a>,
     /// Its clearance, for straight runs (built when photons march, not for the gather).
-    clearance: OnceLock<Clearance>,
+    clearance: OnceLock<std::sync::Arc<Clearance>>,
     photons: &'a Photons,
     p: &'a MarchPhotons,
     slots: Vec<u32>,
@@ -131,15 +131,13 @@ struct Setup<'a> {
 }
 
 impl<'a> Setup<'a> {
-    /// The octree's clearance bricks, built on first use. Built outside the lock: photons on
-    /// other threads that need them at once may build them too (the same bytes, the first
-    /// kept), where `get_or_init` would block a rayon worker that may hold part of the
-    /// builder's own parallel loop, and neither would finish.
+    /// The octree's clearance bricks, on first use (shared with the other nodes reading the
+    /// octree, see `Clearance::shared`; set outside any lock, for the reason given there).
     fn clearance(&self) -> &Clearance {
         if let Some(c) = self.clearance.get() {
             return c;
         }
-        let _ = self.clearance.set(Clearance::of(self.oct));
+        let _ = self.clearance.set(Clearance::shared(self.oct));
         self.clearance.get().expect("set above or by another thread")
     }
 
@@ -384,9 +382,8 @@ impl<'a> Setup<'a> {
                     return None;
                 }
                 // Where the straight line first meets a voxel that may bend it, if it does.
-                let run = box_interval(x, d, self.m.min, self.m.max).map_or(f32::INFINITY, |(t0, t1)| {
-                    t0 + self.clearance.get_or_init(|| Clearance::of(self.oct)).straight_run(x + d * t0, d, t1 - t0)
-                });
+                let run = box_interval(x, d, self.m.min, self.m.max)
+                    .map_or(f32::INFINITY, |(t0, t1)| t0 + self.clearance().straight_run(x + d * t0, d, t1 - t0));
                 let bent = run.is_finite();
                 (bent || keep_straight).then(|| Photon {
                     ray: Ray::new(&self.oct_s, x, d),

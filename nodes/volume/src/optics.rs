@@ -221,6 +221,12 @@ impl Clearance {
         Clearance { bricks, bdims, dims, min: octree.min, max: octree.max, scale: s.scale, hmin: octree.voxel().min_element() }
     }
 
+    /// The clearance of `octree`, built once per octree value and shared by the nodes that
+    /// read it (an orbit re-runs the paths and the render, not the octree).
+    pub fn shared(octree: &Volume) -> std::sync::Arc<Clearance> {
+        octree.derived.get("clearance", || Clearance::of(octree))
+    }
+
     /// The clearance of voxel `c` (inside the grid).
     #[inline]
     fn at(&self, c: [usize; 3]) -> u8 {

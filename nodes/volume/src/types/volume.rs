@@ -64,6 +64,11 @@ pub struct Volume {
     /// x fastest, then y, then z; the channels of a voxel together.
     #[serde(with = "pod_vec")]
     pub data: Vec<f32>,
+    /// Facts derived from the voxels (an octree's clearance bricks, whether a medium absorbs),
+    /// made on first use and shared by every node reading this value; a volume is not changed
+    /// once a node has read it, and a clone starts without them.
+    #[serde(skip)]
+    pub derived: super::Derived,
 }
 
 impl Volume {
@@ -96,7 +101,13 @@ impl Volume {
                 ),
             });
         }
-        Ok(Volume { dims, channels, min, max, data: vec![value; (bytes / 4) as usize] })
+        Ok(Volume { dims, channels, min, max, data: vec![value; (bytes / 4) as usize], derived: Default::default() })
+    }
+
+    /// Whether channel 1 (the extinction κ of a medium) is positive anywhere; worked out once
+    /// per value.
+    pub fn absorbs(&self) -> bool {
+        *self.derived.get("absorbs", || self.channels > 1 && self.data.chunks(self.channels as usize).any(|c| c[1] > 0.0))
     }
 
     pub fn voxels(&self) -> usize {
