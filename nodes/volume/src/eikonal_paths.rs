@@ -112,12 +112,18 @@ impl Tracer<'_> {
                     (ds, straight) = (run, true);
                 }
             }
-            if !straight && self.oct.data[oi + CLEAR] > 0.0 {
+            // A leaf's step is clamped to [ds0, max(Δs_max, step) × voxel]: where Δs_max is no
+            // more than the step (the shell of a glass, most steps), that is ds0 whatever the
+            // leaf's boundary, which is then not worked out.
+            if !straight && self.oct.data[oi + CLEAR] > 0.0 && smax > self.p.step {
                 let hi = smax.max(self.p.step) * h.min_element();
                 ds = leaf_exit(q, u / h, c, self.oct.data[oi + LEVEL].max(0.0) as u32).max(ds0).min(hi);
             }
         }
-        let t_box = box_interval(x, u, m.min, m.max).map_or(0.0, |(_, t1)| t1);
+        // Farther than the step from every face (with a margin for rounding), the step stays in
+        // the box and its exit is not worked out.
+        let inside = (x - m.min).min(m.max - x).cmpgt(Vec3::splat(ds * 1.001)).all();
+        let t_box = if inside { f32::INFINITY } else { box_interval(x, u, m.min, m.max).map_or(0.0, |(_, t1)| t1) };
         let leaving = ds >= t_box;
         if leaving {
             ds = t_box;
