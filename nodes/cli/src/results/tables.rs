@@ -29,12 +29,7 @@ pub(crate) fn section(name: &str, command: &str, p: &Plotted, t: &CsvTable) -> R
             out += &header(&head);
             for r in p.rows(t, "method") {
                 let (tm, e) = (t.number(r, &x), t.number(r, &p.y_column("method")));
-                let (time_for, speed) = match time_for_error(&curve, e) {
-                    Reach::At(tb) => (ms(tb), format!("{:.2}×", tb / tm)),
-                    Reach::Below(tb) => (format!("more than {} (below its last point)", ms(tb)), format!("> {:.2}×", tb / tm)),
-                    Reach::Above(tb) => (format!("less than {} (above its first point)", ms(tb)), format!("< {:.2}×", tb / tm)),
-                    Reach::Unknown => ("—".into(), "—".into()),
-                };
+                let (time_for, speed) = equal_error(&curve, tm, e);
                 let at = error_at_time(&curve, tm).map_or("outside its times".to_string(), num);
                 out += &line(&[label(r), num(e), ms(tm), at, time_for, speed]);
             }
@@ -62,7 +57,9 @@ pub(crate) fn section(name: &str, command: &str, p: &Plotted, t: &CsvTable) -> R
                     let cells = if time_axis {
                         vec![label(r), num(t.number(r, &y)), ms(t.number(r, &x))]
                     } else {
-                        vec![label(r), num(t.number(r, &x)), num(t.number(r, &y)), ms(t.number(r, "pipeline_ms"))]
+                        // A parameter as the CSV gives it; a metric as a number.
+                        let xv = if matches!(p.x, XAxis::Param(_)) { t.text(r, &x).to_string() } else { num(t.number(r, &x)) };
+                        vec![label(r), xv, num(t.number(r, &y)), ms(t.number(r, "pipeline_ms"))]
                     };
                     out += &line(&cells);
                 }
@@ -70,6 +67,42 @@ pub(crate) fn section(name: &str, command: &str, p: &Plotted, t: &CsvTable) -> R
         }
     }
     Ok(out)
+}
+
+/// A sweep's headline row, the method row whose variant is `variant`: its error (with the
+/// metric's name), its time, the baseline's time for that error and the speed-up at equal
+/// error.
+pub(crate) fn headline(p: &Plotted, t: &CsvTable, variant: &str) -> Result<[String; 4], String> {
+    if p.baseline.is_none() || !matches!(p.x, XAxis::Time(_)) {
+        return Err("a headline needs a sweep with a baseline on a time axis".into());
+    }
+    let r = p.rows(t, "method").find(|&r| t.text(r, "variant") == variant).ok_or_else(|| {
+        let all: Vec<&str> = p.rows(t, "method").map(|r| t.text(r, "variant")).collect();
+        format!("no method row `{variant}` for the headline (the rows: {})", all.join(", "))
+    })?;
+    let (tm, e) = (t.number(r, &p.x.column()), t.number(r, &p.y_column("method")));
+    let (time_for, speed) = equal_error(&baseline_curve(p, t), tm, e);
+    Ok([format!("{} (`{}`)", num(e), p.metric), ms(tm), time_for, speed])
+}
+
+/// The headline rows of a page's sweeps as a table.
+pub(crate) fn headline_table(rows: &[Vec<String>]) -> String {
+    let head = ["sweep", "row", "error", "pipeline time", "the baseline's time for that error", "speed-up at equal error"];
+    let mut out = header(&head.map(String::from));
+    for r in rows {
+        out += &line(r);
+    }
+    out
+}
+
+/// The baseline's time for error `e` and the speed-up over time `tm`, as table cells.
+fn equal_error(curve: &[(f64, f64)], tm: f64, e: f64) -> (String, String) {
+    match time_for_error(curve, e) {
+        Reach::At(tb) => (ms(tb), format!("{:.2}×", tb / tm)),
+        Reach::Below(tb) => (format!("more than {} (below its last point)", ms(tb)), format!("> {:.2}×", tb / tm)),
+        Reach::Above(tb) => (format!("less than {} (above its first point)", ms(tb)), format!("< {:.2}×", tb / tm)),
+        Reach::Unknown => ("—".into(), "—".into()),
+    }
 }
 
 /// A benchmark's section body: provenance, command, and a table of its cases (median, runs a
@@ -203,8 +236,9 @@ pub(crate) fn num(v: f64) -> String {
     if !v.is_finite() {
         return "—".into();
     }
-    if v == 0.0 {
-        return "0".into();
+    if v.fract() == 0.0 && v.abs() < 1e7 {
+        // Whole numbers (counts, bytes) as they are.
+        return format!("{}", v as i64);
     }
     let exp = v.abs().log10().floor() as i32;
     if (-3..4).contains(&exp) {
@@ -251,8 +285,11 @@ mod tests {
         assert_eq!(num(2572.4), "2572");
         assert_eq!(num(0.000257), "2.57 × 10⁻⁴");
         assert_eq!(num(9.999e-5), "1.00 × 10⁻⁴");
-        assert_eq!(num(12345.0), "1.23 × 10⁴");
-        assert_eq!((num(f64::NAN), num(0.0)), ("—".to_string(), "0".to_string()));
+        assert_eq!(num(12345.6), "1.23 × 10⁴");
+        assert_eq!(
+            (num(f64::NAN), num(0.0), num(4.0), num(20_700_000.0)),
+            ("—".to_string(), "0".to_string(), "4".to_string(), "2.07 × 10⁷".to_string())
+        );
         assert_eq!((ms(1204.0), ms(843.2), ms(8.44)), ("1.20 s".to_string(), "843 ms".to_string(), "8.4 ms".to_string()));
     }
 
