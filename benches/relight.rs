@@ -3,7 +3,8 @@
 //! 144 MiB) against a plain parallel memory copy of the same bytes on the same threads — the
 //! combine reads every stored float once, so memory bandwidth bounds it. The transfer is
 //! precomputed once at start-up with few paths (its values do not change the combine's cost).
-//! The ratio quoted in docs/pipelines/relighting.md is copy time / relight time from one run of this bench.
+//! The book's table of it (recorded by `benches/scripts/record_bench.py relight relight`) divides
+//! each median by the copy's, both from one run.
 
 use rayon::prelude::*;
 use relume_base::types::ObjectMaterials;
