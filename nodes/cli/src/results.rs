@@ -40,16 +40,30 @@ struct Entry {
     headline: Option<(String, String)>,
 }
 
-/// The two kinds of results file: their manifest, its root struct and list, the files' prefix.
+/// The two kinds of results file: their manifest, its root struct and list, the files' prefix,
+/// and the fields an entry may have.
 struct Kind {
     manifest: &'static str,
     root: &'static str,
     list: &'static str,
     prefix: &'static str,
+    fields: &'static [&'static str],
 }
 
-const SWEEPS: Kind = Kind { manifest: "sweeps.ron", root: "SweepResults", list: "sweeps", prefix: "sweep_" };
-const BENCHES: Kind = Kind { manifest: "benches.ron", root: "BenchResults", list: "benches", prefix: "bench_" };
+const SWEEPS: Kind = Kind {
+    manifest: "sweeps.ron",
+    root: "SweepResults",
+    list: "sweeps",
+    prefix: "sweep_",
+    fields: &["name", "caption", "command", "page", "headline"],
+};
+const BENCHES: Kind = Kind {
+    manifest: "benches.ron",
+    root: "BenchResults",
+    list: "benches",
+    prefix: "bench_",
+    fields: &["name", "caption", "command", "against"],
+};
 
 /// The entries of the folder's manifest of `kind`; none where the folder has no such manifest
 /// (then it may hold no CSV of that kind either).
@@ -69,13 +83,11 @@ fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
         let mut f = Fields::new(item, "an entry").map_err(at)?;
         let mut text = |name: &str| f.req(name).and_then(|v| str_of(v, name)).map(str::to_string).map_err(at);
         let (name, caption, command) = (text("name")?, text("caption")?, text("command")?);
-        let bench = kind.prefix == BENCHES.prefix;
+        let has = |field: &str| kind.fields.contains(&field);
         let mut optional = |name: &str| f.opt(name).map(|v| str_of(v, name).map(str::to_string).map_err(at)).transpose();
-        let against = if bench { optional("against")? } else { None };
-        let headline = if bench { None } else { optional("page")?.zip(optional("headline")?) };
-        let known: &[&str] =
-            if bench { &["name", "caption", "command", "against"] } else { &["name", "caption", "command", "page", "headline"] };
-        f.finish(known).map_err(at)?;
+        let against = if has("against") { optional("against")? } else { None };
+        let headline = if has("page") { optional("page")?.zip(optional("headline")?) } else { None };
+        f.finish(kind.fields).map_err(at)?;
         if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
             return Err(CliError::graph(format!("{}: the name `{name}` must be letters, digits and _", path.display())));
         }
