@@ -1,4 +1,15 @@
-//! Graphs generated for the benchmarks.
+//! Graphs generated for the benchmarks, and the benchmarks' access to `graphs/`.
+//!
+//! The generated graph is layers of real image nodes, every one of them needed:
+//!
+//! ```
+//! use relume_benches::{generated_graph, WIDTH};
+//!
+//! let g = generated_graph(200);
+//! assert_eq!(g.nodes.len(), 200);
+//! assert_eq!(g.outputs.len(), WIDTH, "the last layer is the outputs");
+//! g.validate(&relume_cli::registry()).unwrap();
+//! ```
 
 use relume_core::Graph;
 

@@ -1,5 +1,18 @@
 //! Shared helpers for the integration tests: test-only node kinds that log what ran, and
 //! small utilities around graphs and reports.
+//!
+//! A graph of `graphs/` at test size (each parameter with a declared test value turned to it),
+//! run on an engine with every node kind, and what ran read from the report:
+//!
+//! ```
+//! use relume_tests::{engine, graphs_dir, at_test_size, ran, run};
+//!
+//! let g = at_test_size(&graphs_dir().join("filters.ron"));
+//! let e = engine();
+//! let first = run(&e, &g);
+//! assert!(ran(&first).contains(&"blur".to_string()));
+//! assert!(ran(&run(&e, &g)).is_empty(), "a second run of the same graph takes everything from the cache");
+//! ```
 
 use relume_core::{
     inputs, node, outputs, Caching, DynNode, Engine, Graph, Hasher, NodeError, ParamValues, Params, PortDecl, PortValue, Ports, Registry,

@@ -2,6 +2,28 @@
 //! validated as the command line does, parameters set with `--set`'s checks and messages,
 //! runs through the same engine and disk cache, images as numpy arrays. The Python side
 //! (`python/relume/`) re-exports it and adds what is easier written in Python.
+//!
+//! The crate is a Python extension module: it links against the interpreter that imports it,
+//! so its example is Python, not Rust. `python/tests/test_crate_doc.py` runs the block below
+//! (the package installed as `pip install ./python`, from the repository root):
+//!
+//! ```python
+//! import relume
+//!
+//! g = relume.Graph.load("graphs/filters.ron", no_disk_cache=True)
+//! g.set("blur.sigma", 1.5)                 # checked against the parameter's schema
+//! r = g.run()
+//! image = r.images["image"]                # numpy float32, height × width × 3, linear RGB
+//! assert image.ndim == 3 and image.shape[2] == 3
+//! g.set("tonemap.exposure", 1.0)           # an edit downstream of the blur
+//! assert "blur" not in g.run().ran         # re-runs only what the edit reaches
+//! try:
+//!     g.set("blur.sigma", -1.0)            # out of the stated range
+//! except relume.GraphError as e:
+//!     assert "sigma" in str(e)
+//! else:
+//!     raise AssertionError("a negative sigma was accepted")
+//! ```
 
 mod errors;
 mod feed;

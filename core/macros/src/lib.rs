@@ -11,6 +11,82 @@
 //! - `#[node(category = "…", outputs = [name, …], metrics = ["…", …], version = N,
 //!   caching = Never | Keyed, kind = "…")]` on `impl X { fn run … }`: turns the block into
 //!   `impl Node for X`, taking the ports from `run`'s signature.
+//!
+//! A node declared with them, registered and run in a two-node graph (the value on the edge
+//! is any type implementing `PortValue`; the pipeline crates use images, scenes and tensors):
+//!
+//! ```
+//! use relume_core::{node, outputs, params, Engine, Graph, NodeError, PortValue, Registry, RunCtx, RunOptions};
+//!
+//! /// A number on an edge.
+//! #[derive(Clone, Debug, PartialEq)]
+//! pub struct Num(f64);
+//!
+//! impl PortValue for Num {
+//!     const NAME: &'static str = "Num";
+//!     const COLOR: [u8; 3] = [200, 200, 80];
+//!     fn byte_size(&self) -> usize { 8 }
+//!     fn encode(&self) -> Vec<u8> { self.0.to_le_bytes().to_vec() }
+//!     fn decode(b: &[u8]) -> Option<Self> { Some(Num(f64::from_le_bytes(b.try_into().ok()?))) }
+//! }
+//!
+//! params! {
+//!     /// Emits a constant.
+//!     pub struct Constant {
+//!         /// the value emitted
+//!         pub value: f64 = 1.0, range = -100.0..=100.0;
+//!     }
+//! }
+//! outputs!(pub ConstantOut { out: Num });
+//!
+//! #[node(category = "example")]
+//! impl Constant {
+//!     fn run(&self, _: (), _cx: &RunCtx) -> Result<ConstantOut, NodeError> {
+//!         Ok(ConstantOut { out: Num(self.value) })
+//!     }
+//! }
+//!
+//! params! {
+//!     /// Multiplies its input by a factor.
+//!     pub struct Scale {
+//!         /// the factor
+//!         pub factor: f64 = 2.0, range = 0.0..=10.0;
+//!     }
+//! }
+//!
+//! #[node(category = "example", outputs = [out])]
+//! impl Scale {
+//!     fn run(&self, x: &Num, _cx: &RunCtx) -> Result<Num, NodeError> {
+//!         Ok(Num(x.0 * self.factor))
+//!     }
+//! }
+//!
+//! let mut registry = Registry::new();
+//! registry.add::<Constant>().add::<Scale>();
+//! let graph = Graph::parse(
+//!     r#"(version: 1,
+//!         nodes: { "c": (kind: "Constant", params: (value: 3.0)), "s": (kind: "Scale", params: ()) },
+//!         edges: [("c.out", "s.x")],
+//!         outputs: { "result": "s.out" })"#,
+//!     None,
+//! )
+//! .unwrap();
+//! let run = Engine::new(registry).run(&graph, &RunOptions::default()).unwrap();
+//! assert_eq!(run.output("result").unwrap().get::<Num>(), Some(&Num(6.0)), "3 × the default factor 2");
+//!
+//! // The schema comes from the declaration: a value outside the stated range is refused
+//! // when the graph is validated, before anything runs.
+//! let mut registry = Registry::new();
+//! registry.add::<Constant>().add::<Scale>();
+//! let bad = Graph::parse(
+//!     r#"(version: 1, nodes: { "c": (kind: "Constant", params: ()), "s": (kind: "Scale", params: (factor: 20.0)) },
+//!         edges: [("c.out", "s.x")], outputs: { "result": "s.out" })"#,
+//!     None,
+//! )
+//! .unwrap();
+//! let refused = bad.validate(&registry).unwrap_err().to_string();
+//! assert!(refused.contains("factor"), "{refused}");
+//! ```
 
 mod params_block;
 
