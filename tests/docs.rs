@@ -216,3 +216,32 @@ fn the_book_lists_every_page_it_holds() {
         .collect();
     assert!(unlisted.is_empty(), "pages in docs/ that docs/SUMMARY.md does not list (mdBook would not render them): {unlisted:?}");
 }
+
+/// The README's fresh-machine timings are the rows of `docs/results/table_fresh_machine.csv`: the
+/// sentence is rebuilt from the file and must stand in the README as it is, so a re-measured
+/// row fails here until the README quotes it.
+#[test]
+fn the_readme_quotes_the_measured_fresh_machine_timings() {
+    let csv = std::fs::read_to_string(root().join("docs/results/table_fresh_machine.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no `{name}` column"));
+    let (step, seconds, detail) = (col("step"), col("seconds"), col("detail"));
+    // The `detail` column is last and may hold commas.
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.splitn(header.len(), ',').collect()).collect();
+    let row = |name: &str| rows.iter().find(|r| r[step] == name).unwrap_or_else(|| panic!("no `{name}` row"));
+    let secs = |name: &str| row(name)[seconds].parse::<u64>().unwrap();
+    let thousands = |n: u64| if n >= 1000 { format!("{},{:03}", n / 1000, n % 1000) } else { n.to_string() };
+    let passed = row("build and tests")[detail].split(" passed").next().unwrap().rsplit(' ').next().unwrap().to_string();
+    let build = secs("release build done");
+    let sentence = format!(
+        "the build took {} s, the picture came {} s after it and the error and report at {} s; the test command, on its own fresh clone, took {} s, {} tests passing",
+        thousands(build),
+        thousands(secs("out/image.png written") - build),
+        thousands(secs("error and report written")),
+        thousands(secs("build and tests")),
+        passed
+    );
+    let readme = std::fs::read_to_string(root().join("README.md")).unwrap().split_whitespace().collect::<Vec<_>>().join(" ");
+    assert!(readme.contains(&sentence), "the README should say, from table_fresh_machine.csv:\n{sentence}");
+}

@@ -2,20 +2,26 @@
 """The Python package's overhead on a warm edit: `g.set(...)` then `g.run()` from Python
 against the same set-and-run done by the engine in Rust (`relume._relume._time_edits`, in the
 same process), in alternating rounds of one run. Prints the medians, their ratio and their
-difference, and a CSV line for docs/PYTHON.md.
+difference, and appends a row to docs/results/table_python_overhead.csv (with the date, machine,
+threads and commit) unless --no-record; `relume results` draws docs/guide/python.md's table from it.
 
-usage: python benches/scripts/python_overhead.py [GRAPH] [NODE.PARAM] [--edits N] [--rounds R]
+usage: python benches/scripts/python_overhead.py [GRAPH] [NODE.PARAM] [--edits N] [--rounds R] [--no-record]
        (default graphs/filters.ron blur.sigma, 200 edits a round, 5 rounds; needs the
        package installed: pip install ./python)
 """
 import argparse
+import csv
 import os
-import platform
 import statistics
 import time
 
 import relume
 from relume import _relume
+
+from provenance import COLUMNS, cells
+
+RESULTS = os.path.join("docs", "results", "table_python_overhead.csv")
+HEADER = ["graph", "param", "edits", "rounds", "rust_ms", "python_ms", "ratio", "difference_ms", *COLUMNS]
 
 
 def python_edits(path, assignment, values, outputs):
@@ -39,6 +45,7 @@ def main():
     ap.add_argument("--output", action="append", help="outputs to run (default: all)")
     ap.add_argument("--low", type=float, default=0.5)
     ap.add_argument("--high", type=float, default=3.0)
+    ap.add_argument("--no-record", action="store_true", help=f"print only, do not append to {RESULTS}")
     a = ap.parse_args()
     rust, py = [], []
     for r in range(a.rounds):
@@ -51,10 +58,16 @@ def main():
     rm, pm = statistics.median(rust), statistics.median(py)
     print(f"median of the rounds' medians: Rust {rm:.3f} ms, Python {pm:.3f} ms, "
           f"ratio {pm / rm:.3f}, difference {pm - rm:.3f} ms")
-    print("csv: date,machine,cores,graph,param,edits,rounds,rust_ms,python_ms,ratio,difference_ms")
-    print(f"csv: {time.strftime('%Y-%m-%d')},{platform.machine()},{os.cpu_count()},{a.graph},{a.param},"
-          f"{a.edits},{a.rounds},{rm:.4f},{pm:.4f},{pm / rm:.4f},{pm - rm:.4f}")
-
+    if a.no_record:
+        return
+    new = not os.path.exists(RESULTS)
+    with open(RESULTS, "a", newline="", encoding="utf-8") as f:
+        w = csv.writer(f, lineterminator="\n")
+        if new:
+            w.writerow(HEADER)
+        w.writerow([a.graph, a.param, a.edits, a.rounds, f"{rm:.4f}", f"{pm:.4f}", f"{pm / rm:.4f}", f"{pm - rm:.4f}",
+                    *cells()])
+    print(f"appended to {RESULTS}")
 
 if __name__ == "__main__":
     main()

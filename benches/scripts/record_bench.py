@@ -14,11 +14,12 @@ usage: python3 benches/scripts/record_bench.py BENCH NAME [FILTER ...] [--from-o
 import argparse
 import csv
 import os
-import platform
 import re
 import subprocess
 import sys
 import time
+
+from provenance import COLUMNS, cells
 
 UNITS = {"ns": 1e-6, "µs": 1e-3, "us": 1e-3, "ms": 1.0, "s": 1e3}
 TREE = "├╰─│ "
@@ -59,15 +60,6 @@ def parse(text):
     return rows
 
 
-def commit():
-    try:
-        head = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True).stdout.strip()
-        return head + ("-dirty" if dirty else "")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("bench")
@@ -89,13 +81,12 @@ def main():
     rows = parse(text)
     if not rows:
         sys.exit("no benchmark case found in divan's output")
-    provenance = [time.strftime("%Y-%m-%d", time.gmtime()), f"{platform.machine()} {sys.platform} with {os.cpu_count()} cores",
-                  str(os.cpu_count()), commit()]
+    provenance = cells()
     path = os.path.join("docs", "results", f"bench_{a.name}.csv")
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f, lineterminator="\n")
         w.writerow(["bench", "case", "fastest_ms", "slowest_ms", "median_ms", "mean_ms", "samples", "iters",
-                    "date", "machine", "threads", "commit"])
+                    *COLUMNS])
         for r in rows:
             w.writerow([a.bench, r[0], *(f"{v:.6g}" for v in r[1:5]), r[5], r[6], *provenance])
     print(f"wrote {path}: {len(rows)} cases")

@@ -1,5 +1,5 @@
 //! The engine's own time for an edit, measured from Rust inside the module: the yardstick the
-//! Python overhead is measured against (`docs/PYTHON.md`), in the same process and run.
+//! Python overhead is measured against (`docs/guide/python.md`), in the same process and run.
 
 use crate::errors::{graph_error, graph_errors};
 use pyo3::exceptions::PyRuntimeError;

@@ -1,20 +1,23 @@
 //! `relume results`: the book's results pages drawn from the committed measurements. A
-//! results folder (`docs/results`) holds each sweep's CSV (`sweep_NAME.csv`, written by
-//! `relume sweep` with the date, machine, threads and commit in every row) and each
-//! benchmark's (`bench_NAME.csv`, written by `benches/scripts/record_bench.py` from divan's
-//! table), and two manifests, `sweeps.ron` and `benches.ron`, which list them with the command
-//! that measured each. From those alone it writes each sweep's plot (`sweep_NAME.png`), each
-//! one's section (`sweep_NAME.md`, `bench_NAME.md`, which the pipeline pages include) and the
-//! overview pages `sweeps.md` and `benches.md`; `--check` writes nothing and fails when a
-//! committed file differs from what it would write, so a figure cannot go stale by hand.
+//! results folder (`docs/results`) holds three kinds of CSV, each row with the date, machine,
+//! threads and commit of its measurement: sweeps (`sweep_NAME.csv`, written by `relume
+//! sweep`), benchmarks (`bench_NAME.csv`, written by `benches/scripts/record_bench.py` from
+//! divan's table) and measurement tables (`table_NAME.csv`, one row a run: editor drives, the
+//! Python overhead, fresh clones timed). Three manifests, `sweeps.ron`, `benches.ron` and
+//! `tables.ron`, list them with the command that measured each. From those alone it writes each
+//! sweep's plot (`sweep_NAME.png`), each measurement's section (`sweep_NAME.md`, `bench_NAME.md`,
+//! `table_NAME.md`, which the book's pages include) and the overview pages `sweeps.md`,
+//! `benches.md` and `tables.md`; `--check` writes nothing and fails when a committed file
+//! differs from what it would write, so a figure cannot go stale by hand.
 
+mod grouped;
 mod tables;
 
 use crate::error::CliError;
 use crate::plot::log_log_png;
 use crate::sweep::csv_table::CsvTable;
 use clap::Args;
-use relume_core::ron::fields::{list_of, str_of, Fields};
+use relume_core::ron::fields::{list_of, map_of, str_of, Fields};
 use relume_core::ron::parse;
 use std::path::{Path, PathBuf};
 
@@ -38,9 +41,14 @@ struct Entry {
     /// A sweep's row that stands for it in its page's summary (`headlines_PAGE.md`): the page
     /// and the row's variant.
     headline: Option<(String, String)>,
+    /// A measurement table's columns that name a row of the generated table (its runs are
+    /// the CSV rows that agree on them).
+    group: Vec<String>,
+    /// A measurement table's value columns and their headings, shown as ranges over the runs.
+    columns: Vec<(String, String)>,
 }
 
-/// The two kinds of results file: their manifest, its root struct and list, the files' prefix,
+/// The three kinds of results file: their manifest, its root struct and list, the files' prefix,
 /// and the fields an entry may have.
 struct Kind {
     manifest: &'static str,
@@ -65,6 +73,16 @@ const BENCHES: Kind = Kind {
     fields: &["name", "caption", "command", "against"],
 };
 
+/// Measurements made by scripts or by hand-run drives (the editor's, the Python package's),
+/// each row one run: `table_NAME.csv` with the provenance columns, shown grouped.
+const TABLES: Kind = Kind {
+    manifest: "tables.ron",
+    root: "TableResults",
+    list: "tables",
+    prefix: "table_",
+    fields: &["name", "caption", "command", "group", "columns"],
+};
+
 /// The entries of the folder's manifest of `kind`; none where the folder has no such manifest
 /// (then it may hold no CSV of that kind either).
 fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
@@ -86,7 +104,40 @@ fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
         let has = |field: &str| kind.fields.contains(&field);
         let mut optional = |name: &str| f.opt(name).map(|v| str_of(v, name).map(str::to_string).map_err(at)).transpose();
         let against = if has("against") { optional("against")? } else { None };
-        let headline = if has("page") { optional("page")?.zip(optional("headline")?) } else { None };
+        let headline = match if has("page") { (optional("page")?, optional("headline")?) } else { (None, None) } {
+            (Some(page), Some(row)) => Some((page, row)),
+            (None, None) => None,
+            _ => {
+                return Err(CliError::graph(format!(
+                    "{}: `{name}` needs both `page` and `headline` (the page's summary and the row that stands for the sweep in it), or neither",
+                    path.display()
+                )))
+            }
+        };
+        let group = match f.opt("group").filter(|_| has("group")) {
+            Some(v) => list_of(v, "group")
+                .map_err(at)?
+                .iter()
+                .map(|c| str_of(c, "a group column").map(str::to_string))
+                .collect::<Result<_, _>>()
+                .map_err(at)?,
+            None => Vec::new(),
+        };
+        let columns = match f.opt("columns").filter(|_| has("columns")) {
+            Some(v) => map_of(v, "columns")
+                .map_err(at)?
+                .into_iter()
+                .map(|(k, _, h)| Ok((k.to_string(), str_of(h, k)?.to_string())))
+                .collect::<Result<_, _>>()
+                .map_err(at)?,
+            None => Vec::new(),
+        };
+        if has("columns") && columns.is_empty() {
+            return Err(CliError::graph(format!(
+                "{}: `{name}` shows no columns (`columns: {{\"csv_column\": \"heading\", …}}`)",
+                path.display()
+            )));
+        }
         f.finish(kind.fields).map_err(at)?;
         if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
             return Err(CliError::graph(format!("{}: the name `{name}` must be letters, digits and _", path.display())));
@@ -94,7 +145,7 @@ fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
         if out.iter().any(|o| o.name == name) {
             return Err(CliError::graph(format!("{}: `{name}` is listed twice", path.display())));
         }
-        out.push(Entry { name, caption, command, against, headline });
+        out.push(Entry { name, caption, command, against, headline, group, columns });
     }
     Ok(out)
 }
@@ -171,6 +222,27 @@ fn bench_files(dir: &Path, benches: &[Entry]) -> Result<Vec<(PathBuf, Vec<u8>)>,
     Ok(files)
 }
 
+/// Every file the folder's measurement tables give, with its bytes.
+fn table_files(dir: &Path, tables: &[Entry]) -> Result<Vec<(PathBuf, Vec<u8>)>, CliError> {
+    let mut files = Vec::new();
+    let mut overview = format!(
+        "{GENERATED}# Results: measured runs\n\n\
+         Measurements made outside `relume sweep` and the benchmarks: drives of the editor in a\n\
+         window, the Python package's overhead, fresh clones timed. Each CSV row is one run, with\n\
+         the date, machine, threads and commit; a table row gathers the runs that agree on its\n\
+         first columns and shows each figure's range over them.\n"
+    );
+    for e in tables {
+        let (csv, table) = read_csv(dir, &TABLES, &e.name)?;
+        let body = grouped::section(&e.name, &e.command, &e.group, &e.columns, &table)
+            .map_err(|m| CliError::run(format!("{}: {m}", csv.display())))?;
+        files.push(section_file(dir, &TABLES, e, &body));
+        overview += &format!("\n## {}\n\n{body}", e.caption);
+    }
+    files.push((dir.join("tables.md"), overview.into_bytes()));
+    Ok(files)
+}
+
 /// `PREFIX_NAME.csv` read and parsed.
 fn read_csv(dir: &Path, kind: &Kind, name: &str) -> Result<(PathBuf, CsvTable), CliError> {
     let csv = dir.join(format!("{}{name}.csv", kind.prefix));
@@ -205,8 +277,8 @@ fn unlisted(dir: &Path, kind: &Kind, entries: &[Entry]) -> Result<Vec<String>, C
 }
 
 pub(crate) fn results(a: &ResultsArgs) -> Result<(), CliError> {
-    let (sweeps, benches) = (load_manifest(&a.dir, &SWEEPS)?, load_manifest(&a.dir, &BENCHES)?);
-    for (kind, entries) in [(&SWEEPS, &sweeps), (&BENCHES, &benches)] {
+    let (sweeps, benches, tables) = (load_manifest(&a.dir, &SWEEPS)?, load_manifest(&a.dir, &BENCHES)?, load_manifest(&a.dir, &TABLES)?);
+    for (kind, entries) in [(&SWEEPS, &sweeps), (&BENCHES, &benches), (&TABLES, &tables)] {
         let stray = unlisted(&a.dir, kind, entries)?;
         if !stray.is_empty() {
             return Err(CliError::graph(format!("{}: CSV files {} does not list: {}", a.dir.display(), kind.manifest, stray.join(", "))));
@@ -214,8 +286,9 @@ pub(crate) fn results(a: &ResultsArgs) -> Result<(), CliError> {
     }
     let mut files = sweep_files(&a.dir, &sweeps)?;
     files.extend(bench_files(&a.dir, &benches)?);
+    files.extend(table_files(&a.dir, &tables)?);
     let stale: Vec<&(PathBuf, Vec<u8>)> = files.iter().filter(|(p, bytes)| std::fs::read(p).ok().as_ref() != Some(bytes)).collect();
-    let counted = format!("{} sweeps, {} benchmarks", sweeps.len(), benches.len());
+    let counted = format!("{} sweeps, {} benchmarks, {} measurement tables", sweeps.len(), benches.len(), tables.len());
     if a.check {
         if stale.is_empty() {
             say!("{} generated files match their {counted}", files.len());
@@ -314,6 +387,8 @@ mod tests {
         assert!(results(&args).unwrap_err().msg.contains("sweep_blur.csv"));
         std::fs::write(dir.path().join("sweeps.ron"), "SweepResults(sweeps: [(name: \"a b\", caption: \"\", command: \"\")])").unwrap();
         assert!(results(&args).unwrap_err().msg.contains("letters, digits"));
+        std::fs::write(dir.path().join("sweeps.ron"), MANIFEST_TEXT.replace(r#", headline: "blur.sigma=1""#, "")).unwrap();
+        assert!(results(&args).unwrap_err().msg.contains("needs both `page` and `headline`"));
         std::fs::write(dir.path().join("sweeps.ron"), MANIFEST_TEXT).unwrap();
         let without: String = CSV.lines().map(|l| l.rsplitn(5, ',').last().unwrap().to_string() + "\n").collect();
         std::fs::write(dir.path().join("sweep_blur.csv"), without).unwrap();

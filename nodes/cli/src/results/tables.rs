@@ -150,7 +150,7 @@ pub(crate) fn bench_section(name: &str, command: &str, against: Option<&str>, t:
 }
 
 /// "Measured DATE on MACHINE, N threads", each part listing the distinct values.
-fn provenance(t: &CsvTable) -> Result<String, String> {
+pub(super) fn provenance(t: &CsvTable) -> Result<String, String> {
     let missing: Vec<&str> = crate::provenance::COLUMNS.into_iter().filter(|c| t.column(c).is_none()).collect();
     if !missing.is_empty() {
         return Err(format!(
@@ -170,11 +170,11 @@ fn time_label(column: &str) -> String {
     }
 }
 
-fn header(cells: &[String]) -> String {
+pub(super) fn header(cells: &[String]) -> String {
     line(cells) + &line(&vec!["---".to_string(); cells.len()])
 }
 
-fn line(cells: &[String]) -> String {
+pub(super) fn line(cells: &[String]) -> String {
     format!("| {} |\n", cells.iter().map(|c| c.replace('|', "\\|")).collect::<Vec<_>>().join(" | "))
 }
 
