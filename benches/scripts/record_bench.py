@@ -30,9 +30,20 @@ def to_ms(cell):
     return float(m.group(1)) * UNITS[m.group(2)] if m else None
 
 
+RATE = {"": 1.0, "K": 1e3, "M": 1e6, "G": 1e9}
+
+
+def to_rate(cell):
+    """A counter's rate cell (`7.674 Mitem/s`) as items per second, else None."""
+    m = re.fullmatch(r"\s*([0-9.]+)\s*([KMG]?)item/s\s*", cell)
+    return float(m.group(1)) * RATE[m.group(2)] if m else None
+
+
 def parse(text):
-    """The cases of divan's table: (path, fastest, slowest, median, mean, samples, iters), the
-    path joining the tree's names with '/'. Lines the benchmarks print themselves are skipped."""
+    """The cases of divan's table: (path, fastest, slowest, median, mean, samples, iters, items
+    a second at the median or None), the path joining the tree's names with '/'. A case with
+    an item counter has a second line of rates under it. Lines the benchmarks print themselves
+    are skipped."""
     rows, stack = [], []
     for line in text.splitlines():
         if "│" not in line:
@@ -43,6 +54,9 @@ def parse(text):
         depth = (len(line) - len(body)) // 3
         cells = body.split("│")
         if len(cells) != 6:
+            continue
+        if rows and to_rate(cells[0]) is not None and rows[-1][7] is None:
+            rows[-1] = rows[-1][:7] + (to_rate(cells[2]),)
             continue
         parts = cells[0].split()
         if not parts or parts[0] == "fastest":
@@ -56,7 +70,7 @@ def parse(text):
             continue
         slowest, median, mean = (to_ms(c) for c in cells[1:4])
         samples, iters = (int(c.strip()) for c in cells[4:6])
-        rows.append(("/".join(stack[1:]) if len(stack) > 1 else stack[0], fastest, slowest, median, mean, samples, iters))
+        rows.append(("/".join(stack[1:]) if len(stack) > 1 else stack[0], fastest, slowest, median, mean, samples, iters, None))
     return rows
 
 
@@ -85,10 +99,13 @@ def main():
     path = os.path.join("docs", "results", f"bench_{a.name}.csv")
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f, lineterminator="\n")
+        # Cases with an item counter (rays, samples) keep its rate at the median.
+        counted = any(r[7] is not None for r in rows)
         w.writerow(["bench", "case", "fastest_ms", "slowest_ms", "median_ms", "mean_ms", "samples", "iters",
-                    *COLUMNS])
+                    *(["median_items_per_s"] if counted else []), *COLUMNS])
         for r in rows:
-            w.writerow([a.bench, r[0], *(f"{v:.6g}" for v in r[1:5]), r[5], r[6], *provenance])
+            items = [f"{r[7]:.6g}" if r[7] is not None else ""] if counted else []
+            w.writerow([a.bench, r[0], *(f"{v:.6g}" for v in r[1:5]), r[5], r[6], *items, *provenance])
     print(f"wrote {path}: {len(rows)} cases")
     notes_path = os.path.join("docs", "results", f"bench_{a.name}.txt")
     if notes:

@@ -348,6 +348,12 @@ mod tests {
         results(&ResultsArgs { dir: dir.path().to_path_buf(), check: false }).unwrap();
         let md = std::fs::read_to_string(dir.path().join("bench_refract.md")).unwrap();
         assert!(md.ends_with("Printed by the benchmark in the same run:\n\n```text\n69968 photons\n```\n"), "{md}");
+        // A case that counts items (rays, samples) shows items a second instead of runs.
+        let counted = BENCH_CSV.replace("iters,date", "iters,median_items_per_s,date").replace(",10,10,2026", ",10,10,6900000,2026");
+        std::fs::write(dir.path().join("bench_refract.csv"), counted).unwrap();
+        results(&ResultsArgs { dir: dir.path().to_path_buf(), check: false }).unwrap();
+        let md = std::fs::read_to_string(dir.path().join("bench_refract.md")).unwrap();
+        assert!(md.contains("| shade_256_only | 35 ms | 6.90 M items | 28 ms – 44 ms |"), "{md}");
         // Without its manifest, a benchmark's CSV is one nothing lists.
         std::fs::remove_file(dir.path().join("benches.ron")).unwrap();
         let e = results(&ResultsArgs { dir: dir.path().to_path_buf(), check: true }).unwrap_err();

@@ -106,7 +106,7 @@ fn equal_error(curve: &[(f64, f64)], tm: f64, e: f64) -> (String, String) {
 }
 
 /// A benchmark's section body: provenance, command, and a table of its cases (median, runs a
-/// second at the median, range, samples × iterations, and each median against the case `against` names, measured in the
+/// second at the median, or items a second where the case counts items (rays, samples), range, samples × iterations, and each median against the case `against` names, measured in the
 /// same run).
 pub(crate) fn bench_section(name: &str, command: &str, against: Option<&str>, t: &CsvTable) -> Result<String, String> {
     let mut out = format!("{} ([csv](../results/bench_{name}.csv)):\n\n```text\n{command}\n```\n\n", provenance(t)?);
@@ -137,7 +137,11 @@ pub(crate) fn bench_section(name: &str, command: &str, against: Option<&str>, t:
         let mut cells = vec![
             t.text(r, "case").to_string(),
             ms(t.number(r, "median_ms")),
-            num(1000.0 / t.number(r, "median_ms")),
+            match t.number(r, "median_items_per_s") {
+                items if items.is_finite() && items >= 1e6 => format!("{} M items", num(items / 1e6)),
+                items if items.is_finite() => format!("{} items", num(items)),
+                _ => num(1000.0 / t.number(r, "median_ms")),
+            },
             format!("{} – {}", ms(t.number(r, "fastest_ms")), ms(t.number(r, "slowest_ms"))),
             format!("{} × {}", t.text(r, "samples"), t.text(r, "iters")),
         ];
