@@ -46,6 +46,9 @@ struct Entry {
     group: Vec<String>,
     /// A measurement table's value columns and their headings, shown as ranges over the runs.
     columns: Vec<(String, String)>,
+    /// A benchmark's figures from elsewhere (a thesis' table) shown beside its cases: the
+    /// column's heading, and each case's figure.
+    compare: Option<(String, Vec<(String, String)>)>,
 }
 
 /// The three kinds of results file: their manifest, its root struct and list, the files' prefix,
@@ -70,7 +73,7 @@ const BENCHES: Kind = Kind {
     root: "BenchResults",
     list: "benches",
     prefix: "bench_",
-    fields: &["name", "caption", "command", "against"],
+    fields: &["name", "caption", "command", "against", "compare", "compare_heading"],
 };
 
 /// Measurements made by scripts or by hand-run drives (the editor's, the Python package's),
@@ -82,6 +85,11 @@ const TABLES: Kind = Kind {
     prefix: "table_",
     fields: &["name", "caption", "command", "group", "columns"],
 };
+
+/// An optional text field of a manifest entry.
+fn optional_in(f: &mut Fields, name: &str) -> Result<Option<String>, relume_core::ron::SyntaxError> {
+    f.opt(name).map(|v| str_of(v, name).map(str::to_string)).transpose()
+}
 
 /// The entries of the folder's manifest of `kind`; none where the folder has no such manifest
 /// (then it may hold no CSV of that kind either).
@@ -102,9 +110,8 @@ fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
         let mut text = |name: &str| f.req(name).and_then(|v| str_of(v, name)).map(str::to_string).map_err(at);
         let (name, caption, command) = (text("name")?, text("caption")?, text("command")?);
         let has = |field: &str| kind.fields.contains(&field);
-        let mut optional = |name: &str| f.opt(name).map(|v| str_of(v, name).map(str::to_string).map_err(at)).transpose();
-        let against = if has("against") { optional("against")? } else { None };
-        let headline = match if has("page") { (optional("page")?, optional("headline")?) } else { (None, None) } {
+        let against = if has("against") { optional_in(&mut f, "against").map_err(at)? } else { None };
+        let headline = match if has("page") { (optional_in(&mut f, "page").map_err(at)?, optional_in(&mut f, "headline").map_err(at)?) } else { (None, None) } {
             (Some(page), Some(row)) => Some((page, row)),
             (None, None) => None,
             _ => {
@@ -123,15 +130,25 @@ fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
                 .map_err(at)?,
             None => Vec::new(),
         };
-        let columns = match f.opt("columns").filter(|_| has("columns")) {
-            Some(v) => map_of(v, "columns")
-                .map_err(at)?
-                .into_iter()
-                .map(|(k, _, h)| Ok((k.to_string(), str_of(h, k)?.to_string())))
-                .collect::<Result<_, _>>()
-                .map_err(at)?,
-            None => Vec::new(),
+        let text_map = |v: Option<&relume_core::ron::Ron>, what: &str| match v {
+            Some(v) => map_of(v, what)
+                .and_then(|m| m.into_iter().map(|(k, _, h)| Ok((k.to_string(), str_of(h, k)?.to_string()))).collect())
+                .map_err(at),
+            None => Ok(Vec::new()),
         };
+        let columns: Vec<(String, String)> = text_map(f.opt("columns").filter(|_| has("columns")), "columns")?;
+        let compare = text_map(f.opt("compare").filter(|_| has("compare")), "compare")?;
+        let compare =
+            match (compare.is_empty(), if has("compare_heading") { optional_in(&mut f, "compare_heading").map_err(at)? } else { None }) {
+                (true, None) => None,
+                (false, Some(heading)) => Some((heading, compare)),
+                _ => {
+                    return Err(CliError::graph(format!(
+                        "{}: `{name}` needs both `compare` (case: figure) and `compare_heading` (whose figures they are), or neither",
+                        path.display()
+                    )))
+                }
+            };
         if has("columns") && columns.is_empty() {
             return Err(CliError::graph(format!(
                 "{}: `{name}` shows no columns (`columns: {{\"csv_column\": \"heading\", …}}`)",
@@ -145,7 +162,7 @@ fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
         if out.iter().any(|o| o.name == name) {
             return Err(CliError::graph(format!("{}: `{name}` is listed twice", path.display())));
         }
-        out.push(Entry { name, caption, command, against, headline, group, columns });
+        out.push(Entry { name, caption, command, against, headline, group, columns, compare });
     }
     Ok(out)
 }
@@ -208,7 +225,8 @@ fn bench_files(dir: &Path, benches: &[Entry]) -> Result<Vec<(PathBuf, Vec<u8>)>,
     );
     for b in benches {
         let (csv, table) = read_csv(dir, &BENCHES, &b.name)?;
-        let mut body = tables::bench_section(&b.name, &b.command, b.against.as_deref(), &table)
+        let compare = b.compare.as_ref().map(|(h, c)| (h.as_str(), c.as_slice()));
+        let mut body = tables::bench_section(&b.name, &b.command, b.against.as_deref(), compare, &table)
             .map_err(|e| CliError::run(format!("{}: {e}", csv.display())))?;
         // What the benchmark printed itself in the same run, kept beside its CSV.
         let notes = dir.join(format!("bench_{}.txt", b.name));
@@ -354,6 +372,20 @@ mod tests {
         results(&ResultsArgs { dir: dir.path().to_path_buf(), check: false }).unwrap();
         let md = std::fs::read_to_string(dir.path().join("bench_refract.md")).unwrap();
         assert!(md.contains("| shade_256_only | 35 ms | 6.90 M items | 28 ms – 44 ms |"), "{md}");
+        // Figures from elsewhere beside the cases, under their heading; a case they name must exist.
+        let compared = BENCH_MANIFEST.replace(
+            r#"against: "shade_256_only""#,
+            r#"against: "shade_256_only", compare: {"shade_256_only": "5.8 frames/s"}, compare_heading: "[S] table 6-1""#,
+        );
+        std::fs::write(dir.path().join("benches.ron"), &compared).unwrap();
+        results(&ResultsArgs { dir: dir.path().to_path_buf(), check: false }).unwrap();
+        let md = std::fs::read_to_string(dir.path().join("bench_refract.md")).unwrap();
+        assert!(md.contains("| median against `shade_256_only` | [S] table 6-1 |"), "{md}");
+        assert!(md.contains("| 1.00× | 5.8 frames/s |") && md.contains("| 4.55× | — |"), "{md}");
+        std::fs::write(dir.path().join("benches.ron"), compared.replace(r#"{"shade_256_only""#, r#"{"nosuch""#)).unwrap();
+        assert!(results(&ResultsArgs { dir: dir.path().to_path_buf(), check: true }).unwrap_err().msg.contains("a case `nosuch`"));
+        std::fs::write(dir.path().join("benches.ron"), compared.replace(r#", compare_heading: "[S] table 6-1""#, "")).unwrap();
+        assert!(results(&ResultsArgs { dir: dir.path().to_path_buf(), check: true }).unwrap_err().msg.contains("needs both `compare`"));
         // Without its manifest, a benchmark's CSV is one nothing lists.
         std::fs::remove_file(dir.path().join("benches.ron")).unwrap();
         let e = results(&ResultsArgs { dir: dir.path().to_path_buf(), check: true }).unwrap_err();

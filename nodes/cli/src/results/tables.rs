@@ -105,10 +105,17 @@ fn equal_error(curve: &[(f64, f64)], tm: f64, e: f64) -> (String, String) {
     }
 }
 
-/// A benchmark's section body: provenance, command, and a table of its cases (median, runs a
-/// second at the median, or items a second where the case counts items (rays, samples), range, samples × iterations, and each median against the case `against` names, measured in the
-/// same run).
-pub(crate) fn bench_section(name: &str, command: &str, against: Option<&str>, t: &CsvTable) -> Result<String, String> {
+/// A benchmark's section body: provenance, command, and a table of its cases: median, runs a
+/// second at the median (items a second where the case counts items: rays, samples), range,
+/// samples × iterations, each median against the case `against` names (measured in the same
+/// run), and the figures `compare` gives for its cases (a thesis' table) under its heading.
+pub(crate) fn bench_section(
+    name: &str,
+    command: &str,
+    against: Option<&str>,
+    compare: Option<(&str, &[(String, String)])>,
+    t: &CsvTable,
+) -> Result<String, String> {
     let mut out = format!("{} ([csv](../results/bench_{name}.csv)):\n\n```text\n{command}\n```\n\n", provenance(t)?);
     let rows = 0..t.rows.len();
     let base = match against {
@@ -132,6 +139,12 @@ pub(crate) fn bench_section(name: &str, command: &str, against: Option<&str>, t:
     if let Some((case, _)) = base {
         head.push(format!("median against `{case}`"));
     }
+    if let Some((heading, figures)) = compare {
+        if let Some((case, _)) = figures.iter().find(|(case, _)| !rows.clone().any(|r| t.text(r, "case") == case)) {
+            return Err(format!("`compare` names a case `{case}` the benchmark does not have"));
+        }
+        head.push(heading.to_string());
+    }
     out += &header(&head);
     for r in rows {
         let mut cells = vec![
@@ -147,6 +160,9 @@ pub(crate) fn bench_section(name: &str, command: &str, against: Option<&str>, t:
         ];
         if let Some((_, m)) = base {
             cells.push(format!("{:.2}×", t.number(r, "median_ms") / m));
+        }
+        if let Some((_, figures)) = compare {
+            cells.push(figures.iter().find(|(case, _)| case == t.text(r, "case")).map_or("—".to_string(), |(_, f)| f.clone()));
         }
         out += &line(&cells);
     }
