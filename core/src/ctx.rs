@@ -377,6 +377,12 @@ impl<'a> RunCtx<'a> {
         let done = AtomicU64::new(0);
         let parts: Vec<Vec<T>> = (0..n.div_ceil(block))
             .into_par_iter()
+            // Every block its own piece, so that an idle thread can take any one. Measured
+            // in the refraction pipeline's camera edit (the engine running `EikonalPaths` on a
+            // 2-thread pool): left to rayon's own splitting, its 64 blocks went 128 rows to
+            // each thread, one busy 36 ms with the sky and the other 92 ms with the glass, the
+            // node using 1.4 cores; with this, 156 and 100 rows, both busy.
+            .with_max_len(1)
             .map_init(init, |scratch, b| {
                 let items = b * block..((b + 1) * block).min(n);
                 let len = items.len() as u64;
@@ -395,7 +401,8 @@ impl<'a> RunCtx<'a> {
     }
 
     /// Runs `f(chunk_index, chunk)` over `data` split into chunks of `chunk` elements (rows
-    /// of an image, tiles, …) in parallel, with progress and cancellation as `par_map`.
+    /// of an image, tiles, …) in parallel, with progress and cancellation as `par_map`, in
+    /// pieces of at most `block_len` chunks that an idle thread can take.
     pub fn par_chunks_mut<T: Send>(
         &self,
         data: &mut [T],
@@ -404,7 +411,7 @@ impl<'a> RunCtx<'a> {
     ) -> Result<(), NodeError> {
         let n = data.len().div_ceil(chunk.max(1));
         let done = AtomicU64::new(0);
-        data.par_chunks_mut(chunk.max(1)).enumerate().try_for_each(|(i, c)| {
+        data.par_chunks_mut(chunk.max(1)).enumerate().with_max_len(block_len(n, rayon::current_num_threads())).try_for_each(|(i, c)| {
             self.check()?;
             f(i, c);
             self.progress(done.fetch_add(1, Ordering::Relaxed) + 1, n as u64);
