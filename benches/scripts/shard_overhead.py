@@ -11,13 +11,16 @@ On one machine the processes share its cores, so the figure is overhead, not spe
 variant does the same path tracing as (1), and what it takes beyond (1) is the cost of
 sharding (process start, graph load, scene and BVH per process, connecting, moving partials,
 the gather). Prints a Markdown table, the overhead per shard, and the wall time projected for
-M machines like this one from the measured time per chunk.
+M machines like this one from the measured time per chunk, and appends the measured rows of
+both sample counts to docs/results/table_shard_overhead.csv with the date, machine, threads and
+commit (unless --no-record); `relume results` draws the cluster guide's table from it.
 
-Usage: python3 benches/scripts/shard_overhead.py [--spp 4096] [--relume target/release/relume]
+Usage: python3 benches/scripts/shard_overhead.py [--spp 4096] [--relume target/release/relume] [--no-record]
 Build first: cargo build --release.
 """
 
 import argparse
+import csv
 import json
 import math
 import os
@@ -25,8 +28,12 @@ import subprocess
 import tempfile
 import time
 
+from provenance import COLUMNS, cells
+
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 GRAPH = os.path.join(ROOT, "graphs", "reference_cornell.ron")
+RESULTS = os.path.join(ROOT, "docs", "results", "table_shard_overhead.csv")
+HEADER = ["run", "spp", "shards", "wall_s", "over_unsharded_s", "chunks", "chunk_s", "images_identical", *COLUMNS]
 
 
 def run(cmd):
@@ -47,11 +54,12 @@ def main():
     ap.add_argument("--fixed-spp", type=int, default=16,
                     help="a second, short measurement where the fixed costs of sharding are not lost in the run-to-run noise")
     ap.add_argument("--relume", default=os.path.join(ROOT, "target", "release", "relume"))
+    ap.add_argument("--no-record", action="store_true", help=f"print only, do not append to {RESULTS}")
     a = ap.parse_args()
     rows, t1, chunks, chunk_ms, same = measure(a.relume, a.spp)
     print(f"cornell 256x256, PathTrace {a.spp} spp, {chunks} chunks of 16 rows; {os.cpu_count()} cores; images identical: {same}\n")
     table(rows, t1)
-    fixed, f1, _, _, fsame = measure(a.relume, a.fixed_spp)
+    fixed, f1, fchunks, fchunk_ms, fsame = measure(a.relume, a.fixed_spp)
     print(f"\nthe same at {a.fixed_spp} spp (fixed costs; images identical: {fsame}):\n")
     table(fixed, f1)
     # Per Slurm-style shard: the larger of the two measurements, never below zero (at high spp
@@ -64,6 +72,19 @@ def main():
     for m in (1, 2, 4, 8, 16):
         w = math.ceil(chunks / m) * chunk_ms / 1e3 + (per_shard if m > 1 else 0.0)
         print(f"| {m} | {w:.1f} | {t1 / w:.1f}x |")
+    if a.no_record:
+        return
+    new = not os.path.exists(RESULTS)
+    with open(RESULTS, "a", newline="", encoding="utf-8") as f:
+        w = csv.writer(f, lineterminator="\n")
+        if new:
+            w.writerow(HEADER)
+        for spp, measured, base, n, ms, identical in ((a.spp, rows, t1, chunks, chunk_ms, same),
+                                                      (a.fixed_spp, fixed, f1, fchunks, fchunk_ms, fsame)):
+            for name, shards, t in measured:
+                w.writerow([name, spp, shards, f"{t:.2f}", f"{t - base:+.2f}", n, f"{ms / 1e3:.3f}",
+                            "yes" if identical else "no", *cells()])
+    print(f"appended {len(rows) + len(fixed)} rows to {RESULTS}")
 
 
 def measure(relume, spp):
