@@ -11,7 +11,6 @@ Not needed by the tests. Needs `pip install mitsuba numpy` and the release binar
     python3 benches/scripts/mitsuba_agreement.py [--spp 128] [--relume target/release/relume] [--no-record]
 """
 import argparse
-import csv
 import os
 import subprocess
 import tempfile
@@ -19,7 +18,7 @@ import tempfile
 import mitsuba as mi
 import numpy as np
 
-from provenance import COLUMNS, cells
+from provenance import COLUMNS, append_rows, cells
 
 RESULTS = os.path.join("docs", "results", "table_mitsuba_agreement.csv")
 HEADER = ["scene", "size", "spp", "max_depth", "renderer", "mean_r", "mean_g", "mean_b", *COLUMNS]
@@ -61,13 +60,7 @@ def main():
             rows.append(["cornell", SIZE, a.spp, depth, renderer, *(f"{m:.5f}" for m in means), *cells()])
     if a.no_record:
         return
-    new = not os.path.exists(RESULTS)
-    with open(RESULTS, "a", newline="", encoding="utf-8") as f:
-        w = csv.writer(f, lineterminator="\n")
-        if new:
-            w.writerow(HEADER)
-        w.writerows(rows)
-    print(f"appended {len(rows)} rows to {RESULTS}")
+    append_rows(RESULTS, HEADER, rows)
 
 
 if __name__ == "__main__":

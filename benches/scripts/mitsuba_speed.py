@@ -18,7 +18,6 @@ LLVM variant loads the system's libLLVM, and LLVM 14 and 15 fail on the code it 
         python3 benches/scripts/mitsuba_speed.py [--spp 32] [--rounds 3] [--relume target/release/relume] [--no-record]
 """
 import argparse
-import csv
 import json
 import os
 import subprocess
@@ -28,7 +27,7 @@ import time
 import drjit as dr
 import mitsuba as mi
 
-from provenance import COLUMNS, cells
+from provenance import COLUMNS, append_rows, cells
 
 RESULTS = os.path.join("docs", "results", "table_path_tracer_vs_mitsuba.csv")
 HEADER = ["scene", "size", "spp", "threads", "round", "relume_msamples_per_s", "scalar_rgb_msamples_per_s",
@@ -84,13 +83,7 @@ def main():
                          f"{rel / scalar:.3f}", f"{rel / llvm:.3f}", *cells(threads)])
     if a.no_record:
         return
-    new = not os.path.exists(RESULTS)
-    with open(RESULTS, "a", newline="", encoding="utf-8") as f:
-        w = csv.writer(f, lineterminator="\n")
-        if new:
-            w.writerow(HEADER)
-        w.writerows(rows)
-    print(f"appended {len(rows)} rows to {RESULTS}")
+    append_rows(RESULTS, HEADER, rows)
 
 
 if __name__ == "__main__":

@@ -10,7 +10,6 @@ usage: python benches/scripts/python_overhead.py [GRAPH] [NODE.PARAM] [--edits N
        package installed: pip install ./python)
 """
 import argparse
-import csv
 import os
 import statistics
 import time
@@ -18,7 +17,7 @@ import time
 import relume
 from relume import _relume
 
-from provenance import COLUMNS, cells
+from provenance import COLUMNS, append_rows, cells
 
 RESULTS = os.path.join("docs", "results", "table_python_overhead.csv")
 HEADER = ["graph", "param", "edits", "rounds", "rust_ms", "python_ms", "ratio", "difference_ms", *COLUMNS]
@@ -60,14 +59,9 @@ def main():
           f"ratio {pm / rm:.3f}, difference {pm - rm:.3f} ms")
     if a.no_record:
         return
-    new = not os.path.exists(RESULTS)
-    with open(RESULTS, "a", newline="", encoding="utf-8") as f:
-        w = csv.writer(f, lineterminator="\n")
-        if new:
-            w.writerow(HEADER)
-        w.writerow([a.graph, a.param, a.edits, a.rounds, f"{rm:.4f}", f"{pm:.4f}", f"{pm / rm:.4f}", f"{pm - rm:.4f}",
-                    *cells()])
-    print(f"appended to {RESULTS}")
+    append_rows(RESULTS, HEADER, [[a.graph, a.param, a.edits, a.rounds, f"{rm:.4f}", f"{pm:.4f}", f"{pm / rm:.4f}",
+                                   f"{pm - rm:.4f}", *cells()]])
+
 
 if __name__ == "__main__":
     main()

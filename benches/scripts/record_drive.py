@@ -12,13 +12,12 @@ usage: python3 benches/scripts/record_drive.py GRAPH NODE.PARAM=FROM:TO [--set N
        precompute in the disk cache: a drive times edits, not a first run)
 """
 import argparse
-import csv
 import os
 import re
 import subprocess
 import tempfile
 
-from provenance import COLUMNS, cells
+from provenance import COLUMNS, append_rows, cells
 
 RESULTS = os.path.join("docs", "results", "table_editor_drag_rates.csv")
 HEADER = ["graph", "edit", "setting", "layout", "run", "frames_per_s", "images_per_s", "latency_median_ms", "run_median_ms",
@@ -65,13 +64,7 @@ def main():
             rows.append([name, edit, setting, layout, r, frames, images, latency, run, alone, alone_ms, *cells()])
     if a.no_record:
         return
-    new = not os.path.exists(RESULTS)
-    with open(RESULTS, "a", newline="", encoding="utf-8") as f:
-        w = csv.writer(f, lineterminator="\n")
-        if new:
-            w.writerow(HEADER)
-        w.writerows(rows)
-    print(f"appended {len(rows)} rows to {RESULTS}")
+    append_rows(RESULTS, HEADER, rows)
 
 
 if __name__ == "__main__":

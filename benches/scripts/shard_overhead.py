@@ -20,7 +20,6 @@ Build first: cargo build --release.
 """
 
 import argparse
-import csv
 import json
 import math
 import os
@@ -28,7 +27,7 @@ import subprocess
 import tempfile
 import time
 
-from provenance import COLUMNS, cells
+from provenance import COLUMNS, append_rows, cells
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 GRAPH = os.path.join(ROOT, "graphs", "reference_cornell.ron")
@@ -74,17 +73,13 @@ def main():
         print(f"| {m} | {w:.1f} | {t1 / w:.1f}x |")
     if a.no_record:
         return
-    new = not os.path.exists(RESULTS)
-    with open(RESULTS, "a", newline="", encoding="utf-8") as f:
-        w = csv.writer(f, lineterminator="\n")
-        if new:
-            w.writerow(HEADER)
-        for spp, measured, base, n, ms, identical in ((a.spp, rows, t1, chunks, chunk_ms, same),
-                                                      (a.fixed_spp, fixed, f1, fchunks, fchunk_ms, fsame)):
-            for name, shards, t in measured:
-                w.writerow([name, spp, shards, f"{t:.2f}", f"{t - base:+.2f}", n, f"{ms / 1e3:.3f}",
-                            "yes" if identical else "no", *cells()])
-    print(f"appended {len(rows) + len(fixed)} rows to {RESULTS}")
+    out = []
+    for spp, measured, base, n, ms, identical in ((a.spp, rows, t1, chunks, chunk_ms, same),
+                                                  (a.fixed_spp, fixed, f1, fchunks, fchunk_ms, fsame)):
+        for name, shards, t in measured:
+            out.append([name, spp, shards, f"{t:.2f}", f"{t - base:+.2f}", n, f"{ms / 1e3:.3f}",
+                        "yes" if identical else "no", *cells()])
+    append_rows(RESULTS, HEADER, out)
 
 
 def measure(relume, spp):
