@@ -3,7 +3,9 @@
 //! threads and commit of its measurement: sweeps (`sweep_NAME.csv`, written by `relume
 //! sweep`), benchmarks (`bench_NAME.csv`, written by `benches/scripts/record_bench.py` from
 //! divan's table) and measurement tables (`table_NAME.csv`, one row a run: editor drives, the
-//! Python overhead, fresh clones timed). Three manifests, `sweeps.ron`, `benches.ron` and
+//! Python overhead, fresh clones timed). A measurement table may instead show chosen columns
+//! of a sweep's CSV or of a single run's (`run_NAME.csv`: a one-variant `relume sweep`, every
+//! node's time, output bytes and metrics). Three manifests, `sweeps.ron`, `benches.ron` and
 //! `tables.ron`, list them with the command that measured each. From those alone it writes each
 //! sweep's plot (`sweep_NAME.png`), each measurement's section (`sweep_NAME.md`, `bench_NAME.md`,
 //! `table_NAME.md`, which the book's pages include) and the overview pages `sweeps.md`,
@@ -49,6 +51,15 @@ struct Entry {
     /// A benchmark's figures from elsewhere (a thesis' table) shown beside its cases: the
     /// column's heading, and each case's figure.
     compare: Option<(String, Vec<(String, String)>)>,
+    /// A measurement table's CSV when not its own `table_NAME.csv`: a sweep's or a run's
+    /// (`run_NAME.csv`, a one-variant sweep), in the same folder.
+    source: Option<String>,
+    /// A measurement table's rows kept from its CSV: those with this text in this column.
+    filter: Vec<(String, String)>,
+    /// A measurement table's rows named by hand, each a label and the CSV columns of its cells,
+    /// under `headings`.
+    rows: Vec<(String, Vec<String>)>,
+    headings: Vec<String>,
 }
 
 /// The three kinds of results file: their manifest, its root struct and list, the files' prefix,
@@ -83,8 +94,12 @@ const TABLES: Kind = Kind {
     root: "TableResults",
     list: "tables",
     prefix: "table_",
-    fields: &["name", "caption", "command", "group", "columns"],
+    fields: &["name", "caption", "command", "group", "columns", "source", "filter", "rows", "headings"],
 };
+
+/// A single run's every node time, bytes and metric (`run_NAME.csv`, written as a one-variant
+/// sweep): listed by the measurement tables that draw from it (their `source`).
+const RUN_PREFIX: &str = "run_";
 
 /// An optional text field of a manifest entry.
 fn optional_in(f: &mut Fields, name: &str) -> Result<Option<String>, relume_core::ron::SyntaxError> {
@@ -137,6 +152,39 @@ fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
             None => Ok(Vec::new()),
         };
         let columns: Vec<(String, String)> = text_map(f.opt("columns").filter(|_| has("columns")), "columns")?;
+        let filter = text_map(f.opt("filter").filter(|_| has("filter")), "filter")?;
+        let source = if has("source") { optional_in(&mut f, "source").map_err(at)? } else { None };
+        if let Some(src) = &source {
+            if src.contains('/') || !src.ends_with(".csv") {
+                return Err(CliError::graph(format!(
+                    "{}: `{name}`: source `{src}` must be a CSV file's name in the folder",
+                    path.display()
+                )));
+            }
+        }
+        let strings = |v: &relume_core::ron::Ron, what: &str| -> Result<Vec<String>, CliError> {
+            list_of(v, what).map_err(at)?.iter().map(|c| str_of(c, what).map(str::to_string).map_err(at)).collect()
+        };
+        let headings = match f.opt("headings").filter(|_| has("headings")) {
+            Some(v) => strings(v, "headings")?,
+            None => Vec::new(),
+        };
+        let mut rows: Vec<(String, Vec<String>)> = Vec::new();
+        if let Some(v) = f.opt("rows").filter(|_| has("rows")) {
+            for row in list_of(v, "rows").map_err(at)? {
+                let bad = || CliError::graph(format!("{}: `{name}`: each of `rows` is (\"label\", [\"csv_column\", …])", path.display()));
+                let relume_core::ron::RonKind::Tuple(None, parts) = &row.kind else { return Err(bad()) };
+                let [label, cells] = parts.as_slice() else { return Err(bad()) };
+                rows.push((str_of(label, "a row's label").map_err(at)?.to_string(), strings(cells, "a row's columns")?));
+            }
+        }
+        if rows.iter().any(|(_, cells)| cells.len() + 1 != headings.len()) {
+            return Err(CliError::graph(format!(
+                "{}: `{name}`: `headings` has {} entries; each row needs one cell fewer (its label comes first)",
+                path.display(),
+                headings.len()
+            )));
+        }
         let compare = text_map(f.opt("compare").filter(|_| has("compare")), "compare")?;
         let compare =
             match (compare.is_empty(), if has("compare_heading") { optional_in(&mut f, "compare_heading").map_err(at)? } else { None }) {
@@ -149,9 +197,9 @@ fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
                     )))
                 }
             };
-        if has("columns") && columns.is_empty() {
+        if has("columns") && columns.is_empty() && rows.is_empty() {
             return Err(CliError::graph(format!(
-                "{}: `{name}` shows no columns (`columns: {{\"csv_column\": \"heading\", …}}`)",
+                "{}: `{name}` shows no columns (`columns: {{\"csv_column\": \"heading\", …}}`, or `rows` and `headings`)",
                 path.display()
             )));
         }
@@ -162,7 +210,7 @@ fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
         if out.iter().any(|o| o.name == name) {
             return Err(CliError::graph(format!("{}: `{name}` is listed twice", path.display())));
         }
-        out.push(Entry { name, caption, command, against, headline, group, columns, compare });
+        out.push(Entry { name, caption, command, against, headline, group, columns, compare, source, filter, rows, headings });
     }
     Ok(out)
 }
@@ -251,9 +299,19 @@ fn table_files(dir: &Path, tables: &[Entry]) -> Result<Vec<(PathBuf, Vec<u8>)>, 
          first columns and shows each figure's range over them.\n"
     );
     for e in tables {
-        let (csv, table) = read_csv(dir, &TABLES, &e.name)?;
-        let body = grouped::section(&e.name, &e.command, &e.group, &e.columns, &table)
-            .map_err(|m| CliError::run(format!("{}: {m}", csv.display())))?;
+        let csv_name = e.source.clone().unwrap_or_else(|| format!("{}{}.csv", TABLES.prefix, e.name));
+        let (csv, table) = read_named_csv(dir, &csv_name)?;
+        let spec = grouped::TableSpec {
+            command: &e.command,
+            csv: &csv_name,
+            filter: &e.filter,
+            group: &e.group,
+            columns: &e.columns,
+            rows: &e.rows,
+            headings: &e.headings,
+            formatted: e.source.is_some(),
+        };
+        let body = grouped::section(&spec, &table).map_err(|m| CliError::run(format!("{}: `{}`: {m}", csv.display(), e.name)))?;
         files.push(section_file(dir, &TABLES, e, &body));
         overview += &format!("\n## {}\n\n{body}", e.caption);
     }
@@ -263,7 +321,12 @@ fn table_files(dir: &Path, tables: &[Entry]) -> Result<Vec<(PathBuf, Vec<u8>)>, 
 
 /// `PREFIX_NAME.csv` read and parsed.
 fn read_csv(dir: &Path, kind: &Kind, name: &str) -> Result<(PathBuf, CsvTable), CliError> {
-    let csv = dir.join(format!("{}{name}.csv", kind.prefix));
+    read_named_csv(dir, &format!("{}{name}.csv", kind.prefix))
+}
+
+/// The folder's CSV `file` read and parsed.
+fn read_named_csv(dir: &Path, file: &str) -> Result<(PathBuf, CsvTable), CliError> {
+    let csv = dir.join(file);
     let fail = |e: String| CliError::run(format!("{}: {e}", csv.display()));
     let text = std::fs::read_to_string(&csv).map_err(|e| fail(format!("cannot read it: {e}")))?;
     let table = CsvTable::parse(&text).map_err(fail)?;
@@ -294,6 +357,18 @@ fn unlisted(dir: &Path, kind: &Kind, entries: &[Entry]) -> Result<Vec<String>, C
     Ok(out)
 }
 
+/// The run CSVs (`run_NAME.csv`) in the folder that no measurement table names as its source.
+fn unlisted_runs(dir: &Path, tables: &[Entry]) -> Result<Vec<String>, CliError> {
+    let files = std::fs::read_dir(dir).map_err(|e| CliError::graph(format!("cannot list {}: {e}", dir.display())))?;
+    let mut out: Vec<String> = files
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .filter(|n| n.starts_with(RUN_PREFIX) && n.ends_with(".csv"))
+        .filter(|n| !tables.iter().any(|t| t.source.as_deref() == Some(n.as_str())))
+        .collect();
+    out.sort();
+    Ok(out)
+}
+
 pub(crate) fn results(a: &ResultsArgs) -> Result<(), CliError> {
     let (sweeps, benches, tables) = (load_manifest(&a.dir, &SWEEPS)?, load_manifest(&a.dir, &BENCHES)?, load_manifest(&a.dir, &TABLES)?);
     for (kind, entries) in [(&SWEEPS, &sweeps), (&BENCHES, &benches), (&TABLES, &tables)] {
@@ -301,6 +376,10 @@ pub(crate) fn results(a: &ResultsArgs) -> Result<(), CliError> {
         if !stray.is_empty() {
             return Err(CliError::graph(format!("{}: CSV files {} does not list: {}", a.dir.display(), kind.manifest, stray.join(", "))));
         }
+    }
+    let runs = unlisted_runs(&a.dir, &tables)?;
+    if !runs.is_empty() {
+        return Err(CliError::graph(format!("{}: run CSV files no table of tables.ron draws from: {}", a.dir.display(), runs.join(", "))));
     }
     let mut files = sweep_files(&a.dir, &sweeps)?;
     files.extend(bench_files(&a.dir, &benches)?);
@@ -432,5 +511,25 @@ mod tests {
         std::fs::write(dir.path().join("sweep_blur.csv"), without).unwrap();
         let e = results(&args).unwrap_err();
         assert!(e.msg.contains("no date, machine, threads, commit column"), "{}", e.msg);
+    }
+
+    #[test]
+    fn a_table_may_draw_named_rows_from_a_run_csv_which_must_be_drawn_from() {
+        let dir = folder(MANIFEST_TEXT);
+        let args = |check| ResultsArgs { dir: dir.path().to_path_buf(), check };
+        let run = "series,variant,t0.terms,ms:t0,bytes:t0,date,machine,threads,commit\nmethod,t0.terms=96,96,82800,399014228,2026-11-29,m,2,abc\n";
+        std::fs::write(dir.path().join("run_ptt.csv"), run).unwrap();
+        let e = results(&args(true)).unwrap_err();
+        assert!(e.msg.contains("run CSV files no table of tables.ron draws from: run_ptt.csv"), "{}", e.msg);
+        let manifest = r#"TableResults(tables: [(name: "stages", caption: "Stages", command: "relume sweep g.ron --vary t0.terms=96",
+            source: "run_ptt.csv", rows: [("TransferT0", ["ms:t0", "bytes:t0"])], headings: ["stage", "time", "bytes"])])"#;
+        std::fs::write(dir.path().join("tables.ron"), manifest).unwrap();
+        results(&args(false)).unwrap();
+        let md = std::fs::read_to_string(dir.path().join("table_stages.md")).unwrap();
+        assert!(md.contains("([csv](../results/run_ptt.csv))") && md.contains("| TransferT0 | 82.80 s | 380.5 MiB |"), "{md}");
+        std::fs::write(dir.path().join("tables.ron"), manifest.replace(r#", "bytes"]"#, "]")).unwrap();
+        assert!(results(&args(true)).unwrap_err().msg.contains("`headings` has 2 entries"));
+        std::fs::write(dir.path().join("tables.ron"), manifest.replace("run_ptt.csv", "../run_ptt.csv")).unwrap();
+        assert!(results(&args(true)).unwrap_err().msg.contains("must be a CSV file's name in the folder"));
     }
 }

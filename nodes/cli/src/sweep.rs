@@ -460,7 +460,8 @@ fn in_graph_order<'r>(graph: &Graph, report: &'r RunReport) -> Vec<&'r relume_co
 }
 
 /// A unit suffix for the axis label, from the metric's name.
-/// `series,variant,<params>,time_ms,pipeline_ms,total_ms,<node.metric>…,ms:<node>…,date,machine,threads,commit`.
+/// `series,variant,<params>,time_ms,pipeline_ms,total_ms,<node.metric>…,ms:<node>…,bytes:<node>…,date,machine,threads,commit`
+/// (`bytes:` the node's outputs, cached or not).
 fn write_csv(graph: &Graph, columns: &[String], rows: &[Row]) -> String {
     // Metric and node columns: every one any row has, in graph order (metrics by name).
     let mut metrics: Vec<(String, String)> = Vec::new();
@@ -484,6 +485,7 @@ fn write_csv(graph: &Graph, columns: &[String], rows: &[Row]) -> String {
     header.extend(["time_ms".to_string(), "pipeline_ms".to_string(), "total_ms".to_string()]);
     header.extend(metrics.iter().map(|(n, m)| format!("{n}.{m}")));
     header.extend(nodes.iter().map(|n| format!("ms:{n}")));
+    header.extend(nodes.iter().map(|n| format!("bytes:{n}")));
     header.extend(crate::provenance::COLUMNS.map(String::from));
     let provenance = crate::provenance::cells();
     let mut out = csv_line(&header);
@@ -501,6 +503,9 @@ fn write_csv(graph: &Graph, columns: &[String], rows: &[Row]) -> String {
             cells.push(
                 r.report.node(n).map(|n| if n.status == "ran" { format!("{:.4}", n.wall_ms) } else { "0".to_string() }).unwrap_or_default(),
             );
+        }
+        for n in &nodes {
+            cells.push(r.report.node(n).map(|n| n.bytes.to_string()).unwrap_or_default());
         }
         cells.extend(provenance.iter().cloned());
         out.push_str(&csv_line(&cells));
