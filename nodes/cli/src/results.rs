@@ -51,14 +51,16 @@ struct Entry {
     /// A benchmark's figures from elsewhere (a thesis' table) shown beside its cases: the
     /// column's heading, and each case's figure.
     compare: Option<(String, Vec<(String, String)>)>,
-    /// A measurement table's CSV when not its own `table_NAME.csv`: a sweep's or a run's
-    /// (`run_NAME.csv`, a one-variant sweep), in the same folder.
-    source: Option<String>,
+    /// A measurement table's CSVs when not its own `table_NAME.csv`: sweeps' or runs'
+    /// (`run_NAME.csv`, a one-variant sweep), in the same folder; several are read as one, each
+    /// row with its file's name in a `source` column.
+    sources: Vec<String>,
     /// A measurement table's rows kept from its CSV: those with this text in this column.
     filter: Vec<(String, String)>,
-    /// A measurement table's rows named by hand, each a label and the CSV columns of its cells,
+    /// A measurement table's rows named by hand, each a label, the CSV rows it draws from
+    /// (those matching its filter; every row without one) and the CSV columns of its cells,
     /// under `headings`.
-    rows: Vec<(String, Vec<String>)>,
+    rows: Vec<grouped::NamedRow>,
     headings: Vec<String>,
 }
 
@@ -153,14 +155,17 @@ fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
         };
         let columns: Vec<(String, String)> = text_map(f.opt("columns").filter(|_| has("columns")), "columns")?;
         let filter = text_map(f.opt("filter").filter(|_| has("filter")), "filter")?;
-        let source = if has("source") { optional_in(&mut f, "source").map_err(at)? } else { None };
-        if let Some(src) = &source {
-            if src.contains('/') || !src.ends_with(".csv") {
-                return Err(CliError::graph(format!(
-                    "{}: `{name}`: source `{src}` must be a CSV file's name in the folder",
-                    path.display()
-                )));
-            }
+        let sources: Vec<String> = match f.opt("source").filter(|_| has("source")) {
+            None => Vec::new(),
+            Some(v) if matches!(v.kind, relume_core::ron::RonKind::List(_)) => list_of(v, "source")
+                .map_err(at)?
+                .iter()
+                .map(|c| str_of(c, "a source").map(str::to_string).map_err(at))
+                .collect::<Result<_, _>>()?,
+            Some(v) => vec![str_of(v, "source").map_err(at)?.to_string()],
+        };
+        if let Some(src) = sources.iter().find(|src| src.contains('/') || !src.ends_with(".csv")) {
+            return Err(CliError::graph(format!("{}: `{name}`: source `{src}` must be a CSV file's name in the folder", path.display())));
         }
         let strings = |v: &relume_core::ron::Ron, what: &str| -> Result<Vec<String>, CliError> {
             list_of(v, what).map_err(at)?.iter().map(|c| str_of(c, what).map(str::to_string).map_err(at)).collect()
@@ -169,16 +174,26 @@ fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
             Some(v) => strings(v, "headings")?,
             None => Vec::new(),
         };
-        let mut rows: Vec<(String, Vec<String>)> = Vec::new();
+        let mut rows: Vec<grouped::NamedRow> = Vec::new();
         if let Some(v) = f.opt("rows").filter(|_| has("rows")) {
             for row in list_of(v, "rows").map_err(at)? {
-                let bad = || CliError::graph(format!("{}: `{name}`: each of `rows` is (\"label\", [\"csv_column\", …])", path.display()));
+                let bad = || {
+                    CliError::graph(format!(
+                        "{}: `{name}`: each of `rows` is (\"label\", [\"csv_column\", …]) or (\"label\", {{\"column\": \"text\"}}, [\"csv_column\", …])",
+                        path.display()
+                    ))
+                };
                 let relume_core::ron::RonKind::Tuple(None, parts) = &row.kind else { return Err(bad()) };
-                let [label, cells] = parts.as_slice() else { return Err(bad()) };
-                rows.push((str_of(label, "a row's label").map_err(at)?.to_string(), strings(cells, "a row's columns")?));
+                let (label, filter, cells) = match parts.as_slice() {
+                    [label, cells] => (label, Vec::new(), cells),
+                    [label, filter, cells] => (label, text_map(Some(filter), "a row's filter")?, cells),
+                    _ => return Err(bad()),
+                };
+                let label = str_of(label, "a row's label").map_err(at)?.to_string();
+                rows.push(grouped::NamedRow { label, filter, cells: strings(cells, "a row's columns")? });
             }
         }
-        if rows.iter().any(|(_, cells)| cells.len() + 1 != headings.len()) {
+        if rows.iter().any(|r| r.cells.len() + 1 != headings.len()) {
             return Err(CliError::graph(format!(
                 "{}: `{name}`: `headings` has {} entries; each row needs one cell fewer (its label comes first)",
                 path.display(),
@@ -210,7 +225,7 @@ fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
         if out.iter().any(|o| o.name == name) {
             return Err(CliError::graph(format!("{}: `{name}` is listed twice", path.display())));
         }
-        out.push(Entry { name, caption, command, against, headline, group, columns, compare, source, filter, rows, headings });
+        out.push(Entry { name, caption, command, against, headline, group, columns, compare, sources, filter, rows, headings });
     }
     Ok(out)
 }
@@ -292,24 +307,32 @@ fn bench_files(dir: &Path, benches: &[Entry]) -> Result<Vec<(PathBuf, Vec<u8>)>,
 fn table_files(dir: &Path, tables: &[Entry]) -> Result<Vec<(PathBuf, Vec<u8>)>, CliError> {
     let mut files = Vec::new();
     let mut overview = format!(
-        "{GENERATED}# Results: measured runs\n\n\
-         Measurements made outside `relume sweep` and the benchmarks: drives of the editor in a\n\
-         window, the Python package's overhead, fresh clones timed. Each CSV row is one run, with\n\
+        "{GENERATED}# Results: tables\n\n\
+         Measurements made outside `relume sweep` and the benchmarks (drives of the editor in a\n\
+         window, the Python package's overhead, fresh clones timed: each CSV row one run, with\n\
          the date, machine, threads and commit; a table row gathers the runs that agree on its\n\
-         first columns and shows each figure's range over them.\n"
+         first columns and shows each figure's range over them), and the figures the pipeline\n\
+         pages quote from sweeps and from single runs (`run_NAME.csv`: a one-variant\n\
+         `relume sweep` with every node's time, output bytes and metrics), chosen by column.\n"
     );
     for e in tables {
-        let csv_name = e.source.clone().unwrap_or_else(|| format!("{}{}.csv", TABLES.prefix, e.name));
-        let (csv, table) = read_named_csv(dir, &csv_name)?;
+        let own = [format!("{}{}.csv", TABLES.prefix, e.name)];
+        let names: &[String] = if e.sources.is_empty() { &own } else { &e.sources };
+        let mut parts = Vec::new();
+        for n in names {
+            parts.push((n.as_str(), read_named_csv(dir, n)?.1));
+        }
+        let table = if parts.len() == 1 { parts.pop().unwrap().1 } else { CsvTable::joined(&parts) };
+        let csv = dir.join(&names[0]);
         let spec = grouped::TableSpec {
             command: &e.command,
-            csv: &csv_name,
+            csvs: names,
             filter: &e.filter,
             group: &e.group,
             columns: &e.columns,
             rows: &e.rows,
             headings: &e.headings,
-            formatted: e.source.is_some(),
+            formatted: !e.sources.is_empty(),
         };
         let body = grouped::section(&spec, &table).map_err(|m| CliError::run(format!("{}: `{}`: {m}", csv.display(), e.name)))?;
         files.push(section_file(dir, &TABLES, e, &body));
@@ -335,10 +358,9 @@ fn read_named_csv(dir: &Path, file: &str) -> Result<(PathBuf, CsvTable), CliErro
 
 /// The section a page includes: a comment, the caption, the body.
 fn section_file(dir: &Path, kind: &Kind, e: &Entry, body: &str) -> (PathBuf, Vec<u8>) {
+    let csvs = if e.sources.is_empty() { format!("{}{}.csv", kind.prefix, e.name) } else { e.sources.join(", ") };
     let text = format!(
-        "<!-- Generated by `relume results` from {p}{n}.csv and {m}: edit those, not this file. -->\n\n**{c}.** {body}",
-        p = kind.prefix,
-        n = e.name,
+        "<!-- Generated by `relume results` from {csvs} and {m}: edit those, not this file. -->\n\n**{c}.** {body}",
         m = kind.manifest,
         c = e.caption
     );
@@ -363,7 +385,7 @@ fn unlisted_runs(dir: &Path, tables: &[Entry]) -> Result<Vec<String>, CliError> 
     let mut out: Vec<String> = files
         .filter_map(|e| e.ok()?.file_name().into_string().ok())
         .filter(|n| n.starts_with(RUN_PREFIX) && n.ends_with(".csv"))
-        .filter(|n| !tables.iter().any(|t| t.source.as_deref() == Some(n.as_str())))
+        .filter(|n| !tables.iter().any(|t| t.sources.contains(n)))
         .collect();
     out.sort();
     Ok(out)

@@ -460,7 +460,7 @@ fn in_graph_order<'r>(graph: &Graph, report: &'r RunReport) -> Vec<&'r relume_co
 }
 
 /// A unit suffix for the axis label, from the metric's name.
-/// `series,variant,<params>,time_ms,pipeline_ms,total_ms,<node.metric>…,ms:<node>…,bytes:<node>…,date,machine,threads,commit`
+/// `series,variant,<params>,time_ms,pipeline_ms,total_ms,peak_rss_bytes,<node.metric>…,ms:<node>…,bytes:<node>…,date,machine,threads,commit`
 /// (`bytes:` the node's outputs, cached or not).
 fn write_csv(graph: &Graph, columns: &[String], rows: &[Row]) -> String {
     // Metric and node columns: every one any row has, in graph order (metrics by name).
@@ -482,7 +482,7 @@ fn write_csv(graph: &Graph, columns: &[String], rows: &[Row]) -> String {
     }
     let mut header: Vec<String> = vec!["series".into(), "variant".into()];
     header.extend(columns.iter().cloned());
-    header.extend(["time_ms".to_string(), "pipeline_ms".to_string(), "total_ms".to_string()]);
+    header.extend(["time_ms", "pipeline_ms", "total_ms", "peak_rss_bytes"].map(String::from));
     header.extend(metrics.iter().map(|(n, m)| format!("{n}.{m}")));
     header.extend(nodes.iter().map(|n| format!("ms:{n}")));
     header.extend(nodes.iter().map(|n| format!("bytes:{n}")));
@@ -495,6 +495,8 @@ fn write_csv(graph: &Graph, columns: &[String], rows: &[Row]) -> String {
         cells.push(format!("{:.4}", r.time_ms));
         cells.push(format!("{:.4}", r.pipeline_ms));
         cells.push(format!("{:.4}", r.report.total_ms));
+        // The process's peak resident memory when the variant ended (the largest so far).
+        cells.push(r.report.peak_rss_bytes.map(|b| b.to_string()).unwrap_or_default());
         for (n, m) in &metrics {
             cells.push(r.report.node(n).and_then(|n| n.metrics.get(m)).map(|v| v.to_string()).unwrap_or_default());
         }

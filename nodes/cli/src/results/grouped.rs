@@ -13,37 +13,54 @@ use relume_core::memory::fmt_bytes;
 /// What a table shows of its CSV.
 pub(crate) struct TableSpec<'a> {
     pub command: &'a str,
-    /// The CSV's file name in the results folder.
-    pub csv: &'a str,
+    /// The CSVs' file names in the results folder (several read as one).
+    pub csvs: &'a [String],
     /// Only the CSV rows whose column has this text.
     pub filter: &'a [(String, String)],
     pub group: &'a [String],
     pub columns: &'a [(String, String)],
-    /// Rows named by hand: a label and the CSV column of each further cell.
-    pub rows: &'a [(String, Vec<String>)],
+    /// Rows named by hand.
+    pub rows: &'a [NamedRow],
     /// The headings of the hand-named rows' table, the label's first.
     pub headings: &'a [String],
     /// Figures written for reading rather than as the CSV writes them.
     pub formatted: bool,
 }
 
+/// A table row named by hand: its label, the CSV rows its cells range over (those with this
+/// text in these columns; all rows where the filter is empty) and the CSV column of each cell
+/// ("" leaves the cell empty).
+pub(crate) struct NamedRow {
+    pub label: String,
+    pub filter: Vec<(String, String)>,
+    pub cells: Vec<String>,
+}
+
 /// The section body (after its caption): provenance, command, and the table.
 pub(crate) fn section(s: &TableSpec, all: &CsvTable) -> Result<String, String> {
     let t = filtered(all, s.filter)?;
-    let named = s.rows.iter().flat_map(|(_, cells)| cells.iter());
-    let missing: Vec<&str> =
-        s.group.iter().chain(s.columns.iter().map(|(c, _)| c)).chain(named).map(String::as_str).filter(|c| t.column(c).is_none()).collect();
+    let named = s.rows.iter().flat_map(|r| r.cells.iter());
+    let missing: Vec<&str> = s
+        .group
+        .iter()
+        .chain(s.columns.iter().map(|(c, _)| c))
+        .chain(named)
+        .map(String::as_str)
+        .filter(|c| !c.is_empty() && t.column(c).is_none())
+        .collect();
     if !missing.is_empty() {
         return Err(format!("no column(s) {} (the CSV has {})", missing.join(", "), t.header.join(", ")));
     }
-    let mut out = format!("{} ([csv](../results/{})):\n\n```text\n{}\n```\n\n", provenance(&t)?, s.csv, s.command);
-    let every: Vec<usize> = (0..t.rows.len()).collect();
+    let links: Vec<String> = s.csvs.iter().map(|c| format!("[{}](../results/{c})", if s.csvs.len() == 1 { "csv" } else { c })).collect();
+    let mut out = format!("{} ({}):\n\n```text\n{}\n```\n\n", provenance(&t)?, links.join(", "), s.command);
     if !s.rows.is_empty() {
         out += &header(s.headings);
-        for (label, cells) in s.rows {
+        for row in s.rows {
+            let (label, mine) = (&row.label, filtered(&t, &row.filter).map_err(|e| format!("row `{}`: {e}", row.label))?);
+            let every: Vec<usize> = (0..mine.rows.len()).collect();
             let mut shown = vec![label.clone()];
-            for c in cells {
-                shown.push(range(&t, &every, c, s.formatted)?);
+            for c in &row.cells {
+                shown.push(range(&mine, &every, c, s.formatted)?);
             }
             out += &line(&shown);
         }
@@ -92,6 +109,10 @@ fn filtered(t: &CsvTable, filter: &[(String, String)]) -> Result<CsvTable, Strin
 /// left out, and "cached" where every run did), `bytes:NODE` and `…bytes` as bytes, text as it is, other
 /// numbers to three significant digits.
 fn range(t: &CsvTable, rows: &[usize], c: &str, formatted: bool) -> Result<String, String> {
+    if c.is_empty() {
+        // A named row's cell left empty on purpose.
+        return Ok(String::new());
+    }
     let time = c.starts_with("ms:") || c.ends_with("_ms");
     let mut figures: Vec<(f64, &str)> = Vec::new();
     let mut cached = false;
@@ -148,7 +169,16 @@ mod tests {
         a,orbit,3,7.2,199.9,2026-11-29,m,2,abc\n";
 
     fn spec<'a>(group: &'a [String], columns: &'a [(String, String)]) -> TableSpec<'a> {
-        TableSpec { command: "cmd", csv: "table_x.csv", filter: &[], group, columns, rows: &[], headings: &[], formatted: false }
+        TableSpec {
+            command: "cmd",
+            csvs: Box::leak(Box::new(["table_x.csv".to_string()])),
+            filter: &[],
+            group,
+            columns,
+            rows: &[],
+            headings: &[],
+            formatted: false,
+        }
     }
 
     #[test]
@@ -184,17 +214,22 @@ mod tests {
         let group = ["t0.terms".to_string()];
         let cols =
             [("error.rel_mse", "rel. MSE"), ("ms:t0", "TransferT0"), ("bytes:t0", "T0")].map(|(a, b)| (a.to_string(), b.to_string()));
-        let s = section(&TableSpec { filter: &filter, formatted: true, csv: "sweep_t.csv", ..spec(&group, &cols) }, &t).unwrap();
+        let csvs = ["sweep_t.csv".to_string()];
+        let s = section(&TableSpec { filter: &filter, formatted: true, csvs: &csvs, ..spec(&group, &cols) }, &t).unwrap();
         assert!(s.contains("([csv](../results/sweep_t.csv))"), "{s}");
         assert!(s.contains("| 48 | 1 | 0.0165 | 286.23 s | 218.2 MiB |\n| 96 | 1 | 0.0122 | cached | 380.5 MiB |\n"), "{s}");
         assert!(!s.contains("| 0.500 |"), "the baseline row is filtered out: {s}");
         // Hand-named rows: a label and a column a cell, over every (filtered) row.
-        let rows = [("TransferT0".to_string(), vec!["ms:t0".to_string(), "bytes:t0".to_string()])];
+        let rows = [NamedRow { label: "TransferT0".into(), filter: vec![], cells: vec!["ms:t0".into(), "bytes:t0".into()] }];
         let headings = ["stage", "time", "bytes"].map(String::from);
         let s = section(&TableSpec { filter: &filter, formatted: true, rows: &rows, headings: &headings, ..spec(&[], &[]) }, &t).unwrap();
         assert!(s.contains("| stage | time | bytes |\n| --- | --- | --- |\n| TransferT0 | 286.23 s | 218.2 MiB–380.5 MiB |\n"), "{s}");
         let nothing = [("series".to_string(), "none".to_string())];
         let e = section(&TableSpec { filter: &nothing, ..spec(&group, &cols) }, &t).unwrap_err();
         assert!(e.contains("no row has series = none"), "{e}");
+        // A named row's own filter picks its CSV rows.
+        let rows = [NamedRow { label: "48 terms".into(), filter: vec![("t0.terms".into(), "48".into())], cells: vec!["bytes:t0".into()] }];
+        let s = section(&TableSpec { formatted: true, rows: &rows, headings: &headings[..2], ..spec(&[], &[]) }, &t).unwrap();
+        assert!(s.contains("| 48 terms | 218.2 MiB |\n"), "{s}");
     }
 }

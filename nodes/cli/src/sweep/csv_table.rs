@@ -49,6 +49,30 @@ impl CsvTable {
         Ok(CsvTable { header, rows })
     }
 
+    /// Several tables read as one: the union of their columns (in the order they first
+    /// appear, then `source`), every row of each in turn, a cell its table lacks left empty and
+    /// its `source` cell the name it is given with.
+    pub fn joined(parts: &[(&str, CsvTable)]) -> CsvTable {
+        let mut header: Vec<String> = Vec::new();
+        for (_, t) in parts {
+            for h in &t.header {
+                if !header.contains(h) {
+                    header.push(h.clone());
+                }
+            }
+        }
+        header.push("source".into());
+        let mut rows = Vec::new();
+        for (name, t) in parts {
+            for r in 0..t.rows.len() {
+                let mut row: Vec<String> = header[..header.len() - 1].iter().map(|h| t.text(r, h).to_string()).collect();
+                row.push(name.to_string());
+                rows.push(row);
+            }
+        }
+        CsvTable { header, rows }
+    }
+
     /// The index of column `name`.
     pub fn column(&self, name: &str) -> Option<usize> {
         self.header.iter().position(|h| h == name)
@@ -110,5 +134,14 @@ mod tests {
         assert!(CsvTable::parse("a,b\n\"1,2\n").is_err());
         assert!(CsvTable::parse("").is_err());
         assert_eq!(CsvTable::parse("a,b\r\n1,2").unwrap().rows, vec![vec!["1".to_string(), "2".to_string()]]);
+    }
+
+    #[test]
+    fn joined_tables_keep_every_column_and_name_each_rows_source() {
+        let a = CsvTable::parse("x,y\n1,2\n").unwrap();
+        let b = CsvTable::parse("y,z\n3,4\n").unwrap();
+        let j = CsvTable::joined(&[("a.csv", a), ("b.csv", b)]);
+        assert_eq!(j.header, ["x", "y", "z", "source"]);
+        assert_eq!(j.rows, [["1", "2", "", "a.csv"], ["", "3", "4", "b.csv"]]);
     }
 }
