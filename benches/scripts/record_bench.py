@@ -9,7 +9,8 @@ such files.
 
 usage: python3 benches/scripts/record_bench.py BENCH NAME [FILTER ...] [--from-output FILE]
        (run from the repository's root; --from-output reads a saved divan output instead of
-       running cargo, for a measurement already made)
+       running cargo, for a measurement already made: the bench binary's stderr, what the
+       benchmark printed, first, then its stdout)
 """
 import argparse
 import csv
@@ -84,6 +85,9 @@ def main():
     notes = []
     if a.from_output:
         text = open(a.from_output, encoding="utf-8").read()
+        # A saved output holds what the benchmark printed (on stderr) before divan's table.
+        head = text.split("Timer precision")[0] if "Timer precision" in text else ""
+        notes = [l.rstrip() for l in head.splitlines() if l.strip()]
     else:
         cmd = ["cargo", "bench", "-p", "relume-benches", "--bench", a.bench, "--", *a.filters]
         print("running", " ".join(cmd), file=sys.stderr)
