@@ -207,7 +207,7 @@ impl<'a, S: Shade> Paths<'a, S> {
                 if object_class != class {
                     break 'sample;
                 }
-                let mut rng = Sampler { seed: c.seed, id: pixel << 32 | s as u64, dim: 1 };
+                let mut rng = Sampler::new(c.seed, pixel << 32 | s as u64, 1);
                 let Some(hit) = hit else { break 'sample };
                 let surf = Surface::at(self.scene, &hit, o, d);
                 if d.dot(surf.ng) >= 0.0 {

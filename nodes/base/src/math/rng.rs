@@ -11,9 +11,20 @@ pub fn mix64(mut x: u64) -> u64 {
 
 /// Uniform in [0, 1) for stream `seed`, index `i`, dimension `dim`.
 pub fn uniform(seed: u64, i: u64, dim: u32) -> f32 {
-    // Each input passes through its own full mixing round, so that ids differing only in
-    // their high bits (pixel << 32 | sample) give independent streams.
-    let h = mix64(mix64(mix64(seed ^ 0xA076_1D64_78BD_642F) ^ i) ^ (dim as u64).wrapping_mul(0x2545_F491_4F6C_DD1D));
+    uniform_in(stream(seed, i), dim)
+}
+
+/// The hashed stream of `seed` and index `i`, which `uniform_in` draws from: computed once
+/// for all the dimensions of a sample. Each input passes through its own full mixing round, so
+/// that ids differing only in their high bits (pixel << 32 | sample) give independent streams.
+pub fn stream(seed: u64, i: u64) -> u64 {
+    mix64(mix64(seed ^ 0xA076_1D64_78BD_642F) ^ i)
+}
+
+/// Uniform in [0, 1) for dimension `dim` of a `stream`: `uniform(seed, i, dim)` is
+/// `uniform_in(stream(seed, i), dim)`.
+pub fn uniform_in(stream: u64, dim: u32) -> f32 {
+    let h = mix64(stream ^ (dim as u64).wrapping_mul(0x2545_F491_4F6C_DD1D));
     (h >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
 }
 
@@ -34,5 +45,6 @@ mod tests {
         assert!((mean - 0.5).abs() < 0.005, "mean {mean}");
         assert_ne!(uniform(7, 1, 0), uniform(8, 1, 0));
         assert_ne!(uniform(7, 1, 0), uniform(7, 1, 1));
+        assert_eq!(uniform(7, 3, 5), uniform_in(stream(7, 3), 5));
     }
 }

@@ -6,7 +6,7 @@
 
 use crate::brdf;
 use crate::math::frame::Frame;
-use crate::math::rng::uniform;
+use crate::math::rng::{stream, uniform_in};
 use crate::math::sampling::{power_heuristic, uniform_sphere, UNIFORM_SPHERE_PDF};
 use crate::render::lights::LightSampler;
 use crate::render::surface::Surface;
@@ -24,18 +24,22 @@ pub struct Settings {
     pub seed: u64,
 }
 
-/// Per-sample random numbers: (seed, sample id, running dimension) → uniform [0, 1); `draw`
-/// advances the dimension first.
+/// Per-sample random numbers: (seed, sample id, running dimension) → uniform [0, 1), the
+/// numbers `uniform(seed, id, dim)` gives; `draw` advances the dimension first. The seed and id
+/// are hashed once, when the sampler is made.
 pub struct Sampler {
-    pub seed: u64,
-    pub id: u64,
-    pub dim: u32,
+    stream: u64,
+    dim: u32,
 }
 
 impl Sampler {
+    /// The sampler of sample `id` under `seed`, whose next draw is dimension `dim + 1`.
+    pub fn new(seed: u64, id: u64, dim: u32) -> Sampler {
+        Sampler { stream: stream(seed, id), dim }
+    }
     pub fn draw(&mut self) -> f32 {
         self.dim += 1;
-        uniform(self.seed, self.id, self.dim)
+        uniform_in(self.stream, self.dim)
     }
     pub fn draw2(&mut self) -> Vec2 {
         Vec2::new(self.draw(), self.draw())
@@ -77,7 +81,7 @@ impl<'a> Tracer<'a> {
     pub fn radiance(&self, o: Vec3, d: Vec3, id: u64, counts: &mut Counts) -> Vec3 {
         let s = self.settings;
         let max_depth = if s.max_depth < 0 { u32::MAX } else { s.max_depth as u32 };
-        let mut rng = Sampler { seed: s.seed, id, dim: 0 };
+        let mut rng = Sampler::new(s.seed, id, 0);
         let (mut o, mut d) = (o, d);
         let mut throughput = Vec3::ONE;
         let mut result = Vec3::ZERO;
@@ -129,7 +133,7 @@ impl<'a> Tracer<'a> {
                     1.0
                 } else {
                     let cos_l = -d.dot(surf.ng);
-                    power_heuristic(prev_pdf, self.lights.pdf_triangle(self.scene, surf.tri, hit.t, cos_l))
+                    power_heuristic(prev_pdf, self.lights.pdf_triangle(surf.tri, hit.t, cos_l))
                 };
                 result += throughput * obj.emission * w;
             }

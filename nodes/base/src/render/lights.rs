@@ -7,10 +7,11 @@ use crate::types::{Environment, Light, Scene};
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
-/// What can be picked.
+/// What can be picked. An emitting triangle carries its corners, geometric normal and area
+/// (as `Scene::corners` and `Scene::normal_area` give them), read at every sample.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Item {
-    Triangle(u32),
+    Triangle { tri: u32, corners: [Vec3; 3], n: Vec3, area: f32 },
     Delta(usize),
     Environment,
 }
@@ -55,10 +56,10 @@ impl LightSampler {
                 continue;
             }
             for t in o.triangles.clone() {
-                let (_, area) = scene.normal_area(t as usize);
+                let (n, area) = scene.normal_area(t as usize);
                 if area > 0.0 {
                     tri_item[t as usize] = items.len() as u32;
-                    items.push(Item::Triangle(t));
+                    items.push(Item::Triangle { tri: t, corners: scene.corners(t as usize), n, area });
                     weights.push(PI * area * lum(o.emission));
                 }
             }
@@ -132,11 +133,9 @@ impl LightSampler {
             return None;
         }
         match self.items[i] {
-            Item::Triangle(t) => {
-                let [a, b, c] = scene.corners(t as usize);
+            Item::Triangle { tri: t, corners: [a, b, c], n, area } => {
                 let (b0, b1) = uniform_triangle(u2);
                 let q = a * b0 + b * b1 + c * (1.0 - b0 - b1);
-                let (n, area) = scene.normal_area(t as usize);
                 let d = q - p;
                 let dist2 = d.length_squared();
                 let dist = dist2.sqrt();
@@ -175,12 +174,12 @@ impl LightSampler {
 
     /// Solid-angle density with which `sample` would have produced a hit on emissive triangle
     /// `tri` at distance `dist` seen under cosine `cos_l` (for MIS of BSDF-sampled hits).
-    pub fn pdf_triangle(&self, scene: &Scene, tri: u32, dist: f32, cos_l: f32) -> f32 {
+    pub fn pdf_triangle(&self, tri: u32, dist: f32, cos_l: f32) -> f32 {
         let item = self.tri_item[tri as usize];
         if item == u32::MAX || cos_l <= 0.0 {
             return 0.0;
         }
-        let (_, area) = scene.normal_area(tri as usize);
+        let Item::Triangle { area, .. } = self.items[item as usize] else { return 0.0 };
         self.choice.discrete_pdf(item as usize) * dist * dist / (cos_l * area)
     }
 
