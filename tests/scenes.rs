@@ -33,6 +33,17 @@ fn cornell_has_the_eight_mitsuba_objects_and_a_light_facing_down() {
 }
 
 #[test]
+fn cornell_bunny_diffuse_is_cornell_bunny_with_every_surface_diffuse() {
+    let (d, _) = load("cornell-bunny-diffuse");
+    let (g, _) = load("cornell-bunny");
+    assert_eq!(d.positions, g.positions, "the same geometry as cornell-bunny");
+    assert_eq!(d.triangles, g.triangles);
+    assert!(d.objects.iter().all(|o| matches!(o.material, Material::Lambert { .. })), "every surface diffuse");
+    assert_eq!(object(&d, "bunny").material, object(&d, "floor").material, "the bunny in the box's white");
+    assert!(d.objects.iter().all(|o| !o.dynamic));
+}
+
+#[test]
 fn cornell_bunny_places_the_bunny_on_the_floor_with_dynamic_materials() {
     let (s, _) = load("cornell-bunny");
     let bunny = object(&s, "bunny");

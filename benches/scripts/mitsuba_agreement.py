@@ -1,14 +1,18 @@
 #!/usr/bin/env python3
-"""The reference path tracer's agreement with Mitsuba 3 on `cornell` (256², box filter), kept as
-data: relume's `PathTrace` (graphs/reference_cornell.ron, node `reference`) and Mitsuba's
-scalar_rgb `path` integrator render the scene at the same samples per pixel and maximum depth
-(-1: unlimited; 2: direct light only), and the image means of each are appended, one row a
-render, to docs/results/table_mitsuba_agreement.csv with the date, machine, threads and commit.
-`relume results` draws the reference page's table from it.
+"""The reference path tracer's agreement with Mitsuba 3, kept as data: relume's `PathTrace`
+(graphs/reference_cornell.ron, node `reference`, on the scene chosen) and Mitsuba's scalar_rgb
+`path` integrator render the scene at the same samples per pixel, maximum depth (-1: unlimited;
+2: direct light only) and seed, box filter, and the image means of each are appended, one row a
+render, with the date, machine, threads and commit, to
+- docs/results/table_mitsuba_agreement.csv for `cornell` (256², Mitsuba's own Cornell box),
+- docs/results/table_mitsuba_envlit.csv for `envlit` (128², the scene rebuilt for Mitsuba by
+  mitsuba_envlit.py: relume's normals, its Blinn-Phong as a Python BSDF), over seeds.
+`relume results` draws the reference page's tables from them.
 
 Not needed by the tests. Needs `pip install mitsuba numpy` and the release binary:
 
-    python3 benches/scripts/mitsuba_agreement.py [--spp 128] [--relume target/release/relume] [--no-record]
+    python3 benches/scripts/mitsuba_agreement.py [--scene cornell|envlit] [--spp 128] [--seeds 0,1]
+        [--relume target/release/relume] [--no-record]
 """
 import argparse
 import os
@@ -20,47 +24,69 @@ import numpy as np
 
 from provenance import COLUMNS, append_rows, cells
 
-RESULTS = os.path.join("docs", "results", "table_mitsuba_agreement.csv")
-HEADER = ["scene", "size", "spp", "max_depth", "renderer", "mean_r", "mean_g", "mean_b", *COLUMNS]
-SIZE = 256
+RESULTS = {
+    "cornell": os.path.join("docs", "results", "table_mitsuba_agreement.csv"),
+    "envlit": os.path.join("docs", "results", "table_mitsuba_envlit.csv"),
+}
+SIZE = {"cornell": 256, "envlit": 128}
 
 
-def mitsuba_means(spp, depth):
+def header(scene):
+    seed = ["seed"] if scene == "envlit" else []
+    return ["scene", "size", "spp", "max_depth", *seed, "renderer", "mean_r", "mean_g", "mean_b", *COLUMNS]
+
+
+def means(image):
+    image = np.array(image, dtype=np.float64)
+    return image.reshape(-1, image.shape[-1])[:, :3].mean(axis=0)
+
+
+def mitsuba_means(scene_name, spp, depth, seed):
     mi.set_variant("scalar_rgb")
+    size = SIZE[scene_name]
+    if scene_name == "envlit":
+        import mitsuba_envlit
+        with tempfile.TemporaryDirectory() as tmp:
+            return means(mi.render(mi.load_dict(mitsuba_envlit.scene_dict(spp, size, depth, seed, tmp)), spp=spp, seed=seed))
     scene = mi.cornell_box()
     scene["integrator"] = {"type": "path", "max_depth": depth}
-    scene["sensor"]["film"] = {"type": "hdrfilm", "width": SIZE, "height": SIZE, "rfilter": {"type": "box"},
+    scene["sensor"]["film"] = {"type": "hdrfilm", "width": size, "height": size, "rfilter": {"type": "box"},
                                "pixel_format": "rgb"}
     scene["sensor"]["sampler"] = {"type": "independent", "sample_count": spp}
-    image = np.array(mi.render(mi.load_dict(scene), spp=spp))
-    return image.reshape(-1, image.shape[-1])[:, :3].mean(axis=0)
+    return means(mi.render(mi.load_dict(scene), spp=spp, seed=seed))
 
 
-def relume_means(binary, spp, depth):
+def relume_means(binary, scene_name, spp, depth, seed):
+    size = SIZE[scene_name]
     with tempfile.TemporaryDirectory() as out:
-        subprocess.run([binary, "run", "graphs/reference_cornell.ron", "--set", f"reference.spp={spp}",
-                        "--set", f"reference.max_depth={depth}", "--set", f"scene.width={SIZE}",
-                        "--set", f"scene.height={SIZE}", "--output", "image", "--no-disk-cache", "--out", out, "-q"],
+        subprocess.run([binary, "run", "graphs/reference_cornell.ron", "--set", f'scene.path="scenes/{scene_name}.ron"',
+                        "--set", f"reference.spp={spp}", "--set", f"reference.max_depth={depth}",
+                        "--set", f"reference.seed={seed}", "--set", f"scene.width={size}", "--set", f"scene.height={size}",
+                        "--output", "image", "--no-disk-cache", "--out", out, "-q"],
                        check=True)
-        image = np.array(mi.Bitmap(os.path.join(out, "image.exr")))
-    return image.reshape(-1, image.shape[-1])[:, :3].mean(axis=0)
+        return means(mi.Bitmap(os.path.join(out, "image.exr")))
 
 
 def main():
     ap = argparse.ArgumentParser()
+    ap.add_argument("--scene", choices=sorted(RESULTS), default="cornell")
     ap.add_argument("--spp", type=int, default=128)
+    ap.add_argument("--seeds", default="0", help="comma-separated seeds (a row each; envlit's table keeps them apart)")
     ap.add_argument("--relume", default=os.path.join("target", "release", "relume"))
-    ap.add_argument("--no-record", action="store_true", help=f"print only, do not append to {RESULTS}")
+    ap.add_argument("--no-record", action="store_true", help="print only, do not append to the table")
     a = ap.parse_args()
     mi.set_variant("scalar_rgb")
     rows = []
     for depth in (-1, 2):
-        for renderer, means in (("relume", relume_means(a.relume, a.spp, depth)), ("Mitsuba 3 scalar_rgb", mitsuba_means(a.spp, depth))):
-            print(f"max_depth {depth}, {renderer}: " + " / ".join(f"{m:.5f}" for m in means))
-            rows.append(["cornell", SIZE, a.spp, depth, renderer, *(f"{m:.5f}" for m in means), *cells()])
+        for seed in (int(s) for s in a.seeds.split(",")):
+            for renderer, m in (("relume", relume_means(a.relume, a.scene, a.spp, depth, seed)),
+                                ("Mitsuba 3 scalar_rgb", mitsuba_means(a.scene, a.spp, depth, seed))):
+                print(f"max_depth {depth}, seed {seed}, {renderer}: " + " / ".join(f"{v:.5f}" for v in m))
+                seeded = [seed] if a.scene == "envlit" else []
+                rows.append([a.scene, SIZE[a.scene], a.spp, depth, *seeded, renderer, *(f"{v:.5f}" for v in m), *cells()])
     if a.no_record:
         return
-    append_rows(RESULTS, HEADER, rows)
+    append_rows(RESULTS[a.scene], header(a.scene), rows)
 
 
 if __name__ == "__main__":
