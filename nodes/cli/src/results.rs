@@ -193,6 +193,12 @@ fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
                 rows.push(grouped::NamedRow { label, filter, cells: strings(cells, "a row's columns")? });
             }
         }
+        if !rows.is_empty() && (!group.is_empty() || !columns.is_empty()) {
+            return Err(CliError::graph(format!(
+                "{}: `{name}`: give either `rows` and `headings` or `group` and `columns`, not both",
+                path.display()
+            )));
+        }
         if rows.iter().any(|r| r.cells.len() + 1 != headings.len()) {
             return Err(CliError::graph(format!(
                 "{}: `{name}`: `headings` has {} entries; each row needs one cell fewer (its label comes first)",
@@ -367,28 +373,26 @@ fn section_file(dir: &Path, kind: &Kind, e: &Entry, body: &str) -> (PathBuf, Vec
     (dir.join(format!("{}{}.md", kind.prefix, e.name)), text.into_bytes())
 }
 
-/// The CSV files in the folder that their manifest does not list.
-fn unlisted(dir: &Path, kind: &Kind, entries: &[Entry]) -> Result<Vec<String>, CliError> {
+/// The CSV files in the folder whose names start with `prefix` and that `listed` does not
+/// name.
+fn unlisted_csvs(dir: &Path, prefix: &str, listed: impl Fn(&str) -> bool) -> Result<Vec<String>, CliError> {
     let files = std::fs::read_dir(dir).map_err(|e| CliError::graph(format!("cannot list {}: {e}", dir.display())))?;
     let mut out: Vec<String> = files
         .filter_map(|e| e.ok()?.file_name().into_string().ok())
-        .filter(|n| n.starts_with(kind.prefix) && n.ends_with(".csv"))
-        .filter(|n| !entries.iter().any(|e| n == &format!("{}{}.csv", kind.prefix, e.name)))
+        .filter(|n| n.starts_with(prefix) && n.ends_with(".csv") && !listed(n))
         .collect();
     out.sort();
     Ok(out)
 }
 
+/// The CSV files in the folder that their manifest does not list.
+fn unlisted(dir: &Path, kind: &Kind, entries: &[Entry]) -> Result<Vec<String>, CliError> {
+    unlisted_csvs(dir, kind.prefix, |n| entries.iter().any(|e| n == format!("{}{}.csv", kind.prefix, e.name)))
+}
+
 /// The run CSVs (`run_NAME.csv`) in the folder that no measurement table names as its source.
 fn unlisted_runs(dir: &Path, tables: &[Entry]) -> Result<Vec<String>, CliError> {
-    let files = std::fs::read_dir(dir).map_err(|e| CliError::graph(format!("cannot list {}: {e}", dir.display())))?;
-    let mut out: Vec<String> = files
-        .filter_map(|e| e.ok()?.file_name().into_string().ok())
-        .filter(|n| n.starts_with(RUN_PREFIX) && n.ends_with(".csv"))
-        .filter(|n| !tables.iter().any(|t| t.sources.contains(n)))
-        .collect();
-    out.sort();
-    Ok(out)
+    unlisted_csvs(dir, RUN_PREFIX, |n| tables.iter().any(|t| t.sources.iter().any(|s| s == n)))
 }
 
 pub(crate) fn results(a: &ResultsArgs) -> Result<(), CliError> {
@@ -553,5 +557,7 @@ mod tests {
         assert!(results(&args(true)).unwrap_err().msg.contains("`headings` has 2 entries"));
         std::fs::write(dir.path().join("tables.ron"), manifest.replace("run_ptt.csv", "../run_ptt.csv")).unwrap();
         assert!(results(&args(true)).unwrap_err().msg.contains("must be a CSV file's name in the folder"));
+        std::fs::write(dir.path().join("tables.ron"), manifest.replace("headings:", r#"group: ["variant"], headings:"#)).unwrap();
+        assert!(results(&args(true)).unwrap_err().msg.contains("not both"));
     }
 }
