@@ -214,8 +214,12 @@ impl EditorApp {
 
     /// Applies an edit as one undo step. `in_view`: the node-graph widget already shows it.
     pub fn apply<R>(&mut self, tag: &str, in_view: bool, f: impl FnOnce(&mut Graph) -> R) -> R {
+        let before = self.doc.revision;
         let r = self.doc.edit(tag, f);
-        if in_view {
+        // The widget already shows an edit it made, or one that does not touch it (a
+        // parameter), only when it showed the revision before: a widget not yet built from
+        // the document (just opened) still needs its rebuild.
+        if in_view && self.view.shown == Some(before) {
             self.view.shown = Some(self.doc.revision);
         }
         // Moving nodes changes the file but no result.
@@ -772,7 +776,11 @@ impl EditorApp {
         let input = std::mem::take(&mut self.viewer.input);
         self.manipulate(&input);
         if let Some(job) = &mut self.screenshot {
-            job.frame(ctx, &self.viewer, self.runner.is_running() || self.pending_run.is_some());
+            job.frame(ctx, &self.viewer, self.view.canvas_rect, self.runner.is_running() || self.pending_run.is_some());
+            // The --set edits are the command line's: the window closes without asking to save.
+            if job.is_done() && !self.allow_close {
+                self.discard_and_close(ctx);
+            }
         }
         self.stats.frame(self.doc.revision, t0.elapsed().as_secs_f64() * 1e3);
         let title = format!("{} - relume editor", self.doc.title());

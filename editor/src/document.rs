@@ -41,7 +41,7 @@ impl Document {
         let mut graph = Graph::load(path, reg).map_err(|e| e.to_string())?;
         // A graph without layout positions is laid out the same way each time it opens, so
         // the layout alone does not mark it as changed.
-        crate::edit::lay_out_unplaced(&mut graph);
+        crate::edit::lay_out_unplaced(&mut graph, reg);
         let saved_text = graph.to_ron();
         Ok(Document {
             graph,

@@ -111,10 +111,17 @@ pub fn position(graph: &Graph, id: &str) -> [f64; 2] {
 
 /// Places the nodes that have no layout position (a graph written by hand or by a script, with
 /// no `editor` section) in columns by depth, sources on the left, each column in file order,
-/// instead of stacking them all at the origin. Nodes that have a position keep it.
-pub fn lay_out_unplaced(graph: &mut Graph) {
-    const COLUMN: f64 = 240.0;
+/// instead of stacking them all at the origin. A node takes as much of its column as its ports
+/// need (the widget draws one line a port), so tall nodes do not cover the next. Nodes that
+/// have a position keep it.
+pub fn lay_out_unplaced(graph: &mut Graph, reg: &Registry) {
+    const COLUMN: f64 = 280.0;
     const ROW: f64 = 160.0;
+    // A node's height in layout units: title and state lines, then one line a port.
+    let height = |kind: &str| {
+        let ports = reg.node(kind).map_or(0, |k| k.ports().inputs.len() + k.ports().outputs.len());
+        (110.0 + 26.0 * ports as f64).max(ROW)
+    };
     let placed: std::collections::HashSet<&str> = graph.editor.positions.iter().map(|(n, _)| n.as_str()).collect();
     if graph.nodes.iter().all(|n| placed.contains(n.id.as_str())) {
         return;
@@ -135,16 +142,17 @@ pub fn lay_out_unplaced(graph: &mut Graph) {
             break;
         }
     }
-    let mut rows = std::collections::HashMap::new();
+    let mut tops = std::collections::HashMap::new();
     let unplaced: Vec<(String, [f64; 2])> = graph
         .nodes
         .iter()
         .enumerate()
         .filter(|(_, n)| !placed.contains(n.id.as_str()))
         .map(|(i, n)| {
-            let row = rows.entry(depth[i]).or_insert(0usize);
-            *row += 1;
-            (n.id.clone(), [depth[i] as f64 * COLUMN, (*row - 1) as f64 * ROW])
+            let top = tops.entry(depth[i]).or_insert(0.0);
+            let at = [depth[i] as f64 * COLUMN, *top];
+            *top += height(&n.kind);
+            (n.id.clone(), at)
         })
         .collect();
     graph.editor.positions.extend(unplaced);
@@ -169,19 +177,20 @@ mod tests {
 
     #[test]
     fn a_graph_without_positions_is_laid_out_in_columns_by_depth() {
-        let (mut g, _) = graph();
+        let (mut g, reg) = graph();
         g.editor.positions.clear();
-        lay_out_unplaced(&mut g);
+        lay_out_unplaced(&mut g, &reg);
         let at = |id: &str| position(&g, id);
-        // clean, noisy → sum → median → blur → error, tonemap
+        // clean, noisy → sum → median → blur → error, tonemap; ImageError's five ports take
+        // more than the smallest row.
         assert_eq!((at("clean"), at("noisy")), ([0.0, 0.0], [0.0, 160.0]));
-        assert_eq!((at("sum"), at("median"), at("blur")), ([240.0, 0.0], [480.0, 0.0], [720.0, 0.0]));
-        assert_eq!((at("error"), at("tonemap")), ([960.0, 0.0], [960.0, 160.0]));
+        assert_eq!((at("sum"), at("median"), at("blur")), ([280.0, 0.0], [560.0, 0.0], [840.0, 0.0]));
+        assert_eq!((at("error"), at("tonemap")), ([1120.0, 0.0], [1120.0, 110.0 + 26.0 * 4.0]));
         let distinct: std::collections::HashSet<[u64; 2]> = g.nodes.iter().map(|n| at(&n.id).map(f64::to_bits)).collect();
         assert_eq!(distinct.len(), g.nodes.len(), "no two nodes share a place");
         // Placed nodes keep their place; the laid-out graph is left alone.
         let before = g.editor.positions.clone();
-        lay_out_unplaced(&mut g);
+        lay_out_unplaced(&mut g, &reg);
         assert_eq!(g.editor.positions, before);
     }
 

@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicI32, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-const USAGE: &str = "usage: relume-editor [GRAPH.ron] [--run] [--select NODE] [--screenshot OUT.png] [--timeout SECONDS]
+const USAGE: &str = "usage: relume-editor [GRAPH.ron] [--run] [--select NODE] [--screenshot OUT.png [--graph-only]] [--timeout SECONDS]
                      [--set NODE.PARAM=VALUE ...] [--drive NODE.PARAM=FROM:TO [--drive-seconds S] [--drive-strip PNG]]
                      [--record OUT.csv]
                      [--cache DIR | --no-disk-cache]
@@ -19,6 +19,9 @@ const USAGE: &str = "usage: relume-editor [GRAPH.ron] [--run] [--select NODE] [-
   --select NODE      select a node (its parameters show in the properties panel)
   --screenshot OUT   run, wait for the image, save an in-app screenshot to OUT and exit
                      (exit code 0 when the viewer shows a picture, 2 when it looks blank)
+  --graph-only       save only the node graph's part of the screenshot, cropped to its nodes;
+                     the graph is not run
+  --window WxH       the window's size in points (default 1400x860)
   --timeout S        give up the screenshot or the drive after S seconds without an image (default 600)
   --drive N.P=A:B    once the image shows, set number parameter P of node N every frame from A to B
                      and back, as a slider drag does, recording each frame; then run the same edit
@@ -37,6 +40,8 @@ struct Args {
     graph: Option<PathBuf>,
     run: bool,
     screenshot: Option<PathBuf>,
+    graph_only: bool,
+    window: [f32; 2],
     timeout: u64,
     cache: Option<PathBuf>,
     select: Option<String>,
@@ -64,6 +69,8 @@ fn parse_args() -> Result<Args, String> {
         strip: None,
         record: None,
         viewer_only: false,
+        graph_only: false,
+        window: [1400.0, 860.0],
     };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
@@ -83,6 +90,12 @@ fn parse_args() -> Result<Args, String> {
             }
             "--record" => a.record = Some(value("--record")?.into()),
             "--viewer-only" => a.viewer_only = true,
+            "--graph-only" => a.graph_only = true,
+            "--window" => {
+                let v = value("--window")?;
+                let size = v.split_once('x').and_then(|(w, h)| Some([w.parse::<f32>().ok()?, h.parse::<f32>().ok()?]));
+                a.window = size.filter(|s| s.iter().all(|x| (200.0..=8192.0).contains(x))).ok_or("--window needs WxH, each 200 to 8192")?;
+            }
             "-h" | "--help" => return Err(String::new()),
             s if s.starts_with('-') => return Err(format!("unknown option {s}")),
             s => a.graph = Some(s.into()),
@@ -132,7 +145,8 @@ fn main() {
     app.viewer_only = args.viewer_only;
     let exit = Arc::new(AtomicI32::new(0));
     if let Some(out) = &args.screenshot {
-        app.screenshot = Some(ScreenshotJob::new(out.clone(), Duration::from_secs(args.timeout), exit.clone()));
+        let job = ScreenshotJob::new(out.clone(), Duration::from_secs(args.timeout), exit.clone());
+        app.screenshot = Some(if args.graph_only { job.graph_only() } else { job });
     }
     let drive = match &args.drive {
         Some(spec) => {
@@ -158,11 +172,11 @@ fn main() {
             None
         }
     };
-    if args.run || args.screenshot.is_some() || drive.is_some() {
+    if args.run || (args.screenshot.is_some() && !args.graph_only) || drive.is_some() {
         app.run();
     }
     let options = eframe::NativeOptions {
-        viewport: egui::ViewportBuilder::default().with_inner_size([1400.0, 860.0]).with_title("relume editor"),
+        viewport: egui::ViewportBuilder::default().with_inner_size(args.window).with_title("relume editor"),
         ..Default::default()
     };
     let window = Window { app, drive, exit: exit.clone() };

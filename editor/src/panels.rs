@@ -113,6 +113,7 @@ pub fn draw(mut p: Panels, ctx: &egui::Context) -> Vec<Action> {
     menu_bar(&mut p, ctx, &mut out);
     status_bar(&p, ctx);
     if *p.viewer_only {
+        p.view.canvas_rect = None;
         egui::SidePanel::right("parameters").frame(unfilled(ctx)).resizable(true).default_width(440.0).max_width(640.0).show(ctx, |ui| {
             egui::ScrollArea::vertical().show(ui, |ui| properties(&p, ui, &mut out));
         });

@@ -1,6 +1,7 @@
 //! The screenshot mode (`relume-editor GRAPH --screenshot OUT.png`): run the graph, wait until
 //! the viewer shows the image, take an in-app screenshot (`ViewportCommand::Screenshot`),
-//! write it, check that the viewer's part of it is not blank, and close with an exit code.
+//! write it, check that the viewer's part of it and the node graph's are not blank, and close
+//! with an exit code.
 
 use crate::viewer::Viewer;
 use std::path::PathBuf;
@@ -14,13 +15,15 @@ const SETTLE_FRAMES: u32 = 5;
 pub struct ScreenshotJob {
     pub path: PathBuf,
     deadline: Instant,
-    frames_with_image: u32,
+    ready_frames: u32,
     requested: bool,
     done: bool,
     /// The message of a run that failed: nothing will show, so the next frame ends the job.
     failed: Option<String>,
     /// Process exit code: 0 when the screenshot shows a picture.
     pub exit: Arc<AtomicI32>,
+    /// Save only the node graph, cropped to what is drawn on it.
+    graph_only: bool,
 }
 
 /// Statistics of the viewer's region of a screenshot.
@@ -32,6 +35,10 @@ pub struct Region {
 }
 
 impl Region {
+    fn describe(&self) -> String {
+        format!("{} px, {} colours, luma std {:.1}", self.pixels, self.distinct_colors, self.luma_std)
+    }
+
     /// A rendered picture: more than one colour and visible variation (a blank or flat panel
     /// has one colour and no spread; a two-colour checker is a picture).
     pub fn is_picture(&self) -> bool {
@@ -53,6 +60,34 @@ pub fn crop(img: &egui::ColorImage, rect: egui::Rect) -> egui::ColorImage {
     let (x0, y0, x1, y1) = bounds(img, rect);
     let pixels = (y0..y1).flat_map(|y| img.pixels[y * img.size[0] + x0..y * img.size[0] + x1].iter().copied()).collect();
     egui::ColorImage { size: [x1 - x0, y1 - y0], pixels }
+}
+
+/// The part of `rect` (physical pixels) in which `img` differs from the region's most common
+/// colour (its background), grown by `margin` pixels and kept inside `rect`.
+pub fn drawn_part(img: &egui::ColorImage, rect: egui::Rect, margin: usize) -> egui::Rect {
+    let (x0, y0, x1, y1) = bounds(img, rect);
+    let mut counts = std::collections::HashMap::new();
+    for y in y0..y1 {
+        for x in x0..x1 {
+            *counts.entry(img.pixels[y * img.size[0] + x]).or_insert(0usize) += 1;
+        }
+    }
+    let Some((&background, _)) = counts.iter().max_by_key(|(c, n)| (**n, c.to_array())) else { return egui::Rect::NOTHING };
+    let (mut lo, mut hi) = ((x1, y1), (x0, y0));
+    for y in y0..y1 {
+        for x in x0..x1 {
+            if img.pixels[y * img.size[0] + x] != background {
+                lo = (lo.0.min(x), lo.1.min(y));
+                hi = (hi.0.max(x + 1), hi.1.max(y + 1));
+            }
+        }
+    }
+    if hi.0 <= lo.0 {
+        return egui::Rect::NOTHING;
+    }
+    let min = egui::pos2(lo.0.saturating_sub(margin).max(x0) as f32, lo.1.saturating_sub(margin).max(y0) as f32);
+    let max = egui::pos2((hi.0 + margin).min(x1) as f32, (hi.1 + margin).min(y1) as f32);
+    egui::Rect::from_min_max(min, max)
 }
 
 /// Images side by side with `gap` pixels of `background` between them, top-aligned.
@@ -110,7 +145,22 @@ pub fn region_stats(img: &egui::ColorImage, rect: egui::Rect) -> Region {
 impl ScreenshotJob {
     pub fn new(path: PathBuf, timeout: Duration, exit: Arc<AtomicI32>) -> Self {
         exit.store(3, Ordering::SeqCst);
-        ScreenshotJob { path, deadline: Instant::now() + timeout, frames_with_image: 0, requested: false, done: false, failed: None, exit }
+        ScreenshotJob {
+            path,
+            deadline: Instant::now() + timeout,
+            ready_frames: 0,
+            requested: false,
+            done: false,
+            failed: None,
+            exit,
+            graph_only: false,
+        }
+    }
+
+    /// Saves only the node graph's part of the screenshot, cropped to its nodes, without
+    /// waiting for a run (none is needed to draw the graph).
+    pub fn graph_only(self) -> Self {
+        ScreenshotJob { graph_only: true, ..self }
     }
 
     /// The run failed with `msg` (the status bar shows it): the job ends at the next frame,
@@ -126,8 +176,14 @@ impl ScreenshotJob {
         ctx.send_viewport_cmd(egui::ViewportCommand::Close);
     }
 
-    /// Called once per frame after drawing.
-    pub fn frame(&mut self, ctx: &egui::Context, viewer: &Viewer, busy: bool) {
+    /// Whether the job has ended (the window is closing).
+    pub fn is_done(&self) -> bool {
+        self.done
+    }
+
+    /// Called once per frame after drawing. `canvas`: where the node graph was drawn (points),
+    /// none when the layout hides it.
+    pub fn frame(&mut self, ctx: &egui::Context, viewer: &Viewer, canvas: Option<egui::Rect>, busy: bool) {
         if self.done {
             return;
         }
@@ -139,31 +195,49 @@ impl ScreenshotJob {
             return self.finish(ctx, 3, "timed out before the viewer showed an image");
         }
         if let Some(img) = arrived(ctx) {
-            let ppp = ctx.pixels_per_point();
-            let rect = viewer.image_rect.map(|r| egui::Rect::from_min_max(r.min * ppp, r.max * ppp)).unwrap_or(egui::Rect::NOTHING);
-            let stats = region_stats(&img, rect);
-            let saved = save_png(&img, &self.path);
-            let msg = format!(
-                "{} ({}×{}); viewer region {} px, {} colours, luma std {:.1}",
-                self.path.display(),
-                img.size[0],
-                img.size[1],
-                stats.pixels,
-                stats.distinct_colors,
-                stats.luma_std
-            );
-            return match (saved, stats.is_picture()) {
-                (Err(e), _) => self.finish(ctx, 4, &e),
-                (Ok(()), true) => self.finish(ctx, 0, &format!("ok: {msg}")),
-                (Ok(()), false) => self.finish(ctx, 2, &format!("the viewer looks blank: {msg}")),
-            };
+            return self.save(ctx, &img, viewer, canvas);
         }
-        if !busy && viewer.has_image() && viewer.image_rect.is_some() {
-            self.frames_with_image += 1;
-            if self.frames_with_image >= SETTLE_FRAMES && !self.requested {
+        // The graph alone needs no run: the canvas is drawn from the first frame.
+        let ready = if self.graph_only { canvas.is_some() } else { !busy && viewer.has_image() && viewer.image_rect.is_some() };
+        if ready {
+            self.ready_frames += 1;
+            if self.ready_frames >= SETTLE_FRAMES && !self.requested {
                 self.requested = true;
                 ctx.send_viewport_cmd(egui::ViewportCommand::Screenshot);
             }
+        }
+    }
+
+    /// Writes the screenshot (or the node graph's part of it) and ends the job with the
+    /// verdict on the parts it checks: the viewer's image and the node graph must not be blank.
+    fn save(&mut self, ctx: &egui::Context, img: &egui::ColorImage, viewer: &Viewer, canvas: Option<egui::Rect>) {
+        let ppp = ctx.pixels_per_point();
+        let physical = |r: egui::Rect| egui::Rect::from_min_max(r.min * ppp, r.max * ppp);
+        let graph = canvas.map(|r| region_stats(img, physical(r)));
+        let (saved, size) = match canvas {
+            Some(r) if self.graph_only => {
+                let part = crop(img, drawn_part(img, physical(r), 12));
+                (save_png(&part, &self.path), part.size)
+            }
+            _ if self.graph_only => (Err("--graph-only: the layout shows no node graph".to_string()), [0, 0]),
+            _ => (save_png(img, &self.path), img.size),
+        };
+        let mut msg = format!("{} ({}×{})", self.path.display(), size[0], size[1]);
+        let viewer_ok = if self.graph_only {
+            true
+        } else {
+            let stats = region_stats(img, viewer.image_rect.map(physical).unwrap_or(egui::Rect::NOTHING));
+            msg += &format!("; viewer region {}", stats.describe());
+            stats.is_picture()
+        };
+        if let Some(g) = &graph {
+            msg += &format!("; node graph {}", g.describe());
+        }
+        match (saved, viewer_ok, graph.map_or(true, |g| g.is_picture())) {
+            (Err(e), _, _) => self.finish(ctx, 4, &e),
+            (Ok(()), true, true) => self.finish(ctx, 0, &format!("ok: {msg}")),
+            (Ok(()), false, _) => self.finish(ctx, 2, &format!("the viewer looks blank: {msg}")),
+            (Ok(()), true, false) => self.finish(ctx, 2, &format!("the node graph looks blank: {msg}")),
         }
     }
 }
@@ -177,12 +251,33 @@ mod tests {
         let exit = Arc::new(AtomicI32::new(0));
         let mut job = ScreenshotJob::new(PathBuf::from("never.png"), Duration::from_secs(600), exit.clone());
         let (ctx, viewer) = (egui::Context::default(), Viewer::default());
-        let _ = ctx.run(egui::RawInput::default(), |ctx| job.frame(ctx, &viewer, true));
+        let _ = ctx.run(egui::RawInput::default(), |ctx| job.frame(ctx, &viewer, None, true));
         assert_eq!(exit.load(Ordering::SeqCst), 3, "still waiting while the run is busy");
         job.run_failed("node \"scene\" (LoadScene): cannot read scenes/missing.ron");
-        let _ = ctx.run(egui::RawInput::default(), |ctx| job.frame(ctx, &viewer, false));
+        let _ = ctx.run(egui::RawInput::default(), |ctx| job.frame(ctx, &viewer, None, false));
         assert_eq!(exit.load(Ordering::SeqCst), 5, "ended at once, long before the timeout");
         assert!(job.done);
+    }
+
+    #[test]
+    fn the_drawn_part_is_the_box_around_what_differs_from_the_background() {
+        let mut img = egui::ColorImage::new([100, 80], egui::Color32::from_gray(27));
+        for y in 30..40 {
+            for x in 20..50 {
+                img.pixels[y * 100 + x] = egui::Color32::from_gray(63);
+            }
+        }
+        // Outside the region looked at: ignored.
+        img.pixels[5 * 100 + 95] = egui::Color32::WHITE;
+        let region = egui::Rect::from_min_max(egui::pos2(0.0, 10.0), egui::pos2(90.0, 80.0));
+        let r = drawn_part(&img, region, 4);
+        assert_eq!(r, egui::Rect::from_min_max(egui::pos2(16.0, 26.0), egui::pos2(54.0, 44.0)));
+        // The margin stays inside the region.
+        let r = drawn_part(&img, region, 25);
+        assert_eq!(r, egui::Rect::from_min_max(egui::pos2(0.0, 10.0), egui::pos2(75.0, 65.0)));
+        // Nothing drawn: nothing to keep.
+        let flat = egui::ColorImage::new([10, 10], egui::Color32::BLACK);
+        assert_eq!(drawn_part(&flat, region, 4), egui::Rect::NOTHING);
     }
 
     #[test]

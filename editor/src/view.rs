@@ -12,7 +12,8 @@ use relume_core::{Graph, Registry};
 use std::borrow::Cow;
 use std::collections::HashMap;
 
-/// Per-node data in the widget: the core id and kind.
+/// Per-node data in the widget: the core id (the node's title) and kind (the small label
+/// beside it).
 #[derive(Clone, Debug)]
 pub struct NodeData {
     pub id: String,
@@ -216,6 +217,8 @@ pub struct GraphView {
     pub inject: Vec<NodeResponse>,
     /// Fit the whole graph into the view at the next frame (after opening a file).
     pub fit_pending: bool,
+    /// Where the last frame drew the canvas (points); none in the viewer-only layout.
+    pub canvas_rect: Option<egui::Rect>,
 }
 
 /// What the widget did this frame, as document edits to apply.
@@ -241,6 +244,7 @@ impl GraphView {
             shown: None,
             inject: Vec::new(),
             fit_pending: true,
+            canvas_rect: None,
         }
     }
 
@@ -254,7 +258,7 @@ impl GraphView {
         let mut order = Vec::new();
         for n in &graph.nodes {
             let Some(kind) = self.user.registry.node(&n.kind) else { continue };
-            let id = g.add_node(n.kind.clone(), NodeData { id: n.id.clone(), kind: kind.kind() }, |gr, nid| {
+            let id = g.add_node(n.id.clone(), NodeData { id: n.id.clone(), kind: kind.kind() }, |gr, nid| {
                 add_ports(gr, &self.user.registry, nid, kind.kind())
             });
             positions.insert(id, self.xf.to_widget(edit::position(graph, &n.id)));
@@ -303,6 +307,7 @@ impl GraphView {
     /// layout transform follows the widget's own scaling of node positions.
     pub fn show(&mut self, ui: &mut egui::Ui) -> Vec<ViewEdit> {
         ui.set_clip_rect(ui.max_rect());
+        self.canvas_rect = Some(ui.max_rect());
         let scroll = if ui.rect_contains_pointer(ui.max_rect()) { ui.input(|i| i.smooth_scroll_delta.y) } else { 0.0 };
         ui.ctx().input_mut(|i| i.smooth_scroll_delta = Vec2::ZERO);
         if !self.state.pan_zoom.started {
@@ -409,6 +414,7 @@ impl GraphView {
     /// The widget node created for `kind` gets its core id.
     pub fn name_node(&mut self, node: eng::NodeId, id: &str) {
         self.state.graph[node].user_data.id = id.to_string();
+        self.state.graph[node].label = id.to_string();
         self.ids.insert(id.to_string(), node);
     }
 
