@@ -53,6 +53,26 @@ fn the_indirect_light_between_two_planes_matches_the_path_tracer_within_five_per
     assert!(((m - ref_mean) / ref_mean).abs() < 0.05, "PBGI {m} vs path tracer {ref_mean}");
 }
 
+/// The largest value of the indirect image over the bound no gather may pass: a receiver of
+/// albedo `albedo` sees at most the brightest point's radiance over its whole hemisphere, so
+/// its indirect radiance is at most `albedo` × that radiance.
+fn energy_ratio(e: &Engine, g: &relume_core::Graph, albedo: f32) -> f32 {
+    let mut g = g.clone();
+    add_output(&mut g, "radiance", "shade.radiance");
+    let out = run_outputs(e, &g, &["indirect", "radiance"]);
+    let brightest = out
+        .output("radiance")
+        .unwrap()
+        .get::<relume_pbgi::types::PointRadiance>()
+        .unwrap()
+        .0
+        .iter()
+        .fold(0.0f32, |m, r| m.max(r.max_element()));
+    let img = out.output("indirect").unwrap().get::<Image>().unwrap().clone();
+    assert!(brightest > 0.0);
+    img.as_floats().iter().fold(0.0f32, |m, x| m.max(*x)) / (albedo * brightest)
+}
+
 #[test]
 fn stiff_pbgi_cases_stay_finite_and_bounded() {
     let e = engine();
@@ -60,10 +80,38 @@ fn stiff_pbgi_cases_stay_finite_and_bounded() {
     let img = indirect(&e, &pbgi_graph("one_plane.ron", 5_000, 16));
     assert!(img.as_floats().iter().all(|x| x.is_finite() && x.abs() < 1e-6), "coplanar: no indirect light");
     // Microbuffers of 1 × 1 and 256 × 256, and a handful of points (receivers inside node
-    // spheres everywhere): finite and non-negative.
+    // spheres everywhere): finite, non-negative, and no energy created (the planes' albedo is
+    // 0.5: no pixel above half the brightest point's radiance).
     for (res, count) in [(1, 2_000), (256, 2_000), (16, 3)] {
-        let img = indirect(&e, &pbgi_graph("two_planes.ron", count, res));
+        let g = pbgi_graph("two_planes.ron", count, res);
+        let img = indirect(&e, &g);
         assert!(img.as_floats().iter().all(|x| x.is_finite() && *x >= 0.0), "res {res}, {count} points");
+        let ratio = energy_ratio(&e, &g, 0.5);
+        assert!(ratio <= 1.0, "res {res}, {count} points: the brightest pixel is {ratio} × the energy bound");
+    }
+}
+
+#[test]
+fn inside_a_sphere_lit_from_its_centre_the_gather_returns_albedo_times_the_walls_radiance() {
+    // A furnace: every point of the wall has the same radiance L and fills each receiver's
+    // hemisphere, so the indirect light is 0.5 L at every pixel (the path tracer gives it to
+    // 0.02 % at 64 spp). What is left short is the microbuffer's coverage of the hemisphere
+    // (the gaps between disks), which shrinks as the buffer grows; nothing may pass the bound.
+    let e = engine();
+    for (res, short) in [(16, 0.10), (32, 0.07)] {
+        let mut g = pbgi_graph("inside_sphere.ron", 20_000, res);
+        add_output(&mut g, "radiance", "shade.radiance");
+        let out = run_outputs(&e, &g, &["indirect", "radiance"]);
+        let radiance = &out.output("radiance").unwrap().get::<relume_pbgi::types::PointRadiance>().unwrap().0;
+        let (lo, hi) = radiance.iter().fold((f32::INFINITY, 0.0f32), |(lo, hi), r| (lo.min(r.x), hi.max(r.x)));
+        assert!(hi / lo < 1.01, "the wall's radiance spreads from {lo} to {hi}");
+        let img = out.output("indirect").unwrap().get::<Image>().unwrap();
+        let expected = 0.5 * (lo + hi) as f64 / 2.0;
+        let (min, max) = img.pixels.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p[0] as f64), b.max(p[0] as f64)));
+        let m = mean(img);
+        assert!(max <= expected * 1.02, "res {res}: {max} passes the furnace's {expected}: energy created");
+        assert!(m >= expected * (1.0 - short), "res {res}: mean {m} against the furnace's {expected}");
+        assert!(min >= expected * 0.8, "res {res}: a pixel at {min} against the furnace's {expected}");
     }
 }
 

@@ -244,6 +244,9 @@ impl<'a, R: NodeRadiance> Traversal<'a, R> {
                 stack.push(i + 1);
                 stack.push(node.right);
             } else {
+                if on_own_surface(v, node.axis, node.bound) {
+                    return;
+                }
                 counts.near_leaves += 1;
                 let c = frame.to_local(v);
                 let toward = -v / d.max(f32::MIN_POSITIVE);
@@ -259,6 +262,20 @@ impl<'a, R: NodeRadiance> Traversal<'a, R> {
         counts.rasterised += 1;
         Raster::splat(mb, i, frame.to_local(v / d), d, a / (d * d), l, stack);
     }
+}
+
+/// Whether a leaf's disk stands for the surface a receiver sits on (`v`: disk centre −
+/// receiver, `axis` its normal, `r` its radius), and is left out: the receiver is nearer its
+/// plane than a quarter of the radius, and within the radius across it, or within three radii
+/// and behind it. On a curved surface the disks are tilted against each other by up to the
+/// curvature over their spacing, and receivers a hair behind their neighbours' disks saw those
+/// disks' backs cover the hemisphere in black up from the horizon (inside a sphere lit from
+/// its centre, a quarter of the pixels gathered nothing and the mean fell 31 % short).
+fn on_own_surface(v: Vec3, axis: Vec3, r: f32) -> bool {
+    let h = v.dot(axis);
+    let across = v.length_squared() - h * h;
+    let reach = if h >= 0.0 { 3.0 * r } else { r };
+    h.abs() < 0.25 * r && across < reach * reach
 }
 
 /// An upper bound on the height of a node's disks above the plane through the receiver with
