@@ -280,3 +280,23 @@ pub fn load_test_graph(name: &str, sets: &[(&str, &str)]) -> Graph {
     }
     g
 }
+
+/// The furnace of the point-based gathers (`tests/scenes/inside_sphere.ron`: the inside of a
+/// sphere lit from its centre, every point of the wall at the same radiance L, so the indirect
+/// light is albedo 0.5 × L at every pixel). Runs `g` (a PBGI graph on that scene whose
+/// `indirect` output is the gather's and whose `shade` node shades the points) and returns
+/// the least pixel, the mean and the largest pixel of the indirect image over 0.5 L.
+pub fn furnace_ratios(g: &Graph) -> [f64; 3] {
+    let mut g = g.clone();
+    add_output(&mut g, "radiance", "shade.radiance");
+    let out = run_outputs(&engine(), &g, &["indirect", "radiance"]);
+    let radiance = &out.output("radiance").unwrap().get::<relume_pbgi::types::PointRadiance>().unwrap().0;
+    let (lo, hi) = radiance.iter().fold((f32::INFINITY, 0.0f32), |(lo, hi), r| (lo.min(r.x), hi.max(r.x)));
+    assert!(lo > 0.0 && hi / lo < 1.01, "the wall's radiance spreads from {lo} to {hi}");
+    let expected = 0.5 * (lo + hi) as f64 / 2.0;
+    let img = out.output("indirect").unwrap().get::<relume_base::types::Image>().unwrap();
+    let red: Vec<f64> = img.pixels.iter().map(|p| p[0] as f64).collect();
+    let (min, max) = red.iter().fold((f64::INFINITY, 0.0f64), |(a, b), x| (a.min(*x), b.max(*x)));
+    let mean = red.iter().sum::<f64>() / red.len() as f64;
+    [min / expected, mean / expected, max / expected]
+}

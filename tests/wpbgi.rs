@@ -6,7 +6,7 @@
 use glam::Vec3;
 use relume_base::types::{Image, Metrics};
 use relume_core::Value;
-use relume_tests::{add_output, engine, graphs_dir, load_graph, ran, run, run_kind, run_outputs, tests_dir};
+use relume_tests::{add_output, engine, furnace_ratios, graphs_dir, load_graph, ran, run, run_kind, run_outputs, tests_dir};
 
 /// `wpbgi_ring.ron` on a test scene (`tests/scenes`) with `count` points, 8² maps and a
 /// `resolution`² microbuffer.
@@ -68,6 +68,15 @@ fn the_rings_caustic_is_in_the_wavelet_image_with_the_path_tracers_energy() {
     assert!(((caustic - want) / want).abs() < 0.15, "the caustic's energy: wavelet PBGI {caustic}, the path tracer {want}");
     assert!(((w - reference) / reference).abs() < 0.03, "the region: wavelet PBGI {w}, the path tracer {reference}");
     assert!(m("wpbgi_error", "mse") < 0.7 * m("pbgi_error", "mse"));
+}
+
+#[test]
+fn inside_a_sphere_lit_from_its_centre_the_wavelet_gather_returns_albedo_times_the_walls_radiance() {
+    // The furnace of `tests/pbgi.rs`, through the points' wavelet radiance.
+    let [min, mean, max] = furnace_ratios(&wpbgi_graph("inside_sphere.ron", 20_000, 16));
+    assert!(max <= 1.02, "the brightest pixel is {max} × the furnace's: energy created");
+    assert!(mean >= 0.9, "the mean is {mean} × the furnace's");
+    assert!(min >= 0.8, "a pixel at {min} × the furnace's");
 }
 
 #[test]
