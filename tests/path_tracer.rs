@@ -140,6 +140,51 @@ fn the_scene_scale_does_not_change_the_image_from_a_thousandth_to_a_thousand() {
 }
 
 #[test]
+fn an_area_light_under_a_ceiling_lights_the_same_from_a_thousandth_to_a_thousand() {
+    // A floor, a ceiling and an emitting quad a little under it, scaled together (an emitter's
+    // radiance does not change with size): the same picture. Ray origins were once lifted off
+    // surfaces by the scene's size times (1 + |p|), which grows with the square of the size:
+    // from a hundred units across, shadow rays started far enough off the floor to miss part
+    // of the light, and `cornell` at 100 and 1,000 units came out 16 % and 19 % dark.
+    let build = |s: f32| {
+        SceneBuilder::new(Vec3::new(0.0, 0.4, 3.0) * s, Vec3::ZERO, 40.0, 16, 16)
+            .quad(
+                "floor",
+                Vec3::new(-1.0, -1.0, 1.0) * s,
+                Vec3::new(2.0, 0.0, 0.0) * s,
+                Vec3::new(0.0, 0.0, -2.0) * s,
+                lambert(0.7),
+                Vec3::ZERO,
+            )
+            .quad(
+                "ceiling",
+                Vec3::new(-1.0, 1.0, -1.0) * s,
+                Vec3::new(2.0, 0.0, 0.0) * s,
+                Vec3::new(0.0, 0.0, 2.0) * s,
+                lambert(0.7),
+                Vec3::ZERO,
+            )
+            .quad(
+                "lamp",
+                Vec3::new(-0.25, 0.99, -0.25) * s,
+                Vec3::new(0.5, 0.0, 0.0) * s,
+                Vec3::new(0.0, 0.0, 0.5) * s,
+                lambert(0.0),
+                Vec3::splat(8.0),
+            )
+            .build()
+    };
+    let (unit, _) = trace(&build(1.0), 16, 3);
+    let total: f32 = unit.as_floats().iter().sum();
+    assert!(total > 0.0);
+    for s in [1e-3, 1e2, 1e3] {
+        let (img, _) = trace(&build(s), 16, 3);
+        let diff: f32 = img.as_floats().iter().zip(unit.as_floats()).map(|(a, b)| (a - b).abs()).sum::<f32>() / total;
+        assert!(diff < 0.02, "scale {s}: relative L1 difference {diff}");
+    }
+}
+
+#[test]
 fn stiff_lighting_cases_give_finite_images() {
     let base = || {
         SceneBuilder::new(Vec3::new(0.0, 0.5, 3.0), Vec3::ZERO, 40.0, 12, 12).quad(

@@ -30,7 +30,7 @@ params! {
     }
 }
 
-#[node(category = "ptt", metrics = ["vertices", "rays"], outputs = [colors])]
+#[node(category = "ptt", version = 2, metrics = ["vertices", "rays"], outputs = [colors])]
 impl VertexPathTrace {
     fn run(&self, scene: &Scene, accel: &Accel, cx: &RunCtx) -> Result<VertexColors, NodeError> {
         let n = scene.positions.len();

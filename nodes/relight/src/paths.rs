@@ -117,7 +117,7 @@ impl<'a, S: Shade> Paths<'a, S> {
             slots,
             class,
             classes,
-            eps: 1e-6 * scene.extent(),
+            eps: relume_base::render::surface::OFFSET_FRACTION * scene.extent(),
         }
     }
 

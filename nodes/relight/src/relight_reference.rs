@@ -95,7 +95,7 @@ pub fn reference_rows(
     Ok(ImageRows::new(w, rows, vec![img, var], vec![rays]))
 }
 
-#[node(category = "relight", version = 4, sharded, metrics = ["rays"])]
+#[node(category = "relight", version = 5, sharded, metrics = ["rays"])]
 impl RelightReference {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let image = inputs[0].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));

@@ -170,7 +170,7 @@ pub fn sv_relight(t: &SvTransfer, basis: &BrdfBasis, m: &ObjectMaterials, cx: Op
     Ok((img, clamped.into_inner()))
 }
 
-#[node(category = "relight", metrics = ["clamped_texels"], outputs = [image])]
+#[node(category = "relight", version = 2, metrics = ["clamped_texels"], outputs = [image])]
 impl SvRelight {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The image and the wavelet planes (4 x′ bases × 3 channels of the padded square);

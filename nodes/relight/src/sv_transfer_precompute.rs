@@ -51,7 +51,7 @@ impl SvTransferPrecompute {
     }
 }
 
-#[node(category = "relight", version = 2, metrics = ["groups", "sub_regions", "images_uncompressed", "components", "uncompressed_bytes", "bytes", "compression_ratio", "pca_energy_lost_pct", "haar_energy_lost_pct", "passes", "rays", "dropped_samples", "mixed_pixels"], outputs = [transfer, paths])]
+#[node(category = "relight", version = 3, metrics = ["groups", "sub_regions", "images_uncompressed", "components", "uncompressed_bytes", "bytes", "compression_ratio", "pca_energy_lost_pct", "haar_energy_lost_pct", "passes", "rays", "dropped_samples", "mixed_pixels"], outputs = [transfer, paths])]
 impl SvTransferPrecompute {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // What it holds depends on the scene's objects: the node checks its own estimate

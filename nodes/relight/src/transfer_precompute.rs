@@ -163,7 +163,7 @@ pub fn gather_transfer(
     Ok((transfer, counters))
 }
 
-#[node(category = "relight", version = 3, sharded, metrics = ["images", "images_grey", "images_rgb", "images_emitted", "dynamic_objects", "bytes", "rays", "hemisphere_rays_per_pixel", "dropped_samples", "mixed_pixels"])]
+#[node(category = "relight", version = 4, sharded, metrics = ["images", "images_grey", "images_rgb", "images_emitted", "dynamic_objects", "bytes", "rays", "hemisphere_rays_per_pixel", "dropped_samples", "mixed_pixels"])]
 impl TransferPrecompute {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The images' count depends on the scene's objects and lights: the node checks the

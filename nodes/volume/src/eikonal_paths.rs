@@ -279,7 +279,7 @@ pub fn trace(i: &EikonalPathsIn, p: &EikonalPaths, cx: &RunCtx) -> Result<ViewPa
     Ok(out)
 }
 
-#[node(category = "volume", version = 2, metrics = ["camera_samples", "gathers", "entered_pct"])]
+#[node(category = "volume", version = 3, metrics = ["camera_samples", "gathers", "entered_pct"])]
 impl EikonalPaths {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The samples' fixed part (the gathers are counted as they grow), the octree's

@@ -215,7 +215,7 @@ pub fn render(i: &EikonalRenderIn, p: &EikonalRender, cx: &RunCtx) -> Result<(Im
     })
 }
 
-#[node(category = "volume", version = 6, metrics = ["rays"])]
+#[node(category = "volume", version = 7, metrics = ["rays"])]
 impl EikonalRender {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The image at the paths' pixels, the octree's clearance as a byte a voxel (its 8

@@ -125,7 +125,7 @@ pub fn render(scene: &Scene, accel: &Accel, p: &DirectLight, cx: Option<&RunCtx>
     Ok((imgs.pop().expect("one layer"), c[0]))
 }
 
-#[node(category = "reference", sharded, metrics = ["rays", "rays_per_pixel"])]
+#[node(category = "reference", version = 2, sharded, metrics = ["rays", "rays_per_pixel"])]
 impl DirectLight {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The bands of the chunks and the gathered image.

@@ -88,7 +88,7 @@ pub fn render(scene: &Scene, accel: &Accel, p: &PathTrace, cx: Option<&RunCtx>) 
     Ok((imgs.pop().expect("two layers"), var, c[0], c[1]))
 }
 
-#[node(category = "reference", sharded, metrics = ["spp", "rays", "nonfinite_samples"])]
+#[node(category = "reference", version = 2, sharded, metrics = ["spp", "rays", "nonfinite_samples"])]
 impl PathTrace {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The film of a band (a sum and a sum of squares, f64 RGB, per pixel), the bands of

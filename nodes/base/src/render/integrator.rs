@@ -63,7 +63,7 @@ pub struct Tracer<'a> {
 
 impl<'a> Tracer<'a> {
     pub fn new(scene: &'a Scene, accel: &'a Accel, settings: Settings) -> Self {
-        let eps = 1e-6 * scene.extent();
+        let eps = crate::render::surface::OFFSET_FRACTION * scene.extent();
         Tracer { scene, accel, lights: LightSampler::new(scene), settings, eps }
     }
 

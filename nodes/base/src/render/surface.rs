@@ -4,6 +4,10 @@ use crate::types::accel::Hit;
 use crate::types::{Material, Scene};
 use glam::{Vec2, Vec3};
 
+/// Ray offsets off a surface, as a fraction of the scene's size (`Tracer::eps`) and of the
+/// point's coordinates (`Surface::spawn`).
+pub const OFFSET_FRACTION: f32 = 1e-6;
+
 #[derive(Clone, Copy, Debug)]
 pub struct Surface {
     pub p: Vec3,
@@ -45,10 +49,15 @@ impl Surface {
         }
     }
 
-    /// A ray origin just off the surface on the side `dir` leaves to, with an offset scaled by
-    /// the scene size `eps` (docs/QUALITY.md: self-intersection epsilon scaled to scene size).
+    /// A ray origin just off the surface on the side `dir` leaves to. The offset is `eps`
+    /// (the scene's size times `OFFSET_FRACTION`: docs/QUALITY.md, self-intersection epsilon
+    /// scaled to scene size) plus the same fraction of the point's largest coordinate, since
+    /// the spacing of floats grows with it (a small scene far from the origin). Both terms
+    /// are lengths, so the offset scales with the scene: it was `eps × (1 + |p|)`, which grows
+    /// with the square of the scene's size and, in a Cornell box a hundred units across or
+    /// more, lifted shadow rays' origins far enough to lose a sixth of the light.
     pub fn spawn(&self, dir: Vec3, eps: f32) -> Vec3 {
         let side = if dir.dot(self.ng) >= 0.0 { 1.0 } else { -1.0 };
-        self.p + self.ng * (side * eps * (1.0 + self.p.abs().max_element()))
+        self.p + self.ng * (side * (eps + OFFSET_FRACTION * self.p.abs().max_element()))
     }
 }
