@@ -140,16 +140,12 @@ fn the_scene_scale_does_not_change_the_gathered_image_from_a_thousandth_to_a_tho
         g.set_param_text(&relume_cli::registry(), "points.seed", seed).unwrap();
         indirect(&engine(), &g)
     };
-    let l1 = |a: &Image, b: &Image| {
-        a.as_floats().iter().zip(b.as_floats()).map(|(x, y)| (x - y).abs() as f64).sum::<f64>()
-            / b.as_floats().iter().map(|x| *x as f64).sum::<f64>()
-    };
     let unit = at_scale(1.0, "3");
-    let reseeded = l1(&at_scale(1.0, "4"), &unit);
+    let reseeded = relume_tests::relative_l1(&at_scale(1.0, "4"), &unit);
     assert!(mean(&unit) > 0.0 && reseeded > 0.0);
     for s in [1e-3, 1e3] {
         let img = at_scale(s, "3");
-        let diff = l1(&img, &unit);
+        let diff = relume_tests::relative_l1(&img, &unit);
         assert!(diff < 0.5 * reseeded, "scale {s}: relative L1 difference {diff}, another seed's {reseeded}");
         assert!((mean(&img) / mean(&unit) - 1.0).abs() < 0.01, "scale {s}: mean {} against {}", mean(&img), mean(&unit));
     }

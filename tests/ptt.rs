@@ -89,35 +89,22 @@ fn the_scene_scale_does_not_change_the_relit_image_from_a_thousandth_to_a_thousa
     // (measured against the unscaled scene: relative L1 differences of 0.06 % at 10⁻³ and
     // 0.45 % at 10³).
     let dir = tempfile::tempdir().unwrap();
-    let scene = std::fs::read_to_string(relume_tests::graphs_dir().join("scenes").join("envlit.ron")).unwrap();
-    let assets = relume_tests::graphs_dir().join("assets").display().to_string();
     // One engine: what does not depend on the scene (the BRDF tensor and basis) runs once.
     let e = Engine::new(relume_cli::registry());
     let at_scale = |s: f64| {
-        let text = scene
-            .replace("\"../assets/", &format!("\"{assets}/"))
-            .replace(
-                "origin: (0, 1.2, 3.2), target: (0, 0.45, 0)",
-                &format!("origin: (0, {}, {}), target: (0, {}, 0)", 1.2 * s, 3.2 * s, 0.45 * s),
-            )
-            .replace("material: \"ground\")", &format!("material: \"ground\", transform: [Scale({s})])"))
-            .replace("transform: [Translate(", &format!("transform: [Scale({s}), Translate("));
-        let path = dir.path().join(format!("envlit_{s}.ron"));
-        std::fs::write(&path, text).unwrap();
-        let g = {
-            let mut g = small_ptt("ptt_envlit.ron");
-            g.set_param_text(&relume_cli::registry(), "scene.path", &format!("{:?}", path.display().to_string())).unwrap();
-            g
-        };
+        let edits = [
+            ("origin: (0, 1.2, 3.2), target: (0, 0.45, 0)", format!("origin: (0, {}, {}), target: (0, {}, 0)", 1.2 * s, 3.2 * s, 0.45 * s)),
+            ("material: \"ground\")", format!("material: \"ground\", transform: [Scale({s})])")),
+            ("transform: [Translate(", format!("transform: [Scale({s}), Translate(")),
+        ];
+        let path = relume_tests::edited_scene("envlit.ron", &s.to_string(), dir.path(), &edits);
+        let mut g = small_ptt("ptt_envlit.ron");
+        g.set_param_text(&relume_cli::registry(), "scene.path", &format!("{:?}", path.display().to_string())).unwrap();
         // The relit image alone (not the path-traced references).
-        let r = relume_tests::run_outputs(&e, &g, &["image"]);
-        r.output("image").unwrap().get::<Image>().unwrap().clone()
+        relume_tests::run_outputs(&e, &g, &["image"]).output("image").unwrap().get::<Image>().unwrap().clone()
     };
     // The two ends against each other (each run of the precompute takes the time of the rest
     // of this file): six orders of magnitude apart, the same picture.
-    let (small, large) = (at_scale(1e-3), at_scale(1e3));
-    let total: f64 = small.as_floats().iter().map(|x| *x as f64).sum();
-    assert!(total > 0.0);
-    let diff: f64 = large.as_floats().iter().zip(small.as_floats()).map(|(a, b)| (a - b).abs() as f64).sum::<f64>() / total;
+    let diff = relume_tests::relative_l1(&at_scale(1e3), &at_scale(1e-3));
     assert!(diff < 0.02, "10³ against 10⁻³: relative L1 difference {diff}");
 }

@@ -300,3 +300,25 @@ pub fn furnace_ratios(g: &Graph) -> [f64; 3] {
     let mean = red.iter().sum::<f64>() / red.len() as f64;
     [min / expected, mean / expected, max / expected]
 }
+
+/// Σ|a − b| / Σ|b| over two images' floats: how far `a` is from `b`, relative to `b`.
+pub fn relative_l1(a: &relume_base::types::Image, b: &relume_base::types::Image) -> f64 {
+    let diff: f64 = a.as_floats().iter().zip(b.as_floats()).map(|(x, y)| (x - y).abs() as f64).sum();
+    diff / b.as_floats().iter().map(|y| y.abs() as f64).sum::<f64>()
+}
+
+/// A copy of the scene file `graphs/scenes/NAME` in `dir` with its asset paths made absolute
+/// and each (from, to) text replacement made (the scale tests scale a scene this way); the
+/// copy is named for `tag`. Panics when a replacement finds nothing to replace.
+pub fn edited_scene(name: &str, tag: &str, dir: &std::path::Path, edits: &[(&str, String)]) -> PathBuf {
+    let assets = graphs_dir().join("assets").display().to_string();
+    let mut text =
+        std::fs::read_to_string(graphs_dir().join("scenes").join(name)).unwrap().replace("\"../assets/", &format!("\"{assets}/"));
+    for (from, to) in edits {
+        assert!(text.contains(from), "{name} has no `{from}`");
+        text = text.replace(from, to);
+    }
+    let path = dir.join(format!("{tag}-{name}"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
