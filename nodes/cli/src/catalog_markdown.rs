@@ -119,7 +119,7 @@ mod tests {
         let md = page_of(&["GaussianBlur", "PathTrace"]);
         assert!(md.starts_with("# Node catalogue\n\nGenerated from the node registry by `relume nodes --markdown`"), "{md}");
         assert!(md.contains("**image**\n\n- [GaussianBlur](#gaussianblur)\n\n**reference**\n\n- [PathTrace](#pathtrace)\n"), "{md}");
-        assert!(md.contains("## PathTrace\n\nVersion 1 · category `reference`\n\nReference path tracer"), "{md}");
+        assert!(md.contains("## PathTrace\n\nVersion 2 · category `reference`\n\nReference path tracer"), "{md}");
         assert!(md.contains("| in | `scene` | `Scene` |\n| in | `accel` | `Accel` |\n| out | `image` | `Image` |\n"), "{md}");
         assert!(md.contains("| `spp` | int | `16` | `[1, 1048576]` | samples/pixel | `4` | samples per pixel |\n"), "{md}");
         assert!(md.contains("**Metrics** it may record: `spp`, `rays`, `nonfinite_samples`.\n"), "{md}");
