@@ -200,6 +200,9 @@ fn pbgi_cornell_edits_rerun_only_what_they_reach() {
     assert!(!std::sync::Arc::ptr_eq(&img, app.viewer.image().unwrap()), "the viewer shows the new image");
 
     // The microbuffer resolution reaches only the gather and what adds it to the direct light.
+    // At test size the gather can fit the frame budget and start at once (then it is running,
+    // not stale); it is priced as the shipped graph's is, so the edit waits for a pause.
+    app.costs.set("gather", 10.0 * relume_editor::live::FRAME_BUDGET_MS);
     app.set_param("gather", "resolution", ParamValue::Int(8)).unwrap();
     frame(&ctx, &mut app);
     assert_eq!(stale(&app), ["combine", "gather"]);
