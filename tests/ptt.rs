@@ -98,10 +98,7 @@ fn the_scene_scale_does_not_change_the_relit_image_from_a_thousandth_to_a_thousa
             ("transform: [Translate(", format!("transform: [Scale({s}), Translate(")),
         ];
         let path = relume_tests::edited_scene("envlit.ron", &s.to_string(), dir.path(), &edits);
-        let mut g = small_ptt("ptt_envlit.ron");
-        g.set_param_text(&relume_cli::registry(), "scene.path", &format!("{:?}", path.display().to_string())).unwrap();
-        // The relit image alone (not the path-traced references).
-        relume_tests::run_outputs(&e, &g, &["image"]).output("image").unwrap().get::<Image>().unwrap().clone()
+        relume_tests::image_with_scene(&e, small_ptt("ptt_envlit.ron"), &path)
     };
     // The two ends against each other (each run of the precompute takes the time of the rest
     // of this file): six orders of magnitude apart, the same picture.

@@ -177,9 +177,7 @@ fn the_scene_scale_does_not_change_the_relit_image_from_a_thousandth_to_a_thousa
             ("transform: [Translate(", format!("transform: [Scale({s}), Translate(")),
         ];
         let path = relume_tests::edited_scene("cornell-bunny.ron", &s.to_string(), dir.path(), &edits);
-        let mut g = small("relight_cornell_bunny.ron");
-        g.set_param_text(&relume_cli::registry(), "scene.path", &format!("{:?}", path.display().to_string())).unwrap();
-        relume_tests::run_outputs(&e, &g, &["image"]).output("image").unwrap().get::<Image>().unwrap().clone()
+        relume_tests::image_with_scene(&e, small("relight_cornell_bunny.ron"), &path)
     };
     let unit = at_scale(1.0);
     for s in [1e-3, 1e3] {

@@ -322,3 +322,9 @@ pub fn edited_scene(name: &str, tag: &str, dir: &std::path::Path, edits: &[(&str
     std::fs::write(&path, text).unwrap();
     path
 }
+
+/// Runs `g` with its `scene` node reading the scene file `scene` and returns its `image` output.
+pub fn image_with_scene(e: &Engine, mut g: Graph, scene: &std::path::Path) -> relume_base::types::Image {
+    g.set_param_text(&relume_cli::registry(), "scene.path", &format!("{:?}", scene.display().to_string())).unwrap();
+    run_outputs(e, &g, &["image"]).output("image").unwrap().get::<relume_base::types::Image>().unwrap().clone()
+}
