@@ -237,7 +237,7 @@ impl<'a> Setup<'a> {
         if self.scene.tri_object[hit.tri as usize] != self.map.object || self.texels() == 0 {
             return (Some(t), None);
         }
-        let (ng, _) = self.scene.normal_area(hit.tri as usize);
+        let ng = hit.ng;
         let texel = if ng.dot(u) < 0.0 { self.map.texel(o + u * hit.t) } else { None };
         (Some(t), texel)
     }

@@ -3,8 +3,10 @@ use crate::types::Scene;
 use relume_core::{node, params, NodeError, RunCtx};
 
 params! {
-    /// Builds a compressed-wide BVH (obvhs, PLOC) over every triangle of a scene, for
-    /// closest-hit rays and shadow rays that stop at the first blocker. The build is
+    /// Builds a four-wide BVH over every triangle of a scene (a binary PLOC build by obvhs,
+    /// collapsed to four children a node, boxes stored lane by lane for SIMD slab tests), for
+    /// closest-hit rays that visit children nearest first and shadow rays that stop at the
+    /// first blocker. The build is
     /// deterministic; a disk-cached BVH is stored whole (nodes and prepared triangles). `exclude`
     /// leaves one object out (pipeline 3: the refractive object, which the medium volume stands
     /// for); hits still name scene triangles.
@@ -16,9 +18,16 @@ params! {
     }
 }
 
-#[node(category = "geometry", version = 2, metrics = ["triangles", "bvh_nodes"], outputs = [accel])]
+#[node(category = "geometry", version = 3, metrics = ["triangles", "bvh_nodes"], outputs = [accel])]
 impl BuildBvh {
     fn run(&self, scene: &Scene, cx: &RunCtx) -> Result<Accel, NodeError> {
+        if scene.triangles.len() > Accel::MAX_TRIANGLES {
+            return Err(NodeError::over_limit(format!(
+                "{} triangles, over the {} one BVH holds",
+                scene.triangles.len(),
+                Accel::MAX_TRIANGLES
+            )));
+        }
         // One obvhs call: not cancellable inside.
         let accel = if self.exclude.is_empty() {
             Accel::build(scene, self.quality)
@@ -69,6 +78,7 @@ mod tests {
                 let [a, bb, c] = scene.corners(h.tri as usize);
                 let p = a * (1.0 - h.b1 - h.b2) + bb * h.b1 + c * h.b2;
                 assert!((p - (o + d * h.t)).length() < 1e-4, "barycentrics give the hit point");
+                assert_eq!((h.ng, h.area), scene.normal_area(h.tri as usize), "the hit's normal and area are the scene's, bit for bit");
                 assert!(accel.occluded(o, d, 0.0, h.t + 1e-3));
                 assert!(!accel.occluded(o, d, 0.0, h.t * 0.999));
             } else {

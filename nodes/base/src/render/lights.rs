@@ -8,10 +8,11 @@ use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
 /// What can be picked. An emitting triangle carries its corners, geometric normal and area
-/// (as `Scene::corners` and `Scene::normal_area` give them), read at every sample.
+/// (as `Scene::corners` and `Scene::normal_area` give them) and its object's emission, read
+/// at every sample.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Item {
-    Triangle { tri: u32, corners: [Vec3; 3], n: Vec3, area: f32 },
+    Triangle { tri: u32, corners: [Vec3; 3], n: Vec3, area: f32, emission: Vec3 },
     Delta(usize),
     Environment,
 }
@@ -59,7 +60,7 @@ impl LightSampler {
                 let (n, area) = scene.normal_area(t as usize);
                 if area > 0.0 {
                     tri_item[t as usize] = items.len() as u32;
-                    items.push(Item::Triangle { tri: t, corners: scene.corners(t as usize), n, area });
+                    items.push(Item::Triangle { tri: t, corners: scene.corners(t as usize), n, area, emission: o.emission });
                     weights.push(PI * area * lum(o.emission));
                 }
             }
@@ -133,7 +134,7 @@ impl LightSampler {
             return None;
         }
         match self.items[i] {
-            Item::Triangle { tri: t, corners: [a, b, c], n, area } => {
+            Item::Triangle { corners: [a, b, c], n, area, emission, .. } => {
                 let (b0, b1) = uniform_triangle(u2);
                 let q = a * b0 + b * b1 + c * (1.0 - b0 - b1);
                 let d = q - p;
@@ -147,8 +148,7 @@ impl LightSampler {
                 if cos_l <= 0.0 {
                     return None;
                 }
-                let e = scene.objects[scene.tri_object[t as usize] as usize].emission;
-                Some(LightSample { wi, dist, li: e, pdf: p_choice * dist2 / (cos_l * area), delta: false })
+                Some(LightSample { wi, dist, li: emission, pdf: p_choice * dist2 / (cos_l * area), delta: false })
             }
             Item::Delta(k) => {
                 delta_sample(&scene.lights[k], p).map(|(wi, dist, li)| LightSample { wi, dist, li, pdf: p_choice, delta: true })

@@ -25,7 +25,7 @@ pub struct Surface {
 impl Surface {
     pub fn at(scene: &Scene, hit: &Hit, o: Vec3, d: Vec3) -> Surface {
         let t = hit.tri as usize;
-        let (ng, area) = scene.normal_area(t);
+        let (ng, area) = (hit.ng, hit.area);
         let [i0, i1, i2] = scene.triangles[t].map(|i| i as usize);
         let b0 = 1.0 - hit.b1 - hit.b2;
         let ns = if scene.normals.is_empty() {

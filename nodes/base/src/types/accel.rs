@@ -1,66 +1,31 @@
-//! `Accel`: a compressed-wide BVH (obvhs CwBvh) over a scene's triangles, with closest-hit
-//! queries that return barycentrics and shadow queries that stop at the first hit
-//! (`ray_traverse_miss`; obvhs' `ray_traverse_anyhit` visits every hit). Coordinates are
-//! stored multiplied by a power of two that brings the scene's size near 1024: obvhs skips
-//! boxes that end closer than 10⁻⁴ along a ray (whatever the scene's units), which lost the
-//! floor under rays starting a hair above it and, in a scene 10⁻³ across, every hit within a
-//! few voxels; a power of two scales every rounding exactly, so hits are bit for bit those of
-//! the unscaled triangles. Directions reach
-//! obvhs with −0 components made +0: its traversal takes a component's sign from `< 0` but
-//! its inverse from the sign bit, so a ray straight down the y axis written as −n, (−0, −1,
-//! −0), missed a floor it stood on.
+//! `Accel`: a four-wide BVH (`bvh4`) over a scene's triangles, built by collapsing obvhs'
+//! binary PLOC build, with closest-hit queries that return barycentrics and shadow queries
+//! that stop at the first hit. Coordinates are stored multiplied by a power of two that brings
+//! the scene's size near 1024, so that a scene 10⁻³ or 10³ across is traversed in the same
+//! range of floats as one of unit size; a power of two scales every rounding exactly, so hits
+//! are bit for bit those of the unscaled triangles.
+
+mod bvh4;
 
 use crate::types::Scene;
+use bvh4::{Bvh4, Node, Tri, Tri4};
 use glam::{Vec3, Vec3A};
-use obvhs::aabb::Aabb;
-use obvhs::cwbvh::builder::build_cwbvh_from_tris;
-use obvhs::cwbvh::node::CwBvhNode;
-use obvhs::cwbvh::CwBvh;
-use obvhs::ray::{Ray, RayHit};
+use obvhs::bvh2::builder::build_bvh2_from_tris;
 use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
 use relume_core::{ParamEnum, PortValue};
 
-/// A triangle prepared for Möller–Trumbore: corner and two edges.
-#[derive(Clone, Copy, Debug)]
-struct Tri {
-    v0: Vec3A,
-    e1: Vec3A,
-    e2: Vec3A,
-}
-
-impl Tri {
-    /// (t, b1, b2) of the hit within (tmin, tmax), if any.
-    #[inline(always)]
-    fn intersect(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> Option<(f32, f32, f32)> {
-        let p = d.cross(self.e2);
-        let det = self.e1.dot(p);
-        if det.abs() < 1e-30 {
-            return None;
-        }
-        let inv = 1.0 / det;
-        let s = o - self.v0;
-        let u = s.dot(p) * inv;
-        if !(0.0..=1.0).contains(&u) {
-            return None;
-        }
-        let q = s.cross(self.e1);
-        let v = d.dot(q) * inv;
-        if v < 0.0 || u + v > 1.0 {
-            return None;
-        }
-        let t = self.e2.dot(q) * inv;
-        (t > tmin && t < tmax).then_some((t, u, v))
-    }
-}
-
-/// A closest hit: distance, scene triangle index, barycentrics of corners 1 and 2.
+/// A closest hit: distance, scene triangle index, barycentrics of corners 1 and 2, and the
+/// triangle's geometric normal and area (bit for bit `Scene::normal_area`, read from the
+/// packet the hit was found in rather than from the scene's scattered vertices).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
     pub t: f32,
     pub tri: u32,
     pub b1: f32,
     pub b2: f32,
+    pub ng: Vec3,
+    pub area: f32,
 }
 
 /// Build quality (obvhs presets).
@@ -72,10 +37,8 @@ pub enum BuildQuality {
 }
 
 pub struct Accel {
-    bvh: CwBvh,
-    /// Triangles in BVH leaf order.
-    tris: Vec<Tri>,
-    /// BVH leaf order → scene triangle index.
+    bvh: Bvh4,
+    /// Packet lane → scene triangle index (`u32::MAX` for an empty lane).
     prim: Vec<u32>,
     /// The power of two the stored coordinates are multiplied by (see the module doc).
     scale: f32,
@@ -90,6 +53,11 @@ fn scale_for(size: f32) -> f32 {
 }
 
 impl Accel {
+    /// The most triangles one BVH holds (leaf references keep 27 bits for the first one;
+    /// spatial splits may place a triangle in several leaves, so `Slow` holds fewer).
+    pub const MAX_TRIANGLES: usize = bvh4::MAX_TRIS / 2;
+
+    /// Panics over `MAX_TRIANGLES` triangles (`BuildBvh` refuses them first).
     pub fn build(scene: &Scene, quality: BuildQuality) -> Accel {
         Accel::build_filtered(scene, quality, |_| true)
     }
@@ -111,17 +79,14 @@ impl Accel {
             BuildQuality::Medium => BvhBuildParams::medium_build(),
             BuildQuality::Slow => BvhBuildParams::slow_build(),
         };
-        let bvh = build_cwbvh_from_tris(&obv, params, &mut std::time::Duration::default());
-        let tris = bvh
-            .primitive_indices
-            .iter()
-            .map(|&i| {
-                let t = &obv[i as usize];
-                Tri { v0: t.v0, e1: t.v1 - t.v0, e2: t.v2 - t.v0 }
-            })
-            .collect();
-        let prim = bvh.primitive_indices.iter().map(|&i| kept[i as usize]).collect();
-        Accel { bvh, tris, prim, scale }
+        let b2 = if obv.is_empty() { Default::default() } else { build_bvh2_from_tris(&obv, params, &mut std::time::Duration::default()) };
+        let (bvh, lanes) = Bvh4::collapse(&b2, |i| {
+            let t = &obv[i];
+            Tri { v0: t.v0, e1: t.v1 - t.v0, e2: t.v2 - t.v0 }
+        })
+        .unwrap_or_else(|e| panic!("{e}"));
+        let prim = lanes.iter().map(|&i| if i == u32::MAX { i } else { kept[i as usize] }).collect();
+        Accel { bvh, prim, scale }
     }
 
     /// The bounding box of its triangles (an inverted box when it has none).
@@ -134,7 +99,7 @@ impl Accel {
     /// a ray inside that box may hit something (`None` when nothing is there).
     pub fn bounds_within(&self, lo: Vec3, hi: Vec3) -> Option<(Vec3, Vec3)> {
         let k = 1.0 / self.scale;
-        let (a, b) = self.tris.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(a, b), t| {
+        let (a, b) = self.lane_tris().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(a, b), t| {
             let (p, q, r) = (Vec3::from(t.v0) * k, Vec3::from(t.v0 + t.e1) * k, Vec3::from(t.v0 + t.e2) * k);
             let (tl, th) = (p.min(q).min(r), p.max(q).max(r));
             if tl.cmple(hi).all() && th.cmpge(lo).all() {
@@ -149,30 +114,35 @@ impl Accel {
 
     /// Closest hit along `o + t d` for t in (tmin, tmax).
     pub fn intersect(&self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
-        let (o, d) = (Vec3A::from(o) * self.scale, Vec3A::from(d) + Vec3A::ZERO);
-        let (tmin, tmax) = (tmin * self.scale, tmax * self.scale);
-        let ray = Ray::new(o, d, tmin, tmax);
-        let mut hit = RayHit::none();
-        let mut best = (f32::INFINITY, 0.0, 0.0);
-        let found = self.bvh.ray_traverse(ray, &mut hit, |r, id| match self.tris[id].intersect(o, d, r.tmin, r.tmax) {
-            Some((t, u, v)) => {
-                best = (t, u, v);
-                t
-            }
-            None => f32::INFINITY,
-        });
-        (found && hit.t < tmax).then(|| Hit { t: hit.t / self.scale, tri: self.prim[hit.primitive_id as usize], b1: best.1, b2: best.2 })
+        let (o, d) = (Vec3A::from(o) * self.scale, Vec3A::from(d));
+        let (t, i, b1, b2) = self.bvh.intersect(o, d, tmin * self.scale, tmax * self.scale)?;
+        // Unscaling by a power of two is exact: these are the scene's edges b − a and c − a.
+        let p = &self.bvh.packets[i / 4].c;
+        let edge = |k: usize| Vec3::new(p[k][i % 4], p[k + 1][i % 4], p[k + 2][i % 4]) / self.scale;
+        let (ng, area) = crate::types::scene::normal_area_of(edge(3), edge(6));
+        Some(Hit { t: t / self.scale, tri: self.prim[i], b1, b2, ng, area })
     }
 
     /// Whether anything blocks `o + t d` for t in (tmin, tmax); stops at the first blocker.
     pub fn occluded(&self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool {
-        let (o, d) = (Vec3A::from(o) * self.scale, Vec3A::from(d) + Vec3A::ZERO);
-        let ray = Ray::new(o, d, tmin * self.scale, tmax * self.scale);
-        !self.bvh.ray_traverse_miss(ray, |r, id| self.tris[id].intersect(o, d, r.tmin, r.tmax).map_or(f32::INFINITY, |h| h.0))
+        let (o, d) = (Vec3A::from(o) * self.scale, Vec3A::from(d));
+        self.bvh.occluded(o, d, tmin * self.scale, tmax * self.scale)
     }
 
+    /// The triangles its leaves hold (a triangle spatial splits place in several leaves counts
+    /// once per leaf).
     pub fn triangle_count(&self) -> usize {
-        self.tris.len()
+        self.prim.iter().filter(|&&p| p != u32::MAX).count()
+    }
+
+    /// The triangles its packet lanes hold, in the stored (scaled) coordinates.
+    fn lane_tris(&self) -> impl Iterator<Item = Tri> + '_ {
+        self.bvh.packets.iter().flat_map(|p| (0..4).map(move |lane| (p, lane))).zip(&self.prim).filter(|(_, &s)| s != u32::MAX).map(
+            |((p, lane), _)| {
+                let v = |k: usize| Vec3A::new(p.c[k][lane], p.c[k + 1][lane], p.c[k + 2][lane]);
+                Tri { v0: v(0), e1: v(3), e2: v(6) }
+            },
+        )
     }
 
     pub fn node_count(&self) -> usize {
@@ -186,11 +156,22 @@ pub(crate) fn brute(a: Vec3, b: Vec3, c: Vec3, o: Vec3, d: Vec3) -> Option<f32> 
     Tri { v0: a.into(), e1: (b - a).into(), e2: (c - a).into() }.intersect(o.into(), d.into(), 0.0, f32::INFINITY).map(|h| h.0)
 }
 
-/// Byte offsets of the 4-byte numbers inside a `CwBvhNode` (`p`, `child_base_idx`,
-/// `primitive_base_idx`); the other bytes are `u8` fields.
-const NODE_WORDS: [usize; 5] = [0, 4, 8, 16, 20];
-const NODE_BYTES: usize = std::mem::size_of::<CwBvhNode>();
-const _: () = assert!(NODE_BYTES == 80);
+const NODE_BYTES: usize = std::mem::size_of::<Node>();
+const PACKET_BYTES: usize = std::mem::size_of::<Tri4>();
+const _: () = assert!(NODE_BYTES == 112 && PACKET_BYTES == 144);
+/// Byte offsets of the 4-byte numbers inside a `Node` or a `Tri4`: all of them.
+const NODE_WORDS: [usize; NODE_BYTES / 4] = words();
+const PACKET_WORDS: [usize; PACKET_BYTES / 4] = words();
+
+const fn words<const N: usize>() -> [usize; N] {
+    let mut w = [0; N];
+    let mut i = 0;
+    while i < N {
+        w[i] = 4 * i;
+        i += 1;
+    }
+    w
+}
 
 /// Appends little-endian bytes of plain values whose 4-byte numbers sit at `words`
 /// (a copy on little-endian machines).
@@ -223,18 +204,6 @@ fn get_le<T: bytemuck::Pod>(r: &mut Reader<'_>, n: usize, words: &[usize]) -> Op
     Some(v)
 }
 
-const FLOATS6: [usize; 6] = [0, 4, 8, 12, 16, 20];
-const FLOATS9: [usize; 9] = [0, 4, 8, 12, 16, 20, 24, 28, 32];
-
-fn aabb_floats(a: &Aabb) -> [f32; 6] {
-    let (lo, hi) = (a.min.to_array(), a.max.to_array());
-    [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]]
-}
-
-fn aabb_of(f: [f32; 6]) -> Aabb {
-    Aabb { min: Vec3A::new(f[0], f[1], f[2]), max: Vec3A::new(f[3], f[4], f[5]) }
-}
-
 struct Reader<'a>(&'a [u8]);
 
 impl<'a> Reader<'a> {
@@ -252,96 +221,49 @@ impl<'a> Reader<'a> {
     fn count(&mut self) -> Option<usize> {
         usize::try_from(self.u64()?).ok()
     }
-    fn byte(&mut self) -> Option<u8> {
-        Some(self.take(1)?[0])
-    }
 }
 
-impl Accel {
-    /// Whether every child and primitive a node points to exists (what a decoded BVH must
-    /// satisfy before traversal indexes with it).
-    fn indices_in_range(&self) -> bool {
-        let (nodes, prims) = (self.bvh.nodes.len() as u64, self.prim.len() as u64);
-        self.bvh.nodes.iter().all(|n| {
-            let inner_ok = n.child_base_idx as u64 + n.imask.count_ones() as u64 <= nodes;
-            let leaves_ok = (0..8).filter(|&ch| n.imask & (1 << ch) == 0).all(|ch| {
-                let meta = n.child_meta[ch];
-                let first = n.primitive_base_idx as u64 + (meta & 0b11111) as u64;
-                (0..3).filter(|i| meta & (0b1_00000 << i) != 0).all(|i| first + i < prims)
-            });
-            inner_ok && leaves_ok
-        })
-    }
-}
-
-/// Disk encoding, little-endian: the counts of nodes, primitives and exact node boxes
-/// (u64; `u64::MAX` when there are none), whether the BVH uses spatial splits (one byte),
-/// the total box (6 f32), the nodes (80 bytes each, obvhs' layout), the primitive indices
-/// (u32), the prepared triangles in leaf order (9 f32 each) and the exact node boxes
-/// (6 f32 each). Decoding checks the lengths and that every node's children and primitives
-/// are in range.
+/// Disk encoding, little-endian: the counts of nodes and of triangle packets (u64), the
+/// coordinate scale (f32), the nodes (112 bytes each: 24 f32 of boxes, 4 u32 of children),
+/// the packets (36 f32 each: corner and edges over four lanes) and the scene triangle index of
+/// each packet lane (u32; `u32::MAX` for an empty lane). Decoding checks the lengths, that
+/// every inner child follows its parent and that every leaf lies within the packets.
 impl PortValue for Accel {
     const NAME: &'static str = "Accel";
     const COLOR: [u8; 3] = [150, 120, 220];
     const DOC: &'static str = "ray-tracing acceleration structure (BVH) over a scene";
     fn byte_size(&self) -> usize {
-        self.tris.len() * 52 + self.bvh.nodes.len() * 80
+        self.bvh.packets.len() * (PACKET_BYTES + 32) + self.bvh.nodes.len() * NODE_BYTES
     }
     fn encode(&self) -> Vec<u8> {
-        let b = &self.bvh;
-        let exact = b.exact_node_aabbs.as_ref();
-        let mut out = Vec::with_capacity(64 + b.nodes.len() * NODE_BYTES + self.prim.len() * 40 + exact.map_or(0, |e| e.len() * 24));
-        for n in [b.nodes.len() as u64, self.prim.len() as u64, exact.map_or(u64::MAX, |e| e.len() as u64)] {
+        let mut out = Vec::with_capacity(20 + self.bvh.nodes.len() * NODE_BYTES + self.bvh.packets.len() * (PACKET_BYTES + 16));
+        for n in [self.bvh.nodes.len() as u64, self.bvh.packets.len() as u64] {
             out.extend_from_slice(&n.to_le_bytes());
         }
-        out.push(b.uses_spatial_splits as u8);
         put_le(&mut out, &[self.scale], &[0]);
-        put_le(&mut out, &[aabb_floats(&b.total_aabb)], &FLOATS6);
-        put_le(&mut out, &b.nodes, &NODE_WORDS);
+        put_le(&mut out, &self.bvh.nodes, &NODE_WORDS);
+        put_le(&mut out, &self.bvh.packets, &PACKET_WORDS);
         put_le(&mut out, &self.prim, &[0]);
-        let tris: Vec<[f32; 9]> = self
-            .tris
-            .iter()
-            .map(|t| {
-                let (a, b, c) = (t.v0.to_array(), t.e1.to_array(), t.e2.to_array());
-                [a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2]]
-            })
-            .collect();
-        put_le(&mut out, &tris, &FLOATS9);
-        if let Some(e) = exact {
-            put_le(&mut out, &e.iter().map(aabb_floats).collect::<Vec<_>>(), &FLOATS6);
-        }
         out
     }
     fn decode(bytes: &[u8]) -> Option<Self> {
         let mut r = Reader(bytes);
-        let (n_nodes, n_prims, n_exact) = (r.count()?, r.count()?, r.u64()?);
-        let uses_spatial_splits = match r.byte()? {
-            0 => false,
-            1 => true,
-            _ => return None,
-        };
+        let (n_nodes, n_packets) = (r.count()?, r.count()?);
         let scale = get_le::<f32>(&mut r, 1, &[0])?[0];
         if !(scale.is_finite() && scale > 0.0) {
             return None;
         }
-        let total_aabb = aabb_of(get_le::<[f32; 6]>(&mut r, 1, &FLOATS6)?[0]);
-        let nodes = get_le::<CwBvhNode>(&mut r, n_nodes, &NODE_WORDS)?;
-        let prim = get_le::<u32>(&mut r, n_prims, &[0])?;
-        let tris = get_le::<[f32; 9]>(&mut r, n_prims, &FLOATS9)?
-            .into_iter()
-            .map(|f| Tri { v0: Vec3A::new(f[0], f[1], f[2]), e1: Vec3A::new(f[3], f[4], f[5]), e2: Vec3A::new(f[6], f[7], f[8]) })
-            .collect();
-        let exact_node_aabbs = match n_exact {
-            u64::MAX => None,
-            n => Some(get_le::<[f32; 6]>(&mut r, usize::try_from(n).ok()?, &FLOATS6)?.into_iter().map(aabb_of).collect()),
-        };
+        let nodes = get_le::<Node>(&mut r, n_nodes, &NODE_WORDS)?;
+        let packets = get_le::<Tri4>(&mut r, n_packets, &PACKET_WORDS)?;
+        let prim = get_le::<u32>(&mut r, n_packets.checked_mul(4)?, &[0])?;
         if !r.0.is_empty() {
             return None;
         }
-        let bvh = CwBvh { nodes, primitive_indices: prim.clone(), total_aabb, exact_node_aabbs, uses_spatial_splits };
-        let accel = Accel { bvh, tris, prim, scale };
-        accel.indices_in_range().then_some(accel)
+        if prim.len() != 4 * packets.len() {
+            return None;
+        }
+        let bvh = Bvh4::from_parts(nodes, packets)?;
+        Some(Accel { bvh, prim, scale })
     }
 }
 
@@ -377,16 +299,21 @@ mod tests {
     }
 
     #[test]
-    fn out_of_range_node_indices_are_refused() {
+    fn out_of_range_or_looping_children_are_refused() {
         let scene = test_scene::spheres();
-        let mut a = Accel::build(&scene, BuildQuality::Fast);
-        assert!(a.bvh.nodes[0].imask != 0, "the root has inner children");
-        a.bvh.nodes[0].child_base_idx = a.bvh.nodes.len() as u32;
-        assert!(Accel::decode(&a.encode()).is_none(), "a child past the last node");
-        let mut a = Accel::build(&scene, BuildQuality::Fast);
-        let n = a.bvh.nodes.iter().position(|n| (0..8).any(|ch| n.imask & (1 << ch) == 0 && n.child_meta[ch] != 0)).unwrap();
-        a.bvh.nodes[n].primitive_base_idx = a.prim.len() as u32;
-        assert!(Accel::decode(&a.encode()).is_none(), "a primitive past the last one");
+        let a = Accel::build(&scene, BuildQuality::Fast);
+        let (node, lane) =
+            (0..a.node_count()).flat_map(|n| (0..4).map(move |l| (n, l))).find(|&(n, l)| a.bvh.nodes[n].child[l] & (1 << 31) == 0).unwrap();
+        let with = |child: u32| {
+            let mut b = Accel::decode(&a.encode()).unwrap();
+            b.bvh.nodes[node].child[lane] = child;
+            Accel::decode(&b.encode())
+        };
+        assert!(with(a.node_count() as u32).is_none(), "a child past the last node");
+        assert!(with(node as u32).is_none(), "a node its own child");
+        let packets = a.bvh.packets.len() as u32;
+        assert!(with((1 << 31) | (2 << 27) | (packets - 2)).is_none(), "a leaf past the last packet");
+        assert!(with((1 << 31) | (1 << 27) | (packets - 2)).is_some(), "the last two packets as a leaf");
     }
 
     #[test]

@@ -186,9 +186,7 @@ impl Scene {
     /// Geometric normal (from the winding) and area of triangle `t`.
     pub fn normal_area(&self, t: usize) -> (Vec3, f32) {
         let [a, b, c] = self.corners(t);
-        let cr = (b - a).cross(c - a);
-        let len = cr.length();
-        (if len > 0.0 { cr / len } else { Vec3::ZERO }, 0.5 * len)
+        normal_area_of(b - a, c - a)
     }
 
     /// Smallest and largest corner of the bounding box of all triangles.
@@ -212,6 +210,13 @@ impl Scene {
     pub fn has_lights(&self) -> bool {
         !self.lights.is_empty() || self.objects.iter().any(|o| o.emission.max_element() > 0.0) || self.environment.is_some()
     }
+}
+
+/// Geometric normal and area of the triangle with edges `e1` and `e2` from one corner.
+pub fn normal_area_of(e1: Vec3, e2: Vec3) -> (Vec3, f32) {
+    let cr = e1.cross(e2);
+    let len = cr.length();
+    (if len > 0.0 { cr / len } else { Vec3::ZERO }, 0.5 * len)
 }
 
 /// Encoded as width, height and texels; decoding rebuilds the sampling distribution (the
