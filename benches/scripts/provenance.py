@@ -20,10 +20,23 @@ def commit():
         return "unknown"
 
 
+def widest_simd():
+    """The widest x86 vector extension /proc/cpuinfo reports, as the Rust side names it, or None."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            flags = next((line.split(":", 1)[1].split() for line in f if line.startswith("flags")), [])
+    except OSError:
+        return None
+    if platform.machine() != "x86_64":
+        return None
+    return "AVX-512" if "avx512f" in flags else "AVX2" if "avx2" in flags else "SSE2"
+
+
 def cells(threads=None):
     """The four provenance cells; `threads` defaults to the machine's core count."""
     cores = os.cpu_count()
-    return [time.strftime("%Y-%m-%d", time.gmtime()), f"{platform.machine()} {sys.platform} with {cores} cores",
+    simd = widest_simd()
+    return [time.strftime("%Y-%m-%d", time.gmtime()), f"{platform.machine()} {sys.platform} with {cores} cores" + (f" ({simd})" if simd else ""),
             str(threads or cores), commit()]
 
 
