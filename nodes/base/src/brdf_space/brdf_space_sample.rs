@@ -1,7 +1,17 @@
 use crate::brdf::BrdfModel;
 use crate::math::spread;
 use crate::types::{cos_half, BrdfGrid, BrdfSample, BrdfSpace, MAX_BRDF_SPACE_BYTES};
-use relume_core::{memory::fmt_bytes, node, params, MemoryEstimate, NodeError, PortSize, RunCtx};
+use relume_core::{memory::fmt_bytes, node, params, MemoryEstimate, NodeError, ParamEnum, PortSize, RunCtx};
+
+/// How the Blinn-Phong exponents of the specular samples are spread over [s_min, s_max].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ParamEnum)]
+pub enum Spacing {
+    /// equal steps in s, as [S] 4.1.2 samples them
+    Linear,
+    /// equal ratios from one exponent to the next, so broad lobes (small s) get as many samples
+    /// per doubling of s as narrow ones
+    Geometric,
+}
 
 params! {
     /// Tabulates BRDFs on a (θi, θo, φ) grid, the BRDF space of pipeline 1 ([S] 4.1.2, 4-17,
@@ -9,7 +19,8 @@ params! {
     /// ks = 1) of the chosen `model`:
     ///
     /// - Blinn-Phong: exponents spaced linearly over [s_min, s_max] ([S]: "s 在选定的范围内均匀
-    ///   采样", uniformly over the chosen range; one specular sample takes s_min). The BRDF is the
+    ///   采样", uniformly over the chosen range; one specular sample takes s_min), or
+    ///   geometrically (`s_spacing`), which gives broad lobes more of the samples. The BRDF is the
     ///   project's normalised Blinn-Phong, (s+2)/(8π) cos^s δ (`brdf/blinn_phong.rs`), not the
     ///   thesis' printed (s+2)/(2π).
     /// - Cook-Torrance (`brdf/cook_torrance.rs`, D F G / (4 cos θi cos θo)): `f0_count` Schlick F0
@@ -36,6 +47,8 @@ params! {
         pub s_min: f32 = 1.0, range = 0.0..=1e5;
         /// Blinn-Phong: largest exponent of the specular samples
         pub s_max: f32 = 200.0, range = 0.0..=1e5;
+        /// Blinn-Phong: how the exponents are spread (Geometric needs s_min > 0)
+        pub s_spacing: Spacing = Linear;
         /// specular model of the samples: Blinn-Phong (s) or Cook-Torrance (m, F0)
         pub model: BrdfModel = BlinnPhong;
         /// Cook-Torrance: smallest Beckmann roughness m
@@ -70,7 +83,19 @@ impl BrdfSpaceSample {
         let specular: Vec<BrdfSample> = match self.model {
             BrdfModel::BlinnPhong => {
                 order(self.s_min, self.s_max, "s_min", "s_max")?;
-                spread(n, self.s_min, self.s_max).into_iter().map(|s| BrdfSample::blinn_phong(0.0, 1.0, s as f32)).collect()
+                let exponents = match self.s_spacing {
+                    Spacing::Linear => spread(n, self.s_min, self.s_max),
+                    Spacing::Geometric if self.s_min > 0.0 => {
+                        spread(n, self.s_min.ln(), self.s_max.ln()).into_iter().map(f64::exp).collect()
+                    }
+                    Spacing::Geometric => {
+                        return Err(NodeError::param(
+                            "s_min",
+                            "s_min = 0 cannot start a geometric spacing; make it positive or use s_spacing: Linear",
+                        ))
+                    }
+                };
+                exponents.into_iter().map(|s| BrdfSample::blinn_phong(0.0, 1.0, s as f32)).collect()
             }
             BrdfModel::CookTorrance => {
                 order(self.m_min, self.m_max, "m_min", "m_max")?;
@@ -144,7 +169,7 @@ mod tests {
     use super::*;
     use crate::brdf::{blinn_phong, cook_torrance};
     use crate::brdf_space::test_support::{ct_space, space};
-    use crate::testing::{cancels_midway, f, i, id, run_on};
+    use crate::testing::{cancels_midway, f, first, i, id, run_on};
     use glam::Vec3;
     use relume_core::PortValue;
 
@@ -167,6 +192,22 @@ mod tests {
         }
         // The diffuse sample is 1/π everywhere.
         assert!(sp.sample(0).iter().all(|&v| (v - std::f32::consts::FRAC_1_PI).abs() < 1e-7));
+    }
+
+    #[test]
+    fn geometric_spacing_keeps_the_ends_and_a_constant_ratio_and_needs_a_positive_start() {
+        let exponents = |spacing: &str, s_min: f64| {
+            let grid = [("n_theta_i", i(2)), ("n_theta_o", i(2)), ("n_phi", i(2)), ("samples", i(12))];
+            let params = [&grid[..], &[("s_min", f(s_min)), ("s_max", f(2048.0)), ("s_spacing", id(spacing))]].concat();
+            run_on::<BrdfSpaceSample>(&params, vec![])
+                .map(|out| first::<BrdfSpace>(&out).samples[1..].iter().map(|x| x.s as f64).collect::<Vec<_>>())
+        };
+        let s = exponents("Geometric", 2.0).unwrap();
+        assert_eq!((s[0], s[10]), (2.0, 2048.0));
+        assert!(s.windows(2).all(|w| (w[1] / w[0] - 2.0).abs() < 1e-5), "each exponent twice the one before: {s:?}");
+        assert!(exponents("Linear", 2.0).unwrap()[1] > 200.0, "linear steps leave the broad lobes one sample");
+        let e = exponents("Geometric", 0.0).unwrap_err();
+        assert!(e.to_string().contains("s_min") && e.to_string().contains("Linear"), "{e}");
     }
 
     #[test]
