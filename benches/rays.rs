@@ -1,7 +1,7 @@
 //! Ray throughput on cornell-bunny (69k-triangle bunny in the box): closest-hit camera rays,
 //! and shadow rays from their hit points to the light's centre (stopping at the first hit).
 //! The same rays through obvhs' compressed-wide BVH over the same triangles (its own
-//! Möller–Trumbore test) are timed beside relume's four-wide BVH, so that the ratio of the two
+//! Möller–Trumbore test) are timed beside relume's eight-wide BVH, so that the ratio of the two
 //! comes from one run.
 
 use divan::counter::ItemsCount;

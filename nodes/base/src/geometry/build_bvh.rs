@@ -3,8 +3,9 @@ use crate::types::Scene;
 use relume_core::{node, params, NodeError, RunCtx};
 
 params! {
-    /// Builds a four-wide BVH over every triangle of a scene (a binary PLOC build by obvhs,
-    /// collapsed to four children a node, boxes stored lane by lane for SIMD slab tests), for
+    /// Builds an eight-wide BVH over every triangle of a scene (a binary PLOC build by obvhs,
+    /// collapsed to eight children a node, boxes stored lane by lane for SIMD slab tests, one
+    /// AVX register a node where the CPU has AVX2), for
     /// closest-hit rays that visit children nearest first and shadow rays that stop at the
     /// first blocker. The build is
     /// deterministic; a disk-cached BVH is stored whole (nodes and prepared triangles). `exclude`
@@ -18,7 +19,7 @@ params! {
     }
 }
 
-#[node(category = "geometry", version = 3, metrics = ["triangles", "bvh_nodes"], outputs = [accel])]
+#[node(category = "geometry", version = 4, metrics = ["triangles", "bvh_nodes"], outputs = [accel])]
 impl BuildBvh {
     fn run(&self, scene: &Scene, cx: &RunCtx) -> Result<Accel, NodeError> {
         if scene.triangles.len() > Accel::MAX_TRIANGLES {

@@ -1,14 +1,14 @@
-//! `Accel`: a four-wide BVH (`bvh4`) over a scene's triangles, built by collapsing obvhs'
+//! `Accel`: an eight-wide BVH (`bvh8`) over a scene's triangles, built by collapsing obvhs'
 //! binary PLOC build, with closest-hit queries that return barycentrics and shadow queries
 //! that stop at the first hit. Coordinates are stored multiplied by a power of two that brings
 //! the scene's size near 1024, so that a scene 10⁻³ or 10³ across is traversed in the same
 //! range of floats as one of unit size; a power of two scales every rounding exactly, so hits
 //! are bit for bit those of the unscaled triangles.
 
-mod bvh4;
+mod bvh8;
 
 use crate::types::Scene;
-use bvh4::{Bvh4, Node, Tri, Tri4};
+use bvh8::{Bvh8, Node, Tri, Tri4};
 use glam::{Vec3, Vec3A};
 use obvhs::bvh2::builder::build_bvh2_from_tris;
 use obvhs::triangle::Triangle;
@@ -37,7 +37,7 @@ pub enum BuildQuality {
 }
 
 pub struct Accel {
-    bvh: Bvh4,
+    bvh: Bvh8,
     /// Packet lane → scene triangle index (`u32::MAX` for an empty lane).
     prim: Vec<u32>,
     /// The power of two the stored coordinates are multiplied by (see the module doc).
@@ -55,7 +55,7 @@ fn scale_for(size: f32) -> f32 {
 impl Accel {
     /// The most triangles one BVH holds (leaf references keep 27 bits for the first one;
     /// spatial splits may place a triangle in several leaves, so `Slow` holds fewer).
-    pub const MAX_TRIANGLES: usize = bvh4::MAX_TRIS / 2;
+    pub const MAX_TRIANGLES: usize = bvh8::MAX_TRIS / 2;
 
     /// Panics over `MAX_TRIANGLES` triangles (`BuildBvh` refuses them first).
     pub fn build(scene: &Scene, quality: BuildQuality) -> Accel {
@@ -80,7 +80,7 @@ impl Accel {
             BuildQuality::Slow => BvhBuildParams::slow_build(),
         };
         let b2 = if obv.is_empty() { Default::default() } else { build_bvh2_from_tris(&obv, params, &mut std::time::Duration::default()) };
-        let (bvh, lanes) = Bvh4::collapse(&b2, |i| {
+        let (bvh, lanes) = Bvh8::collapse(&b2, |i| {
             let t = &obv[i];
             Tri { v0: t.v0, e1: t.v1 - t.v0, e2: t.v2 - t.v0 }
         })
@@ -158,7 +158,7 @@ pub(crate) fn brute(a: Vec3, b: Vec3, c: Vec3, o: Vec3, d: Vec3) -> Option<f32> 
 
 const NODE_BYTES: usize = std::mem::size_of::<Node>();
 const PACKET_BYTES: usize = std::mem::size_of::<Tri4>();
-const _: () = assert!(NODE_BYTES == 112 && PACKET_BYTES == 144);
+const _: () = assert!(NODE_BYTES == 224 && PACKET_BYTES == 144);
 /// Byte offsets of the 4-byte numbers inside a `Node` or a `Tri4`: all of them.
 const NODE_WORDS: [usize; NODE_BYTES / 4] = words();
 const PACKET_WORDS: [usize; PACKET_BYTES / 4] = words();
@@ -224,7 +224,7 @@ impl<'a> Reader<'a> {
 }
 
 /// Disk encoding, little-endian: the counts of nodes and of triangle packets (u64), the
-/// coordinate scale (f32), the nodes (112 bytes each: 24 f32 of boxes, 4 u32 of children),
+/// coordinate scale (f32), the nodes (224 bytes each: 48 f32 of boxes, 8 u32 of children),
 /// the packets (36 f32 each: corner and edges over four lanes) and the scene triangle index of
 /// each packet lane (u32; `u32::MAX` for an empty lane). Decoding checks the lengths, that
 /// every inner child follows its parent and that every leaf lies within the packets.
@@ -262,7 +262,7 @@ impl PortValue for Accel {
         if prim.len() != 4 * packets.len() {
             return None;
         }
-        let bvh = Bvh4::from_parts(nodes, packets)?;
+        let bvh = Bvh8::from_parts(nodes, packets)?;
         Some(Accel { bvh, prim, scale })
     }
 }
@@ -302,8 +302,10 @@ mod tests {
     fn out_of_range_or_looping_children_are_refused() {
         let scene = test_scene::spheres();
         let a = Accel::build(&scene, BuildQuality::Fast);
-        let (node, lane) =
-            (0..a.node_count()).flat_map(|n| (0..4).map(move |l| (n, l))).find(|&(n, l)| a.bvh.nodes[n].child[l] & (1 << 31) == 0).unwrap();
+        let (node, lane) = (0..a.node_count())
+            .flat_map(|n| (0..bvh8::WIDTH).map(move |l| (n, l)))
+            .find(|&(n, l)| a.bvh.nodes[n].child[l] & (1 << 31) == 0)
+            .unwrap();
         let with = |child: u32| {
             let mut b = Accel::decode(&a.encode()).unwrap();
             b.bvh.nodes[node].child[lane] = child;

@@ -1,18 +1,20 @@
-//! A four-wide BVH with float boxes stored lane by lane, so that one SIMD compare tests a ray
-//! against all four children, and its triangles in packets of four laid out the same way, so
-//! that one pass of Möller–Trumbore tests a ray against four.
+//! An eight-wide BVH with float boxes stored lane by lane, so that one SIMD compare tests a
+//! ray against all eight children (one AVX register where the CPU has AVX2, two SSE or NEON
+//! registers otherwise, with the same bits), and its triangles in packets of four laid out the
+//! same way, so that one pass of Möller–Trumbore tests a ray against four.
 //!
 //! It is built by collapsing a binary BVH: each node takes its two children, then opens the
-//! inner child of largest surface area until it has four or only leaves are left. Closest-hit
+//! inner child of largest surface area until it has eight or only leaves are left. Closest-hit
 //! rays visit children nearest first and drop any stacked child whose box starts beyond the
 //! nearest hit found since; shadow rays stop at the first blocker.
 //!
 //! Children are stored after their parent (a decoded tree is checked for it), so a walk never
-//! loops; the stack a walk needs is three entries per level, counted when the tree is built or
+//! loops; the stack a walk needs is seven entries per level, counted when the tree is built or
 //! checked.
 
 use glam::{Vec3A, Vec4};
 use obvhs::bvh2::Bvh2;
+use std::mem::MaybeUninit;
 
 /// A child reference with this bit set is a leaf: `LEAF | (count − 1) << COUNT_SHIFT | first`.
 const LEAF: u32 = 1 << 31;
@@ -22,7 +24,7 @@ pub const MAX_LEAF: u32 = 16;
 /// The most packets a tree can index (and so the most triangles it surely holds).
 pub const MAX_TRIS: usize = 1 << COUNT_SHIFT;
 /// Stack entries kept on the thread's stack; deeper trees walk with a heap stack.
-const INLINE_STACK: usize = 48;
+const INLINE_STACK: usize = 96;
 /// Box exits are widened by this factor, so that rounding in the slab test never drops a box a
 /// ray touches (two ulps of the three-operation distance).
 const FAR_WIDEN: f32 = 1.0 + 2.0 * f32::EPSILON;
@@ -124,26 +126,29 @@ impl Tri4 {
     }
 }
 
-/// Four children: their boxes as lo x, hi x, lo y, hi y, lo z, hi z, each over the four lanes
+/// Children per node.
+pub const WIDTH: usize = 8;
+
+/// `WIDTH` children: their boxes as lo x, hi x, lo y, hi y, lo z, hi z, each over the lanes
 /// (an empty lane's box is inverted, lo = +∞ and hi = −∞, and no ray enters it), and their
 /// references (an inner node's index, or a leaf).
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-#[repr(C, align(16))]
+#[repr(C, align(32))]
 pub struct Node {
-    pub bounds: [[f32; 4]; 6],
-    pub child: [u32; 4],
+    pub bounds: [[f32; WIDTH]; 6],
+    pub child: [u32; WIDTH],
 }
 
 const EMPTY: Node = Node {
     bounds: [
-        [f32::INFINITY; 4],
-        [f32::NEG_INFINITY; 4],
-        [f32::INFINITY; 4],
-        [f32::NEG_INFINITY; 4],
-        [f32::INFINITY; 4],
-        [f32::NEG_INFINITY; 4],
+        [f32::INFINITY; WIDTH],
+        [f32::NEG_INFINITY; WIDTH],
+        [f32::INFINITY; WIDTH],
+        [f32::NEG_INFINITY; WIDTH],
+        [f32::INFINITY; WIDTH],
+        [f32::NEG_INFINITY; WIDTH],
     ],
-    child: [LEAF; 4],
+    child: [LEAF; WIDTH],
 };
 
 fn leaf(first: u32, count: u32) -> u32 {
@@ -159,20 +164,20 @@ fn leaf_range(r: u32) -> (usize, usize) {
 /// The tree: nodes (the root first), triangle packets (leaves name runs of them) and the
 /// stack depth a walk needs.
 #[derive(Clone, Debug, Default)]
-pub struct Bvh4 {
+pub struct Bvh8 {
     pub nodes: Vec<Node>,
     pub packets: Vec<Tri4>,
     stack: usize,
 }
 
-/// The binary children a four-wide node over binary node `n` takes (`[n]` for a leaf root).
+/// The binary children a wide node over binary node `n` takes (`[n]` for a leaf root).
 fn open(b2: &Bvh2, n: usize) -> Vec<usize> {
     let node = &b2.nodes[n];
     if node.prim_count > 0 {
         return vec![n];
     }
     let mut kids = vec![node.first_index as usize, node.first_index as usize + 1];
-    while kids.len() < 4 {
+    while kids.len() < WIDTH {
         let widest = kids
             .iter()
             .enumerate()
@@ -185,11 +190,11 @@ fn open(b2: &Bvh2, n: usize) -> Vec<usize> {
     kids
 }
 
-impl Bvh4 {
-    /// The four-wide tree over a binary one whose primitive `i` is `tri(i)`, and which
+impl Bvh8 {
+    /// The wide tree over a binary one whose primitive `i` is `tri(i)`, and which
     /// primitive each packet lane holds (`u32::MAX` for an empty lane). Refuses more
     /// triangles than leaf references can name, or leaves over `MAX_LEAF`.
-    pub fn collapse(b2: &Bvh2, tri: impl Fn(usize) -> Tri) -> Result<(Bvh4, Vec<u32>), String> {
+    pub fn collapse(b2: &Bvh2, tri: impl Fn(usize) -> Tri) -> Result<(Bvh8, Vec<u32>), String> {
         if b2.primitive_indices.len() > MAX_TRIS {
             return Err(format!("{} leaf triangles, over the {MAX_TRIS} a tree indexes", b2.primitive_indices.len()));
         }
@@ -230,15 +235,15 @@ impl Bvh4 {
             }
             nodes[slot] = node;
         }
-        let stack = Bvh4::checked_stack(&nodes, packets.len()).expect("a collapsed tree is well formed");
-        Ok((Bvh4 { nodes, packets, stack }, lanes))
+        let stack = Bvh8::checked_stack(&nodes, packets.len()).expect("a collapsed tree is well formed");
+        Ok((Bvh8 { nodes, packets, stack }, lanes))
     }
 
     /// A decoded tree, when every inner child follows its parent and every leaf lies within
     /// the packets.
-    pub fn from_parts(nodes: Vec<Node>, packets: Vec<Tri4>) -> Option<Bvh4> {
-        let stack = Bvh4::checked_stack(&nodes, packets.len())?;
-        Some(Bvh4 { nodes, packets, stack })
+    pub fn from_parts(nodes: Vec<Node>, packets: Vec<Tri4>) -> Option<Bvh8> {
+        let stack = Bvh8::checked_stack(&nodes, packets.len())?;
+        Some(Bvh8 { nodes, packets, stack })
     }
 
     /// The stack a walk needs, when the nodes are well formed.
@@ -260,23 +265,33 @@ impl Bvh4 {
                 }
             }
         }
-        Some(3 * depth.first().copied().unwrap_or(0) + 1)
-    }
-
-    fn with_stack<R>(&self, walk: impl FnOnce(&mut [(u32, f32)]) -> R) -> R {
-        if self.stack <= INLINE_STACK {
-            walk(&mut [(0, 0.0); INLINE_STACK])
-        } else {
-            walk(&mut vec![(0, 0.0); self.stack])
-        }
+        Some((WIDTH - 1) * depth.first().copied().unwrap_or(0) + 1)
     }
 
     /// The closest hit along `o + t d` for t in (tmin, tmax): (t, packet lane, b1, b2), the
     /// lane counted over all packets (`lanes` names its primitive).
     pub fn intersect(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> Option<(f32, usize, f32, f32)> {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2.
+            return unsafe { self.intersect_avx2(o, d, tmin, tmax) };
+        }
+        self.intersect_lanes::<false>(o, d, tmin, tmax)
+    }
+
+    /// `intersect` compiled for AVX2: a node's eight slab tests in one register (the same
+    /// IEEE operations lane by lane, so the same hits).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn intersect_avx2(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> Option<(f32, usize, f32, f32)> {
+        self.intersect_lanes::<true>(o, d, tmin, tmax)
+    }
+
+    #[inline(always)]
+    fn intersect_lanes<const AVX2: bool>(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> Option<(f32, usize, f32, f32)> {
         let (o4, d4) = (splat(o), splat(d));
         let mut best = None;
-        self.walk::<true>(o, d, tmin, tmax, |first, count, tmax| {
+        self.walk::<true, AVX2>(o, d, tmin, tmax, |first, count, tmax| {
             for (i, packet) in self.packets[first..first + count].iter().enumerate() {
                 if let Some((lane, t, u, v)) = packet.closest(o4, d4, tmin, *tmax) {
                     *tmax = t;
@@ -290,9 +305,26 @@ impl Bvh4 {
 
     /// Whether anything blocks `o + t d` for t in (tmin, tmax); stops at the first blocker.
     pub fn occluded(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2.
+            return unsafe { self.occluded_avx2(o, d, tmin, tmax) };
+        }
+        self.occluded_lanes::<false>(o, d, tmin, tmax)
+    }
+
+    /// `occluded` compiled for AVX2, as `intersect_avx2`.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn occluded_avx2(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> bool {
+        self.occluded_lanes::<true>(o, d, tmin, tmax)
+    }
+
+    #[inline(always)]
+    fn occluded_lanes<const AVX2: bool>(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> bool {
         let (o4, d4) = (splat(o), splat(d));
         let mut blocked = false;
-        self.walk::<false>(o, d, tmin, tmax, |first, count, _| {
+        self.walk::<false, AVX2>(o, d, tmin, tmax, |first, count, _| {
             blocked = self.packets[first..first + count].iter().any(|p| p.hits(o4, d4, tmin, tmax) != 0);
             blocked
         });
@@ -303,60 +335,76 @@ impl Bvh4 {
     /// starts beyond `tmax`; `leaf(first, count, &mut tmax)` may shorten the ray, and ends the
     /// walk by returning true. A ray that is not finite meets nothing.
     #[inline(always)]
-    fn walk<const ORDERED: bool>(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32, mut leaf: impl FnMut(usize, usize, &mut f32) -> bool) {
+    fn walk<const ORDERED: bool, const AVX2: bool>(
+        &self,
+        o: Vec3A,
+        d: Vec3A,
+        tmin: f32,
+        tmax: f32,
+        mut leaf: impl FnMut(usize, usize, &mut f32) -> bool,
+    ) {
         if self.nodes.is_empty() || !(o.is_finite() && d.is_finite()) {
             return;
         }
         let ray = Slabs::new(o, d);
-        self.with_stack(|stack| {
-            let (mut sp, mut cur, mut tmax) = (0, 0u32, tmax);
-            loop {
-                if cur & LEAF != 0 {
-                    let (first, count) = leaf_range(cur);
-                    if leaf(first, count, &mut tmax) {
-                        return;
-                    }
-                } else {
-                    let node = &self.nodes[cur as usize];
-                    let (near, mut mask) = ray.enter(node, tmin, tmax);
-                    if mask != 0 {
-                        let mut kids = [(0.0f32, 0u32); 4];
-                        let mut k = 0;
-                        while mask != 0 {
-                            let lane = mask.trailing_zeros() as usize;
-                            mask &= mask - 1;
-                            kids[k] = (near[lane], node.child[lane]);
-                            k += 1;
-                        }
-                        // Farthest first: insertion sort of at most four.
-                        for i in (1..k).filter(|_| ORDERED) {
-                            let mut j = i;
-                            while j > 0 && kids[j - 1].0 < kids[j].0 {
-                                kids.swap(j - 1, j);
-                                j -= 1;
-                            }
-                        }
-                        for &(t, c) in &kids[..k - 1] {
-                            stack[sp] = (c, t);
-                            sp += 1;
-                        }
-                        cur = kids[k - 1].1;
-                        continue;
-                    }
+        // One call site for `leaf` (so that it is inlined): the stack on the thread's stack, or
+        // on the heap for trees deeper than that holds. Entries are read only below `sp`,
+        // where they were written, so the inline stack is left uninitialised.
+        let (mut inline, mut heap) = ([MaybeUninit::<(u32, f32)>::uninit(); INLINE_STACK], Vec::new());
+        let stack: &mut [MaybeUninit<(u32, f32)>] = if self.stack <= INLINE_STACK {
+            &mut inline
+        } else {
+            heap.resize(self.stack, MaybeUninit::uninit());
+            &mut heap
+        };
+        let (mut sp, mut cur, mut tmax) = (0, 0u32, tmax);
+        loop {
+            if cur & LEAF != 0 {
+                let (first, count) = leaf_range(cur);
+                if leaf(first, count, &mut tmax) {
+                    return;
                 }
-                loop {
-                    if sp == 0 {
-                        return;
+            } else {
+                let node = &self.nodes[cur as usize];
+                let (near, mut mask) = ray.enter::<AVX2>(node, tmin, tmax);
+                if mask != 0 {
+                    let mut kids = [(0.0f32, 0u32); WIDTH];
+                    let mut k = 0;
+                    while mask != 0 {
+                        let lane = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        kids[k] = (near[lane], node.child[lane]);
+                        k += 1;
                     }
-                    sp -= 1;
-                    let (c, t) = stack[sp];
-                    if t < tmax {
-                        cur = c;
-                        break;
+                    // Farthest first: insertion sort of at most `WIDTH`.
+                    for i in (1..k).filter(|_| ORDERED) {
+                        let mut j = i;
+                        while j > 0 && kids[j - 1].0 < kids[j].0 {
+                            kids.swap(j - 1, j);
+                            j -= 1;
+                        }
                     }
+                    for &(t, c) in &kids[..k - 1] {
+                        stack[sp].write((c, t));
+                        sp += 1;
+                    }
+                    cur = kids[k - 1].1;
+                    continue;
                 }
             }
-        })
+            loop {
+                if sp == 0 {
+                    return;
+                }
+                sp -= 1;
+                // SAFETY: entry `sp` was written when the stack last grew past it.
+                let (c, t) = unsafe { stack[sp].assume_init() };
+                if t < tmax {
+                    cur = c;
+                    break;
+                }
+            }
+        }
     }
 }
 
@@ -364,39 +412,79 @@ fn splat(v: Vec3A) -> [Vec4; 3] {
     v.to_array().map(Vec4::splat)
 }
 
-/// A ray prepared for slab tests against four boxes: origin and inverse direction splatted,
-/// and which stored bound each axis enters by.
+/// A ray prepared for slab tests against a node's boxes: origin and inverse direction, and
+/// which stored bound each axis enters by.
 struct Slabs {
-    o: [Vec4; 3],
-    inv: [Vec4; 3],
+    o: [f32; 3],
+    inv: [f32; 3],
     near: [usize; 3],
 }
 
 impl Slabs {
     fn new(o: Vec3A, d: Vec3A) -> Slabs {
         let inv = d.recip().to_array();
-        let o = o.to_array();
         // The sign of the inverse picks the entry plane: 1/−0 is −∞, so a −0 component enters
         // by the high bound, as its inverse says.
         let near = [0, 1, 2].map(|a| 2 * a + (inv[a] < 0.0) as usize);
-        Slabs { o: o.map(Vec4::splat), inv: inv.map(Vec4::splat), near }
+        Slabs { o: o.to_array(), inv, near }
     }
 
-    /// Entry distances of the four children and the mask of those the ray meets within
-    /// (tmin, tmax). A NaN distance (an origin on a slab plane of a flat axis) is ignored, so
-    /// that axis does not cull.
+    /// Entry distances of the children and the mask of those the ray meets within
+    /// (tmin, tmax): with `AVX2` (only inside functions compiled for it, called once the CPU
+    /// was seen to have it) in one eight-lane register, otherwise in two halves of four. Both
+    /// do the same IEEE operations lane by lane, so they give the same bits.
     #[inline(always)]
-    fn enter(&self, node: &Node, tmin: f32, tmax: f32) -> ([f32; 4], u32) {
-        let mut near = Vec4::splat(tmin);
-        let mut far = Vec4::splat(tmax);
-        for a in 0..3 {
-            let t0 = (Vec4::from(node.bounds[self.near[a]]) - self.o[a]) * self.inv[a];
-            let t1 = (Vec4::from(node.bounds[self.near[a] ^ 1]) - self.o[a]) * self.inv[a];
-            near = t0.max(near);
-            far = t1.min(far);
+    fn enter<const AVX2: bool>(&self, node: &Node, tmin: f32, tmax: f32) -> ([f32; WIDTH], u32) {
+        #[cfg(target_arch = "x86_64")]
+        if AVX2 {
+            // SAFETY: `AVX2` is true only where the CPU has AVX2.
+            return unsafe { self.enter_avx2(node, tmin, tmax) };
         }
-        let hit = near.cmple(far * FAR_WIDEN).bitmask();
-        (near.to_array(), hit)
+        self.enter_halves(node, tmin, tmax)
+    }
+
+    /// `enter` four lanes at a time. A NaN distance (an origin on a slab plane of a flat axis)
+    /// is ignored, so that axis does not cull: `max` and `min` give their second operand when
+    /// the first is NaN.
+    #[inline(always)]
+    fn enter_halves(&self, node: &Node, tmin: f32, tmax: f32) -> ([f32; WIDTH], u32) {
+        let (mut out, mut hit) = ([0.0; WIDTH], 0);
+        for h in (0..WIDTH).step_by(4) {
+            let (mut near, mut far) = (Vec4::splat(tmin), Vec4::splat(tmax));
+            for a in 0..3 {
+                let bound = |k: usize| Vec4::from_slice(&node.bounds[k][h..h + 4]);
+                let (o, inv) = (Vec4::splat(self.o[a]), Vec4::splat(self.inv[a]));
+                near = ((bound(self.near[a]) - o) * inv).max(near);
+                far = ((bound(self.near[a] ^ 1) - o) * inv).min(far);
+            }
+            hit |= near.cmple(far * FAR_WIDEN).bitmask() << h;
+            near.write_to_slice(&mut out[h..h + 4]);
+        }
+        (out, hit)
+    }
+
+    /// `enter` in one AVX register of eight lanes, operation for operation as `enter_halves`.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn enter_avx2(&self, node: &Node, tmin: f32, tmax: f32) -> ([f32; WIDTH], u32) {
+        use std::arch::x86_64::*;
+        const _: () = assert!(WIDTH == 8);
+        let (mut near, mut far) = (_mm256_set1_ps(tmin), _mm256_set1_ps(tmax));
+        // SAFETY: each bounds row is eight floats; unaligned loads and stores.
+        unsafe {
+            for a in 0..3 {
+                let (o, inv) = (_mm256_set1_ps(self.o[a]), _mm256_set1_ps(self.inv[a]));
+                let lo = _mm256_loadu_ps(node.bounds[self.near[a]].as_ptr());
+                let hi = _mm256_loadu_ps(node.bounds[self.near[a] ^ 1].as_ptr());
+                near = _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(lo, o), inv), near);
+                far = _mm256_min_ps(_mm256_mul_ps(_mm256_sub_ps(hi, o), inv), far);
+            }
+            let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, _mm256_mul_ps(far, _mm256_set1_ps(FAR_WIDEN))));
+            let mut out = [0.0; WIDTH];
+            _mm256_storeu_ps(out.as_mut_ptr(), near);
+            (out, hit as u32)
+        }
     }
 }
 
@@ -435,9 +523,70 @@ mod tests {
         assert!(hits > 400 && ties > 20, "{hits} hits, {ties} ties to the lower lane");
     }
 
+    /// A tree over `n` random triangles in the cube [−1, 1]³, and the triangles.
+    fn soup(n: u64) -> (Bvh8, Vec<Tri>) {
+        let tris: Vec<Tri> = (0..n).map(|i| random_tri(3, i)).map(|t| Tri { e1: t.e1 * 0.2, e2: t.e2 * 0.2, ..t }).collect();
+        let obv: Vec<obvhs::triangle::Triangle> =
+            tris.iter().map(|t| obvhs::triangle::Triangle { v0: t.v0, v1: t.v0 + t.e1, v2: t.v0 + t.e2 }).collect();
+        let b2 = obvhs::bvh2::builder::build_bvh2_from_tris(&obv, obvhs::BvhBuildParams::medium_build(), &mut Default::default());
+        let (tree, lanes) = Bvh8::collapse(&b2, |i| tris[i]).unwrap();
+        let by_lane = lanes.iter().map(|&p| if p == u32::MAX { tris[0] } else { tris[p as usize] });
+        assert!(by_lane.count() == 4 * tree.packets.len() && tree.nodes.len() > 8, "a tree several levels deep");
+        (tree, tris)
+    }
+
+    #[test]
+    fn the_wide_tree_finds_the_closest_of_every_triangle() {
+        let (tree, tris) = soup(3000);
+        let mut hits = 0;
+        for i in 0..3000u64 {
+            let u = |k| uniform(11, i, k);
+            let o = Vec3A::new(u(0), u(1), u(2)) * 4.0 - Vec3A::splat(2.0);
+            let d = (Vec3A::new(u(3), u(4), u(5)) * 2.0 - Vec3A::ONE).normalize();
+            let brute = tris.iter().filter_map(|t| t.intersect(o, d, 0.0, f32::INFINITY)).map(|h| h.0).fold(f32::INFINITY, f32::min);
+            let found = tree.intersect_lanes::<false>(o, d, 0.0, f32::INFINITY);
+            assert_eq!(found.map_or(f32::INFINITY, |h| h.0), brute, "ray {i}");
+            assert_eq!(tree.occluded_lanes::<false>(o, d, 0.0, f32::INFINITY), brute.is_finite());
+            assert_eq!(tree.occluded_lanes::<false>(o, d, 0.0, brute), false, "nothing before the closest hit");
+            // The dispatching entry points (AVX2 where the CPU has it) give the same bits.
+            assert_eq!(tree.intersect(o, d, 0.0, f32::INFINITY), found);
+            assert_eq!(tree.occluded(o, d, 0.0, brute * 1.5), brute.is_finite());
+            hits += brute.is_finite() as usize;
+        }
+        assert!(hits > 400, "{hits} of 3000 rays hit");
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_avx2_slab_test_gives_the_bits_of_the_four_lane_one() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            eprintln!("no AVX2 on this CPU: the portable slab test alone is used");
+            return;
+        }
+        let (tree, _) = soup(500);
+        let mut culled = 0;
+        for i in 0..4000u64 {
+            let u = |k| uniform(12, i, k);
+            let node = &tree.nodes[(u(0) * tree.nodes.len() as f32) as usize % tree.nodes.len()];
+            // Every fourth ray runs along an axis from a point on a box's plane: 0 × ∞ is NaN.
+            let (o, d) = if i % 4 == 0 {
+                let lane = (u(1) * WIDTH as f32) as usize % WIDTH;
+                let o = Vec3A::new(node.bounds[0][lane], u(2), u(3));
+                (o, Vec3A::Y * if u(4) < 0.5 { 1.0 } else { -1.0 })
+            } else {
+                (Vec3A::new(u(1), u(2), u(3)) * 4.0 - Vec3A::splat(2.0), (Vec3A::new(u(4), u(5), u(6)) * 2.0 - Vec3A::ONE).normalize())
+            };
+            let ray = Slabs::new(o, d);
+            let (a, b) = (ray.enter_halves(node, 0.0, 3.0), unsafe { ray.enter_avx2(node, 0.0, 3.0) });
+            assert_eq!((a.0.map(f32::to_bits), a.1), (b.0.map(f32::to_bits), b.1), "ray {i}");
+            culled += (a.1.count_ones() < WIDTH as u32) as usize;
+        }
+        assert!(culled > 1000, "{culled} rays missed some child");
+    }
+
     /// A chain of `depth` nodes, each holding the next and a leaf of one packet: a triangle at
     /// z = −level under the ray down the z axis.
-    fn chain(depth: usize) -> Bvh4 {
+    fn chain(depth: usize) -> Bvh8 {
         let mut nodes = vec![];
         let mut packets = vec![];
         for level in 0..depth {
@@ -457,7 +606,7 @@ mod tests {
             node.child[1] = leaf(level as u32, 1);
             nodes.push(node);
         }
-        Bvh4::from_parts(nodes, packets).unwrap()
+        Bvh8::from_parts(nodes, packets).unwrap()
     }
 
     #[test]
