@@ -1,7 +1,8 @@
 //! An eight-wide BVH with float boxes stored lane by lane, so that one SIMD compare tests a
 //! ray against all eight children (one AVX register where the CPU has AVX2, two SSE or NEON
 //! registers otherwise, with the same bits), and its triangles in packets of four laid out the
-//! same way, so that one pass of Möller–Trumbore tests a ray against four.
+//! same way, so that one pass of Möller–Trumbore tests a ray against four (against eight, two
+//! packets of a leaf in one AVX register, where the CPU has AVX2; the same hit either way).
 //!
 //! It is built by collapsing a binary BVH: each node takes its two children, then opens the
 //! inner child of largest surface area until it has eight or only leaves are left. Closest-hit
@@ -109,20 +110,103 @@ impl Tri4 {
         (ok.bitmask(), t, u, v)
     }
 
+    /// `solve` for two packets at once in one AVX register (`a` in lanes 0–3, `b` in lanes
+    /// 4–7), operation for operation as `solve`, so every lane gets the same bits.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn solve_pair(a: &Tri4, b: &Tri4, o: [f32; 3], d: [f32; 3], tmin: f32, tmax: f32) -> (u32, [f32; 8], [f32; 8], [f32; 8]) {
+        use std::arch::x86_64::*;
+        use wide8::{cross, dot};
+        // SAFETY: each row of a packet is four floats; unaligned loads and stores.
+        unsafe {
+            let mut c = [_mm256_setzero_ps(); 9];
+            for (k, ck) in c.iter_mut().enumerate() {
+                *ck = _mm256_loadu2_m128(b.c[k].as_ptr(), a.c[k].as_ptr());
+            }
+            let splat = |v: [f32; 3]| [_mm256_set1_ps(v[0]), _mm256_set1_ps(v[1]), _mm256_set1_ps(v[2])];
+            let (o, d) = (splat(o), splat(d));
+            let (v0, e1, e2) = ([c[0], c[1], c[2]], [c[3], c[4], c[5]], [c[6], c[7], c[8]]);
+            let p = cross(d, e2);
+            let det = dot(e1, p);
+            let inv = _mm256_div_ps(_mm256_set1_ps(1.0), det);
+            let s = [_mm256_sub_ps(o[0], v0[0]), _mm256_sub_ps(o[1], v0[1]), _mm256_sub_ps(o[2], v0[2])];
+            let u = _mm256_mul_ps(dot(s, p), inv);
+            let q = cross(s, e1);
+            let v = _mm256_mul_ps(dot(d, q), inv);
+            let t = _mm256_mul_ps(dot(e2, q), inv);
+            let abs = _mm256_and_ps(det, _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff)));
+            let (zero, one) = (_mm256_setzero_ps(), _mm256_set1_ps(1.0));
+            let ok = [
+                _mm256_cmp_ps::<_CMP_GE_OQ>(abs, _mm256_set1_ps(1e-30)),
+                _mm256_cmp_ps::<_CMP_GE_OQ>(u, zero),
+                _mm256_cmp_ps::<_CMP_LE_OQ>(u, one),
+                _mm256_cmp_ps::<_CMP_GE_OQ>(v, zero),
+                _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_add_ps(u, v), one),
+                _mm256_cmp_ps::<_CMP_GT_OQ>(t, _mm256_set1_ps(tmin)),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(t, _mm256_set1_ps(tmax)),
+            ]
+            .into_iter()
+            .fold(_mm256_castsi256_ps(_mm256_set1_epi32(-1)), |m, c| _mm256_and_ps(m, c));
+            let (mut tt, mut uu, mut vv) = ([0.0; 8], [0.0; 8], [0.0; 8]);
+            _mm256_storeu_ps(tt.as_mut_ptr(), t);
+            _mm256_storeu_ps(uu.as_mut_ptr(), u);
+            _mm256_storeu_ps(vv.as_mut_ptr(), v);
+            (_mm256_movemask_ps(ok) as u32, tt, uu, vv)
+        }
+    }
+
+    /// `closest` over two packets in one AVX register: lane 0–3 of `a`, 4–7 of `b`; the same hit
+    /// as testing `a`, then `b` up to `a`'s hit.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn closest_pair(a: &Tri4, b: &Tri4, o: [f32; 3], d: [f32; 3], tmin: f32, tmax: f32) -> Option<(usize, f32, f32, f32)> {
+        let (mask, t, u, v) = Tri4::solve_pair(a, b, o, d, tmin, tmax);
+        lowest(mask, &t, &u, &v)
+    }
+
     /// (lane, t, b1, b2) of the closest hit within (tmin, tmax), the lower lane on a tie.
     #[inline(always)]
     fn closest(&self, o: [Vec4; 3], d: [Vec4; 3], tmin: f32, tmax: f32) -> Option<(usize, f32, f32, f32)> {
-        let (mut mask, t, u, v) = self.solve(o, d, tmin, tmax);
-        let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
-        let mut best: Option<(usize, f32, f32, f32)> = None;
-        while mask != 0 {
-            let lane = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            if best.is_none_or(|b| t[lane] < b.1) {
-                best = Some((lane, t[lane], u[lane], v[lane]));
-            }
+        let (mask, t, u, v) = self.solve(o, d, tmin, tmax);
+        lowest(mask, &t.to_array(), &u.to_array(), &v.to_array())
+    }
+}
+
+/// (lane, t, b1, b2) of the lane of `mask` with the least t, the lower lane on a tie.
+#[inline(always)]
+fn lowest(mut mask: u32, t: &[f32], u: &[f32], v: &[f32]) -> Option<(usize, f32, f32, f32)> {
+    let mut best: Option<(usize, f32, f32, f32)> = None;
+    while mask != 0 {
+        let lane = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        if best.is_none_or(|b| t[lane] < b.1) {
+            best = Some((lane, t[lane], u[lane], v[lane]));
         }
-        best
+    }
+    best
+}
+
+/// Three-vector products over eight lanes, in the order `Tri4::solve` takes them.
+#[cfg(target_arch = "x86_64")]
+mod wide8 {
+    use std::arch::x86_64::*;
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub fn cross(a: [__m256; 3], b: [__m256; 3]) -> [__m256; 3] {
+        [
+            _mm256_sub_ps(_mm256_mul_ps(a[1], b[2]), _mm256_mul_ps(a[2], b[1])),
+            _mm256_sub_ps(_mm256_mul_ps(a[2], b[0]), _mm256_mul_ps(a[0], b[2])),
+            _mm256_sub_ps(_mm256_mul_ps(a[0], b[1]), _mm256_mul_ps(a[1], b[0])),
+        ]
+    }
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub fn dot(a: [__m256; 3], b: [__m256; 3]) -> __m256 {
+        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(a[0], b[0]), _mm256_mul_ps(a[1], b[1])), _mm256_mul_ps(a[2], b[2]))
     }
 }
 
@@ -292,10 +376,22 @@ impl Bvh8 {
         let (o4, d4) = (splat(o), splat(d));
         let mut best = None;
         self.walk::<true, AVX2>(o, d, tmin, tmax, |first, count, tmax| {
-            for (i, packet) in self.packets[first..first + count].iter().enumerate() {
+            // With AVX2, two packets a pass (the same hit as one after the other).
+            let mut done = 0;
+            #[cfg(target_arch = "x86_64")]
+            while AVX2 && done + 1 < count {
+                let (a, b) = (&self.packets[first + done], &self.packets[first + done + 1]);
+                // SAFETY: `AVX2` is true only where the CPU has AVX2.
+                if let Some((lane, t, u, v)) = unsafe { Tri4::closest_pair(a, b, o.to_array(), d.to_array(), tmin, *tmax) } {
+                    *tmax = t;
+                    best = Some((t, 4 * (first + done) + lane, u, v));
+                }
+                done += 2;
+            }
+            for (i, packet) in self.packets[first + done..first + count].iter().enumerate() {
                 if let Some((lane, t, u, v)) = packet.closest(o4, d4, tmin, *tmax) {
                     *tmax = t;
-                    best = Some((t, 4 * (first + i) + lane, u, v));
+                    best = Some((t, 4 * (first + done + i) + lane, u, v));
                 }
             }
             false
@@ -325,7 +421,18 @@ impl Bvh8 {
         let (o4, d4) = (splat(o), splat(d));
         let mut blocked = false;
         self.walk::<false, AVX2>(o, d, tmin, tmax, |first, count, _| {
-            blocked = self.packets[first..first + count].iter().any(|p| p.hits(o4, d4, tmin, tmax) != 0);
+            let mut done = 0;
+            #[cfg(target_arch = "x86_64")]
+            while AVX2 && done + 1 < count {
+                let (a, b) = (&self.packets[first + done], &self.packets[first + done + 1]);
+                // SAFETY: `AVX2` is true only where the CPU has AVX2.
+                if unsafe { Tri4::solve_pair(a, b, o.to_array(), d.to_array(), tmin, tmax) }.0 != 0 {
+                    blocked = true;
+                    return true;
+                }
+                done += 2;
+            }
+            blocked = self.packets[first + done..first + count].iter().any(|p| p.hits(o4, d4, tmin, tmax) != 0);
             blocked
         });
         blocked
@@ -582,6 +689,39 @@ mod tests {
             culled += (a.1.count_ones() < WIDTH as u32) as usize;
         }
         assert!(culled > 1000, "{culled} rays missed some child");
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn two_packets_in_one_avx_register_hit_what_one_after_the_other_hits() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            eprintln!("no AVX2 on this CPU: packets are tested one at a time");
+            return;
+        }
+        let (mut hits, mut second) = (0, 0);
+        for i in 0..3000u64 {
+            let mut tris: Vec<Tri> = (0..8).map(|k| random_tri(i + 5000, k)).collect();
+            // Every fourth pair repeats a triangle of the first packet in the second: a tie.
+            if i % 4 == 0 {
+                tris[6] = tris[1];
+            }
+            let (mut a, mut b) = (Tri4 { c: [[0.0; 4]; 9] }, Tri4 { c: [[0.0; 4]; 9] });
+            tris.iter().enumerate().for_each(|(lane, t)| if lane < 4 { a.set(lane, t) } else { b.set(lane - 4, t) });
+            let o = Vec3A::new(uniform(8, i, 0), uniform(8, i, 1), 3.0);
+            let d = (Vec3A::new(uniform(8, i, 2) - 0.5, uniform(8, i, 3) - 0.5, 0.0) - o).normalize();
+            let tmax = if i % 3 == 0 { 3.2 } else { f32::INFINITY };
+            let first = a.closest(splat(o), splat(d), 0.0, tmax);
+            let then = b.closest(splat(o), splat(d), 0.0, first.map_or(tmax, |h| h.1)).map(|h| (h.0 + 4, h.1, h.2, h.3));
+            let (o3, d3) = (o.to_array(), d.to_array());
+            // SAFETY: the CPU has AVX2.
+            let pair = unsafe { Tri4::closest_pair(&a, &b, o3, d3, 0.0, tmax) };
+            assert_eq!(pair, then.or(first), "pair {i}");
+            let any = a.hits(splat(o), splat(d), 0.0, tmax) | b.hits(splat(o), splat(d), 0.0, tmax);
+            assert_eq!(unsafe { Tri4::solve_pair(&a, &b, o3, d3, 0.0, tmax) }.0 != 0, any != 0);
+            hits += pair.is_some() as usize;
+            second += then.is_some() as usize;
+        }
+        assert!(hits > 1000 && second > 200, "{hits} hits, {second} in the second packet");
     }
 
     /// A chain of `depth` nodes, each holding the next and a leaf of one packet: a triangle at
