@@ -115,8 +115,8 @@ fn the_ring_stores_no_fixed_object_terms_and_says_so() {
     let e = Engine::new(relume_cli::registry());
     let r = e.run(&small("relight_ring.ron"), &RunOptions::default()).unwrap();
     let t = r.report.node("transfer").unwrap();
-    // D = 2, S = 5, no fixed object: grey 55, RGB 1 + D + 2DS = 23.
-    assert_eq!((t.metrics["images_grey"], t.metrics["images_rgb"]), (55.0, 23.0));
+    // D = 2, S = 7 (eight bases), no fixed object: grey D S² + S = 105, RGB 1 + D + 2DS = 31.
+    assert_eq!((t.metrics["images_grey"], t.metrics["images_rgb"]), (105.0, 31.0));
     assert!(t.notes.iter().any(|n| n.contains("no fixed-material object")), "{:?}", t.notes);
     let basis = r.output("basis_error").unwrap().get::<Metrics>().unwrap();
     assert!(basis.get("l2_percent").unwrap() < 5.0, "{basis:?}");

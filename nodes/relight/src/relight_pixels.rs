@@ -208,19 +208,38 @@ mod tests {
         }
     }
 
+    /// Relative L2 distance of `a` from `r`.
+    fn l2(a: &Image, r: &Image) -> f64 {
+        let e: f64 = a.as_floats().iter().zip(r.as_floats()).map(|(x, y)| ((x - y) as f64).powi(2)).sum();
+        (e / r.as_floats().iter().map(|y| (*y as f64).powi(2)).sum::<f64>()).sqrt()
+    }
+
     #[test]
     fn the_basis_sum_follows_the_analytic_brdf_within_the_table_error() {
         // Exact exponents in the space: what is left against the analytic BRDF is the table's
         // trilinear interpolation on 16 × 16 × 32 cells, a few percent at most.
         let (b, _) = basis(&space_of(16, 16, 32, &[20.0, 60.0]), 3);
         let (relit, analytic, _, _) = both(12, &b, ReferenceBrdf::Analytic, [3, 2, 3, 1]);
-        let l2 = |a: &Image, r: &Image| {
-            let e: f64 = a.as_floats().iter().zip(r.as_floats()).map(|(x, y)| ((x - y) as f64).powi(2)).sum();
-            (e / r.as_floats().iter().map(|y| (*y as f64).powi(2)).sum::<f64>()).sqrt()
-        };
         let e = l2(&relit, &analytic);
         eprintln!("L2 against the analytic BRDF on the same paths: {e:e}");
         assert!(e > 0.0 && e < 0.05, "L2 {e}");
+    }
+
+    #[test]
+    fn against_the_sampled_brdfs_only_the_truncation_of_the_basis_is_left() {
+        // The rendered exponents (20 and 60) in the space and every component kept: nothing is
+        // truncated, so Relight is the sampled tables to float precision, while the analytic
+        // BRDF still differs by the grid's interpolation.
+        let (b, _) = basis(&space_of(16, 16, 32, &[20.0, 60.0]), 3);
+        let (relit, sampled, _, _) = both(12, &b, ReferenceBrdf::Sampled, [3, 2, 3, 1]);
+        let (_, analytic, _, _) = both(12, &b, ReferenceBrdf::Analytic, [3, 2, 3, 1]);
+        let (truncation, grid) = (max_rel_diff(&relit, &sampled), l2(&sampled, &analytic));
+        eprintln!("exact basis: |Relight − sampled| / peak = {truncation:e}, grid L2 {grid:e}");
+        assert!(truncation < 1e-5 && grid > 1e-3, "{truncation} {grid}");
+        // Two components of twelve exponents: the truncation shows against the sampled BRDFs.
+        let (b, _) = basis(&space(16, 16, 32, 12, 1.0, 100.0), 3);
+        let (relit, sampled, _, _) = both(12, &b, ReferenceBrdf::Sampled, [3, 2, 3, 1]);
+        assert!(l2(&relit, &sampled) > 1e-3, "{}", l2(&relit, &sampled));
     }
 
     #[test]

@@ -3,7 +3,9 @@ use super::shades::{check_scene_textured, MaterialBrdf, MaterialShade};
 use crate::types::PathCounts;
 use relume_base::render::film::{per_pixel_layers, with_ctx};
 use relume_base::types::accel::Accel;
-use relume_base::types::{gather_rows, row_spec, BrdfBasis, Image, ImageRows, ObjectMaterials, Scene};
+use relume_base::types::{
+    gather_rows, row_spec, BrdfBasis, BrdfSample, Image, ImageRows, ObjectMaterial, ObjectMaterials, Scene, Specular,
+};
 use relume_core::{inputs, node, outputs, params, NodeError, ParamEnum, RunCtx, ShardSpec};
 use std::ops::Range;
 
@@ -13,13 +15,17 @@ params! {
     /// one material per object instead of every basis. With `Analytic` BRDFs (texture maps read at
     /// every hit) its difference to `Relight` is the basis error alone, no Monte Carlo noise — the
     /// figure [S] 4.1.5 reports (figures 4-3, 4-4); to `SvRelight`, the basis, the sub-region and
-    /// the compression errors together. With `Tabulated` BRDFs
+    /// the compression errors together. With `Sampled` BRDFs (each dynamic material's own lobe
+    /// tabulated on the basis' grid and interpolated as the bases are, uncompressed: [S]'s
+    /// reference, "BRDF采用原始数据，而不是被压缩之后的", the raw BRDF data rather than the
+    /// compressed) the difference is the truncation of the basis alone, and Analytic against
+    /// Sampled is the grid's own error. With `Tabulated` BRDFs
     /// (each dynamic material as Σ c_k ρ̃_k on the basis) it equals `Relight` to float precision:
     /// the test that the stored images and the combine are right. Also the variance of its mean
     /// over the camera samples: `Relight`'s image has the same paths, so this is its variance too
     /// (to the basis error), what a z-test against the path tracer needs. Sharded over image rows.
     pub struct RelightReference {
-        /// the dynamic objects' BRDFs: the analytic Blinn-Phong, or its projection on the basis
+        /// the dynamic objects' BRDFs: the analytic Blinn-Phong, its table on the basis' grid, or its projection on the basis
         pub brdf: ReferenceBrdf = Analytic;
     }
 }
@@ -31,6 +37,8 @@ pub enum ReferenceBrdf {
     Analytic,
     /// Σ c_k ρ̃_k, the material as the basis represents it
     Tabulated,
+    /// Kd/π + Ks · the lobe tabulated on the basis' grid, uncompressed ([S]'s reference)
+    Sampled,
 }
 
 inputs!(pub RelightReferenceIn { scene: Scene, accel: Accel, paths: PathCounts, basis: BrdfBasis, materials: ObjectMaterials });
@@ -53,11 +61,8 @@ pub fn reference_rows(
     if materials.0.len() != groups.len() || materials.0.iter().zip(&groups).any(|(m, g)| m.name != g.0) {
         return Err(NodeError::input("materials", "the materials are not those of the scene's dynamic objects"));
     }
-    if brdf == ReferenceBrdf::Tabulated && materials.0.iter().any(|m| !m.maps.is_empty()) {
-        return Err(NodeError::input(
-            "materials",
-            "textured materials have no tabulated form here (one coefficient set per object): use Analytic",
-        ));
+    if brdf != ReferenceBrdf::Analytic && materials.0.iter().any(|m| !m.maps.is_empty()) {
+        return Err(NodeError::input("materials", "textured materials have no tabulated form here (one table per object): use Analytic"));
     }
     if brdf == ReferenceBrdf::Tabulated && materials.0.iter().any(|m| m.coefficients.len() != basis.bases()) {
         return Err(NodeError::input("materials", "tabulated BRDFs need the materials projected on this basis (MaterialProject)"));
@@ -65,6 +70,7 @@ pub fn reference_rows(
     let mb = match brdf {
         ReferenceBrdf::Analytic => MaterialBrdf::Analytic,
         ReferenceBrdf::Tabulated => MaterialBrdf::Tabulated(basis),
+        ReferenceBrdf::Sampled => MaterialBrdf::Sampled(basis, materials.0.iter().map(|m| basis.grid.tabulate(&lobe(m))).collect()),
     };
     let shade = MaterialShade::new(scene, materials, mb);
     let slots = Slots::single();
@@ -95,11 +101,22 @@ pub fn reference_rows(
     Ok(ImageRows::new(w, rows, vec![img, var], vec![rays]))
 }
 
+/// A material's specular lobe at ks = 1, as `BrdfSpaceSample` tabulates its samples.
+fn lobe(m: &ObjectMaterial) -> BrdfSample {
+    match m.specular {
+        Specular::BlinnPhong => BrdfSample::blinn_phong(0.0, 1.0, m.s),
+        Specular::CookTorrance { m, f0 } => BrdfSample::cook_torrance(1.0, m, f0),
+    }
+}
+
 #[node(category = "relight", version = 5, sharded, metrics = ["rays"])]
 impl RelightReference {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let image = inputs[0].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));
-        relume_core::MemoryEstimate { outputs: vec![image, image], working: image.map_or(0, |s| 2 * s.bytes) }
+        // `Sampled` keeps one grid table per dynamic object: about the basis' bytes for as many
+        // objects as bases.
+        let tables = if self.brdf == ReferenceBrdf::Sampled { inputs[3].map_or(0, |s| s.bytes) } else { 0 };
+        relume_core::MemoryEstimate { outputs: vec![image, image], working: image.map_or(0, |s| 2 * s.bytes) + tables }
     }
 
     fn shard(&self, i: &RelightReferenceIn) -> Result<ShardSpec, NodeError> {
@@ -148,6 +165,12 @@ mod tests {
         let mut raw = m.clone();
         raw.0.iter_mut().for_each(|o| o.coefficients.clear());
         assert!(reference_rows(&s, a, t.counts, &b, &raw, ReferenceBrdf::Tabulated, 0..10, None).is_err());
+        // Sampled tables need no projection; textured materials have none.
+        assert!(reference_rows(&s, a, t.counts, &b, &raw, ReferenceBrdf::Sampled, 0..10, None).is_ok());
+        let mut textured = m.clone();
+        textured.0[0].maps.kd = relume_base::types::Texture::new(1, 1, vec![glam::Vec3::splat(0.5)]);
+        let err = reference_rows(&s, a, t.counts, &b, &textured, ReferenceBrdf::Sampled, 0..10, None).unwrap_err();
+        assert!(err.to_string().contains("textured"), "{err}");
     }
 
     #[test]

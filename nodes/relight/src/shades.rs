@@ -8,6 +8,7 @@ use glam::Vec3;
 use relume_base::brdf;
 use relume_base::render::surface::Surface;
 use relume_base::types::{BrdfBasis, Environment, Light, Material, ObjectMaterials, Scene};
+use std::f64::consts::FRAC_1_PI;
 
 /// What an object is on a relighting path.
 #[derive(Clone, Copy, Debug)]
@@ -194,6 +195,10 @@ pub enum MaterialBrdf<'a> {
     Analytic,
     /// The projected material Σ_k c_k ρ̃_k on this basis (per channel): what `Relight` shows.
     Tabulated(&'a BrdfBasis),
+    /// Each dynamic object's own specular lobe (ks = 1) tabulated on the basis' grid, one table
+    /// per object in `ObjectMaterials` order, interpolated as the bases are, uncompressed:
+    /// Kd/π + Ks · lobe.
+    Sampled(&'a BrdfBasis, Vec<Vec<f32>>),
 }
 
 /// One material per object: the dynamic objects' from `ObjectMaterials`, the fixed objects'
@@ -215,7 +220,7 @@ impl<'a> MaterialShade<'a> {
             Kind::Fixed => brdf::eval(&at.material(self.scene), wo, wi),
             Kind::Dynamic(g) => {
                 let m = &self.materials.0[g as usize];
-                match self.brdf {
+                match &self.brdf {
                     MaterialBrdf::Analytic => {
                         let bp = Material::BlinnPhong { kd: Vec3::from(m.kd), ks: Vec3::from(m.ks), exponent: m.s };
                         brdf::eval(&m.maps.apply(bp, at.uv), wo, wi)
@@ -232,6 +237,13 @@ impl<'a> MaterialShade<'a> {
                         }
                         Vec3::new(sum[0] as f32, sum[1] as f32, sum[2] as f32)
                     }
+                    MaterialBrdf::Sampled(basis, lobes) => match basis.grid.trilinear(wi, wo) {
+                        Some(t) => {
+                            let lobe = t.apply(&lobes[g as usize]);
+                            Vec3::from_array(std::array::from_fn(|c| (m.kd[c] as f64 * FRAC_1_PI + m.ks[c] as f64 * lobe) as f32))
+                        }
+                        None => Vec3::ZERO,
+                    },
                 }
             }
         }

@@ -114,6 +114,12 @@ impl BrdfGrid {
         ]
     }
 
+    /// `sample` at every cell centre, in table order, in f32: the values a `BrdfSpace` holds
+    /// for it, before any compression.
+    pub fn tabulate(&self, sample: &BrdfSample) -> Vec<f32> {
+        (0..self.cells()).map(|c| sample.eval(self.centre(c)) as f32).collect()
+    }
+
     /// Solid-angle weight of every cell, in table order (see the module comment).
     pub fn weights(&self) -> Vec<f64> {
         let band = |k: u32, n: u32| {
