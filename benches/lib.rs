@@ -83,6 +83,8 @@ pub fn graph_edits() -> Vec<GraphEdit> {
         ("brdf_basis.ron", "project.s", |k| format!("{}", 5.0 + k as f64 * 1e-6)),
         ("relight_cornell_bunny.ron", "project.kd", |k| format!("({}, 0.2, 0.2)", 0.2 + k as f64 * 1e-6)),
         ("relight_ring.ron", "project.kd", |k| format!("({}, 0.2, 0.2)", 0.2 + k as f64 * 1e-6)),
+        ("relight_basis_ring.ron", "project_plane.s", |k| format!("{}", 5.0 + k as f64 * 1e-6)),
+        ("relight_basis_cornell_bunny.ron", "project_bunny.s", |k| format!("{}", 180.0 - k as f64 * 1e-6)),
         ("relight_vs_reference.ron", "transfer.spp", |k| format!("{}", 16 + k)),
         ("voxelize_glass.ron", "voxelize.index", |k| format!("{}", 1.5 + k as f64 * 1e-6)),
         ("refract_glass.ron", "light.translation", |k| format!("({}, 0, 0)", k as f64 * 1e-6)),
