@@ -95,6 +95,7 @@ pub fn graph_edits() -> Vec<GraphEdit> {
         ("relight_sv_spot.ron", "project.kd", |k| format!("({}, 0.7, 0.7)", 0.7 + k as f64 * 1e-6)),
         ("image_error.ron", "error_denoised.epsilon", |k| format!("{}", 0.01 + k as f64 * 1e-9)),
         ("reference_cornell.ron", "reference.seed", |k| format!("{}", 1000 + k)),
+        ("bidir_glass.ron", "bidir.seed", |k| format!("{}", 1000 + k)),
         ("pbgi_cornell.ron", "move.translation", |k| format!("({}, 0, 0)", k as f64 * 1e-6)),
         ("fpbgi_cornell.ron", "move.translation", |k| format!("({}, 0, 0)", k as f64 * 1e-6)),
         ("pbgi_vs_reference.ron", "fpbgi.epsilon", |k| format!("{}", 1.0 + k as f64 * 1e-6)),

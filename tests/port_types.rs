@@ -8,7 +8,8 @@ use std::collections::BTreeSet;
 
 /// `pbgi_vs_reference.ron` at test size with every output port of every node as an output:
 /// with `relight_ring.ron`, `relight_sv_spot.ron`, `voxelize_glass.ron`, `refract_glass.ron`,
-/// `ptt_envlit.ron` and `wpbgi_ring.ron` it produces every port type relume registers.
+/// `ptt_envlit.ron` and `wpbgi_ring.ron` (its `bdpt` node's bands too) it produces every port
+/// type relume registers.
 fn every_port_graph() -> Graph {
     let g = load_graph(
         "pbgi_vs_reference.ron",
@@ -80,7 +81,8 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
     let f = load_test_graph("ptt_envlit.ron", &[("reference.spp", "1"), ("scene.width", "8"), ("scene.height", "8")]);
     let f = every_port(f);
     let rf = first.run(&f, &RunOptions::default()).unwrap();
-    // The wavelet PBGI's per-point wavelets and coded tree from the ring's graph.
+    // The wavelet PBGI's per-point wavelets and coded tree from the ring's graph, and the
+    // bidirectional path tracer's bands with their splats.
     let h = every_port(load_graph(
         "wpbgi_ring.ron",
         &[
@@ -90,6 +92,7 @@ fn every_port_type_round_trips_through_its_encoding_and_the_disk_cache() {
             ("wavelets.resolution", "8"),
             ("direct.pixel_samples", "1"),
             ("reference.spp", "1"),
+            ("bdpt.spp", "2"),
         ],
     ));
     let rh = first.run(&h, &RunOptions::default()).unwrap();

@@ -1,9 +1,8 @@
-use crate::render::camera::CameraRays;
+use crate::render::camera::{camera_sample, CameraRays};
 use crate::render::film::{with_ctx, Film};
 use crate::render::integrator::{Settings, Tracer};
 use crate::types::accel::Accel;
 use crate::types::{gather_rows, row_spec, Image, ImageRows, Scene};
-use glam::Vec3;
 use relume_core::{inputs, node, outputs, params, NodeError, RunCtx, ShardSpec, Value};
 use std::ops::Range;
 
@@ -33,17 +32,6 @@ params! {
 
 inputs!(pub PathTraceIn { scene: Scene, accel: Accel });
 outputs!(pub PathTraceOut { image: Image, variance: Image });
-
-/// Camera sample `s` of pixel (x, y) of a `width`-wide image as the reference takes it (box
-/// filter: a point uniform over the pixel, from (seed, pixel, sample) only): the ray's origin,
-/// direction and the sample's id, which keys the sample's further random numbers. Renderers
-/// whose antialiased edges must match the reference's take their samples here.
-pub fn camera_sample(cam: &CameraRays, seed: u64, width: usize, x: usize, y: usize, s: u32) -> (Vec3, Vec3, u64) {
-    let id = ((y * width + x) as u64) << 32 | s as u64;
-    let (jx, jy) = (crate::math::rng::uniform(seed ^ 0x5EED, id, 0), crate::math::rng::uniform(seed ^ 0x5EED, id, 1));
-    let (o, d) = cam.ray(x as f32 + jx, y as f32 + jy);
-    (o, d, id)
-}
 
 /// Renders `p.spp` samples per pixel of the rows `rows`; returns them as a band with the
 /// mean, the variance of the mean and the counters [rays, samples dropped as NaN or

@@ -113,14 +113,28 @@ impl Film {
         samples: Range<u32>,
         f: impl Fn(usize, usize, u32, &mut Counts) -> Vec3 + Sync + Send,
     ) -> Result<(), NodeError> {
+        self.add_pass_with(cx, samples, |x, y, s, counts, _: &mut Vec<()>| f(x, y, s, counts)).map(drop)
+    }
+
+    /// As [`Film::add_pass`], where a sample may also leave records elsewhere (a light path's
+    /// contributions to other pixels): `f` pushes them to the row's list, and the lists come
+    /// back in row order, each in the order its row's samples pushed them, so the same bytes
+    /// on any thread count.
+    pub fn add_pass_with<T: Send>(
+        &mut self,
+        cx: &RunCtx,
+        samples: Range<u32>,
+        f: impl Fn(usize, usize, u32, &mut Counts, &mut Vec<T>) -> Vec3 + Sync + Send,
+    ) -> Result<Vec<Vec<T>>, NodeError> {
         debug_assert_eq!(samples.start, self.samples, "samples are added in order");
         let taken = samples.len() as u32;
-        cx.par_chunks_mut(&mut self.rows, 1, |y, rows| {
-            let row = &mut rows[0];
+        let mut work: Vec<(&mut FilmRow, Vec<T>)> = self.rows.iter_mut().map(|r| (r, Vec::new())).collect();
+        cx.par_chunks_mut(&mut work, 1, |y, rows| {
+            let (row, records) = &mut rows[0];
             let mut counts = Counts::default();
             for (x, (sum, sum2)) in row.sum.iter_mut().zip(&mut row.sum2).enumerate() {
                 for s in samples.clone() {
-                    let l = f(x, y, s, &mut counts);
+                    let l = f(x, y, s, &mut counts, records);
                     if !l.is_finite() {
                         row.nonfinite += 1;
                         continue;
@@ -134,7 +148,7 @@ impl Film {
             row.rays += counts.rays;
         })?;
         self.samples += taken;
-        Ok(())
+        Ok(work.into_iter().map(|(_, r)| r).collect())
     }
 
     /// Takes `spp` samples per pixel in progressive passes of doubling size (1, 2, 4, …

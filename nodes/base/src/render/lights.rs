@@ -9,9 +9,9 @@ use std::f32::consts::PI;
 
 /// What can be picked. An emitting triangle carries its corners, geometric normal and area
 /// (as `Scene::corners` and `Scene::normal_area` give them) and its object's emission, read
-/// at every sample.
+/// at every sample; a delta light is the scene's light of that index.
 #[derive(Clone, Copy, Debug, PartialEq)]
-enum Item {
+pub enum Emitter {
     Triangle { tri: u32, corners: [Vec3; 3], n: Vec3, area: f32, emission: Vec3 },
     Delta(usize),
     Environment,
@@ -33,7 +33,7 @@ pub struct LightSample {
 }
 
 pub struct LightSampler {
-    items: Vec<Item>,
+    items: Vec<Emitter>,
     choice: Distribution1D,
     /// Choice among area lights and the environment only (for callers that handle delta
     /// lights exactly), with the item index of each choice.
@@ -41,6 +41,8 @@ pub struct LightSampler {
     /// Item index of every scene triangle (u32::MAX for triangles that do not emit).
     tri_item: Vec<u32>,
     env_item: Option<usize>,
+    /// Item index of the scene's first delta light (they follow in scene order).
+    first_delta: usize,
 }
 
 fn lum(c: Vec3) -> f32 {
@@ -60,19 +62,20 @@ impl LightSampler {
                 let (n, area) = scene.normal_area(t as usize);
                 if area > 0.0 {
                     tri_item[t as usize] = items.len() as u32;
-                    items.push(Item::Triangle { tri: t, corners: scene.corners(t as usize), n, area, emission: o.emission });
+                    items.push(Emitter::Triangle { tri: t, corners: scene.corners(t as usize), n, area, emission: o.emission });
                     weights.push(PI * area * lum(o.emission));
                 }
             }
         }
         let r = 0.5 * scene.extent();
+        let first_delta = items.len();
         for (i, l) in scene.lights.iter().enumerate() {
             let w = match l {
                 Light::Point { intensity, .. } => 4.0 * PI * lum(*intensity),
                 Light::Spot { intensity, cos_inner, cos_outer, .. } => 2.0 * PI * (1.0 - 0.5 * (cos_inner + cos_outer)) * lum(*intensity),
                 Light::Directional { irradiance, .. } => PI * r * r * lum(*irradiance),
             };
-            items.push(Item::Delta(i));
+            items.push(Emitter::Delta(i));
             weights.push(w);
         }
         let mut env_item = None;
@@ -83,14 +86,14 @@ impl LightSampler {
         };
         if env_lum > 0.0 {
             env_item = Some(items.len());
-            items.push(Item::Environment);
+            items.push(Emitter::Environment);
             weights.push(4.0 * PI * PI * r * r * env_lum);
         }
         let choice = Distribution1D::new(&weights);
-        let ext: Vec<usize> = (0..items.len()).filter(|&i| !matches!(items[i], Item::Delta(_))).collect();
+        let ext: Vec<usize> = (0..items.len()).filter(|&i| !matches!(items[i], Emitter::Delta(_))).collect();
         let extended = (!ext.is_empty() && ext.iter().any(|&i| weights[i] > 0.0))
             .then(|| (Distribution1D::new(&ext.iter().map(|&i| weights[i]).collect::<Vec<_>>()), ext));
-        LightSampler { items, choice, tri_item, env_item, extended }
+        LightSampler { items, choice, tri_item, env_item, extended, first_delta }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -129,12 +132,36 @@ impl LightSampler {
         self.sample_item(scene, p, idx[k], p_choice, u2)
     }
 
+    /// Picks a light in proportion to its power (as `sample` does), to start a light subpath:
+    /// the light and the probability of the pick. `None` without lights.
+    pub fn choose(&self, u: f32) -> Option<(Emitter, f32)> {
+        if self.items.is_empty() {
+            return None;
+        }
+        let (i, p) = self.choice.sample_discrete(u);
+        (p > 0.0).then_some((self.items[i], p))
+    }
+
+    /// Probability that `choose` (and `sample`) picks emitting triangle `tri`; 0 for a
+    /// triangle that does not emit.
+    pub fn triangle_choice(&self, tri: u32) -> f32 {
+        match self.tri_item[tri as usize] {
+            u32::MAX => 0.0,
+            item => self.choice.discrete_pdf(item as usize),
+        }
+    }
+
+    /// Probability that `choose` picks the scene's delta light `k`.
+    pub fn delta_choice(&self, k: usize) -> f32 {
+        self.choice.discrete_pdf(self.first_delta + k)
+    }
+
     fn sample_item(&self, scene: &Scene, p: Vec3, i: usize, p_choice: f32, u2: Vec2) -> Option<LightSample> {
         if p_choice <= 0.0 {
             return None;
         }
         match self.items[i] {
-            Item::Triangle { corners: [a, b, c], n, area, emission, .. } => {
+            Emitter::Triangle { corners: [a, b, c], n, area, emission, .. } => {
                 let (b0, b1) = uniform_triangle(u2);
                 let q = a * b0 + b * b1 + c * (1.0 - b0 - b1);
                 let d = q - p;
@@ -150,10 +177,10 @@ impl LightSampler {
                 }
                 Some(LightSample { wi, dist, li: emission, pdf: p_choice * dist2 / (cos_l * area), delta: false })
             }
-            Item::Delta(k) => {
+            Emitter::Delta(k) => {
                 delta_sample(&scene.lights[k], p).map(|(wi, dist, li)| LightSample { wi, dist, li, pdf: p_choice, delta: true })
             }
-            Item::Environment => match scene.environment.as_ref()? {
+            Emitter::Environment => match scene.environment.as_ref()? {
                 Environment::Constant(c) => {
                     let wi = crate::math::sampling::uniform_sphere(u2);
                     Some(LightSample {
@@ -179,7 +206,7 @@ impl LightSampler {
         if item == u32::MAX || cos_l <= 0.0 {
             return 0.0;
         }
-        let Item::Triangle { area, .. } = self.items[item as usize] else { return 0.0 };
+        let Emitter::Triangle { area, .. } = self.items[item as usize] else { return 0.0 };
         self.choice.discrete_pdf(item as usize) * dist * dist / (cos_l * area)
     }
 
@@ -211,17 +238,22 @@ pub fn delta_sample(l: &Light, p: Vec3) -> Option<(Vec3, f32, Vec3)> {
                 return None;
             }
             let wi = d / dist2.sqrt();
-            let cos = (-wi).dot(direction);
-            let falloff = if cos >= cos_inner {
-                1.0
-            } else if cos <= cos_outer {
-                0.0
-            } else {
-                let x = (cos - cos_outer) / (cos_inner - cos_outer);
-                x * x * (3.0 - 2.0 * x)
-            };
+            let falloff = spot_falloff((-wi).dot(direction), cos_inner, cos_outer);
             (falloff > 0.0).then(|| (wi, dist2.sqrt(), intensity * falloff / dist2))
         }
         Light::Directional { direction, irradiance } => Some((-direction, f32::INFINITY, irradiance)),
+    }
+}
+
+/// A spot light's share of its intensity at cosine `cos` off its axis: 1 inside `cos_inner`,
+/// 0 outside `cos_outer`, smoothstep between.
+pub fn spot_falloff(cos: f32, cos_inner: f32, cos_outer: f32) -> f32 {
+    if cos >= cos_inner {
+        1.0
+    } else if cos <= cos_outer {
+        0.0
+    } else {
+        let x = (cos - cos_outer) / (cos_inner - cos_outer);
+        x * x * (3.0 - 2.0 * x)
     }
 }

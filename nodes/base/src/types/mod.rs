@@ -10,6 +10,7 @@ mod metrics;
 mod object_materials;
 mod points;
 mod scene;
+mod splat_rows;
 mod texture;
 mod triangle_planes;
 
@@ -23,5 +24,6 @@ pub use metrics::Metrics;
 pub use object_materials::{ObjectMaterial, ObjectMaterials, Specular};
 pub use points::SurfacePoints;
 pub use scene::{Camera, EnvMap, Environment, Light, Object, Scene};
+pub use splat_rows::{gather_splats, splat_spec, SplatRows};
 pub use texture::{MaterialMaps, Texture};
 pub use triangle_planes::{SceneDerived, TrianglePlanes};
