@@ -23,6 +23,18 @@ fn indirect(g: &relume_core::Graph) -> Image {
     run_outputs(&engine(), g, &["indirect"]).output("indirect").unwrap().get::<Image>().unwrap().clone()
 }
 
+/// The indirect image and the largest radiance any point sends (`shade.radiance`, the points'
+/// diffuse light, which their wavelets also carry on these Lambertian planes).
+fn indirect_and_brightest_point(g: &relume_core::Graph) -> (Image, f32) {
+    let mut g = g.clone();
+    add_output(&mut g, "radiance", "shade.radiance");
+    let out = run_outputs(&engine(), &g, &["indirect", "radiance"]);
+    let radiance = &out.output("radiance").unwrap().get::<relume_pbgi::types::PointRadiance>().unwrap().0;
+    let brightest = radiance.iter().fold(0.0f32, |m, r| m.max(r.max_element()));
+    assert!(brightest > 0.0);
+    (out.output("indirect").unwrap().get::<Image>().unwrap().clone(), brightest)
+}
+
 fn finite_and_not_negative(img: &Image) -> bool {
     img.as_floats().iter().all(|x| x.is_finite() && *x >= 0.0)
 }
@@ -107,11 +119,16 @@ fn stiff_wavelet_pbgi_cases_stay_finite_and_bounded() {
     let img = indirect(&wpbgi_graph("one_plane.ron", 3_000, 16));
     assert!(img.as_floats().iter().all(|x| x.is_finite() && x.abs() < 1e-6), "coplanar: no indirect light");
     // Microbuffers of 1 × 1 and 256 × 256, and three points (receivers inside node spheres
-    // everywhere), uniform and adaptive: finite and not negative.
+    // everywhere), uniform and adaptive: finite, not negative, and under the energy bound.
     for (res, count, max_level) in [(1, 2_000, 0), (256, 2_000, 0), (16, 3, 0), (2, 2_000, 3), (16, 3, 2)] {
         let mut g = wpbgi_graph("two_planes.ron", count, res);
         g.set_param_text(&relume_cli::registry(), "gather.max_level", &max_level.to_string()).unwrap();
-        assert!(finite_and_not_negative(&indirect(&g)), "res {res}, {count} points, max_level {max_level}");
+        let (img, brightest) = indirect_and_brightest_point(&g);
+        assert!(finite_and_not_negative(&img), "res {res}, {count} points, max_level {max_level}");
+        // No energy created: a receiver of albedo 0.5 sees at most the brightest point's
+        // radiance over its whole hemisphere.
+        let ratio = img.as_floats().iter().fold(0.0f32, |m, x| m.max(*x)) / (0.5 * brightest);
+        assert!(ratio <= 1.0, "res {res}, {count} points, max_level {max_level}: the brightest pixel is {ratio} × the energy bound");
     }
     // The adaptive buffer cannot start at 1 × 1, and says so.
     let mut g = wpbgi_graph("two_planes.ron", 500, 1);
