@@ -103,14 +103,15 @@ fn changing_the_coding_threshold_reruns_the_coding_onward_not_sampling_or_direct
             ("wavelets.resolution", "8"),
             ("direct.pixel_samples", "2"),
             ("reference.spp", "4"),
+            ("reference_direct.spp", "4"),
         ],
     );
     let e = engine();
     run(&e, &g);
     g.set_param_text(&reg, "coded.threshold", "0.01").unwrap();
-    assert_eq!(ran(&run(&e, &g)), ["coded", "gather", "wpbgi_error", "wpbgi_image"]);
+    assert_eq!(ran(&run(&e, &g)), ["coded", "gather", "indirect_error", "wpbgi_error", "wpbgi_image"]);
     g.set_param_text(&reg, "coded.split", "3").unwrap();
-    assert_eq!(ran(&run(&e, &g)), ["coded", "gather", "wpbgi_error", "wpbgi_image"]);
+    assert_eq!(ran(&run(&e, &g)), ["coded", "gather", "indirect_error", "wpbgi_error", "wpbgi_image"]);
 }
 
 #[test]

@@ -28,6 +28,9 @@ params! {
         pub spp: u32 = 16, range = 1..=(1 << 20), unit = "samples/pixel", test = 4;
         /// maximum path segments (Mitsuba's meaning); -1 = unbounded
         pub max_depth: i32 = -1, range = -1..=1024;
+        /// fewest path segments counted: 1 = all light, 3 = indirect only (with max_depth 3,
+        /// one bounce: what a point-based gather's indirect image estimates)
+        pub min_depth: u32 = 1, range = 1..=1024;
         /// bounces from which Russian roulette may end a subpath
         pub rr_depth: u32 = 5, range = 1..=1024;
         /// random seed
@@ -43,7 +46,7 @@ const MAX_PASS: u32 = 16;
 
 impl BidirPathTrace {
     fn settings(&self) -> BidirSettings {
-        BidirSettings { max_depth: self.max_depth, rr_depth: self.rr_depth, seed: self.seed, only: None }
+        BidirSettings { max_depth: self.max_depth, min_depth: self.min_depth, rr_depth: self.rr_depth, seed: self.seed, only: None }
     }
 }
 
@@ -208,7 +211,7 @@ mod tests {
 
     fn bidir(scene: &Scene, spp: u32, max_depth: i32, only: Option<(usize, usize)>) -> (Image, Image) {
         let accel = Accel::build(scene, BuildQuality::Fast);
-        let (m, v, c) = render(scene, &accel, BidirSettings { max_depth, rr_depth: 5, seed: 7, only }, spp, None).unwrap();
+        let (m, v, c) = render(scene, &accel, BidirSettings { max_depth, min_depth: 1, rr_depth: 5, seed: 7, only }, spp, None).unwrap();
         assert_eq!((c[1], c[2]), (0, 0), "no NaN or infinite samples");
         (m, v)
     }
@@ -321,6 +324,12 @@ mod tests {
             let tol = 4.0 * (s * s + sigma * sigma).sqrt();
             assert!((m - bounce).abs() < tol, "strategy {only:?}: {m} ± {s} against {bounce} ± {sigma}");
         }
+        // All strategies, weighted, with `min_depth` 3: the same one-bounce image.
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let settings = BidirSettings { max_depth: 3, min_depth: 3, rr_depth: 5, seed: 7, only: None };
+        let (m, v, _) = render(&scene, &accel, settings, 128, None).unwrap();
+        let (m, s) = mean(&(m, v));
+        assert!((m - bounce).abs() < 4.0 * (s * s + sigma * sigma).sqrt(), "min_depth 3: {m} ± {s} against {bounce} ± {sigma}");
     }
 
     #[test]
@@ -387,7 +396,7 @@ mod tests {
     fn one_and_two_threads_and_any_split_of_the_rows_give_the_same_bytes() {
         let scene = glass_ball();
         let accel = Accel::build(&scene, BuildQuality::Fast);
-        let settings = BidirSettings { max_depth: -1, rr_depth: 5, seed: 3, only: None };
+        let settings = BidirSettings { max_depth: -1, min_depth: 1, rr_depth: 5, seed: 3, only: None };
         let run = |threads| {
             rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
@@ -412,7 +421,8 @@ mod tests {
         let fog = Material::Dielectric { ior: 1.3, medium: Some(Medium { sigma_a: Vec3::splat(0.1), sigma_s: Vec3::splat(0.5) }) };
         let scene = corner(lambert(0.5), lambert(0.5)).sphere("fog", Vec3::new(0.0, 0.35, 0.0), 0.3, fog, Vec3::ZERO, false).build();
         let accel = Accel::build(&scene, BuildQuality::Fast);
-        let err = render(&scene, &accel, BidirSettings { max_depth: -1, rr_depth: 5, seed: 0, only: None }, 1, None).unwrap_err();
+        let err =
+            render(&scene, &accel, BidirSettings { max_depth: -1, min_depth: 1, rr_depth: 5, seed: 0, only: None }, 1, None).unwrap_err();
         assert!(matches!(&err, NodeError::Input { msg, .. } if msg.contains("media")), "{err:?}");
     }
 

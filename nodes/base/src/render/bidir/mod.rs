@@ -38,6 +38,8 @@ pub struct Splat {
 pub struct BidirSettings {
     /// Mitsuba's max_depth (path segments; −1 unbounded).
     pub max_depth: i32,
+    /// The fewest path segments a counted path has (1: all light; 3: indirect light only).
+    pub min_depth: u32,
     pub rr_depth: u32,
     pub seed: u64,
     /// Only this strategy (s light vertices, t camera vertices), unweighted: each strategy
@@ -67,6 +69,7 @@ pub struct Bidir<'a> {
     disk: f32,
     max_camera: usize,
     max_light: usize,
+    min_segments: usize,
     rr_depth: u32,
     seed: u64,
     only: Option<(usize, usize)>,
@@ -97,6 +100,7 @@ impl<'a> Bidir<'a> {
             eps: crate::render::surface::OFFSET_FRACTION * scene.extent(),
             max_camera: max_segments + 1,
             max_light: max_segments,
+            min_segments: s.min_depth as usize,
             rr_depth: s.rr_depth,
             seed: s.seed,
             only: s.only,
@@ -117,7 +121,7 @@ impl<'a> Bidir<'a> {
         let mut l = Vec3::ZERO;
         for t in 1..=cam.len() {
             for s in 0..=light.len() {
-                if s + t < 2 || s + t - 1 > self.max_light || self.only.is_some_and(|o| o != (s, t)) {
+                if s + t < 2 || s + t - 1 > self.max_light || s + t - 1 < self.min_segments || self.only.is_some_and(|o| o != (s, t)) {
                     continue;
                 }
                 let Some(c) = self.connect(&light, &cam, s, t, counts) else { continue };
