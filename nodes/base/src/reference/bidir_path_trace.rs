@@ -67,8 +67,14 @@ pub fn render_part(
     let cam = &scene.camera;
     let (w, h) = (cam.width, cam.height);
     let mut film = Film::try_new(w, rows.len())?;
-    // The splat sums (f64) are refused with the image's own limit before they are allocated.
-    drop(Image::try_new(w, h * 4)?);
+    // The splat sums (two f64 RGB layers of the whole image) are refused with the image's
+    // own limit before they are allocated.
+    if (w * h).checked_mul(48).is_none_or(|b| b > crate::types::MAX_IMAGE_BYTES) {
+        return Err(NodeError::over_limit(format!(
+            "the splat sums of a {w} × {h} image would pass {} GiB",
+            crate::types::MAX_IMAGE_BYTES >> 30
+        )));
+    }
     let (mut sum, mut sum2) = (vec![[0.0f64; 3]; w * h], vec![[0.0f64; 3]; w * h]);
     let mut dropped = 0u64;
     if scene.has_lights() {
