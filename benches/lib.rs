@@ -111,12 +111,33 @@ pub fn graph_edits() -> Vec<GraphEdit> {
     ]
 }
 
+/// Whether divan runs each bench once, only to check that it runs: `cargo test` (the README's
+/// test command) and `cargo bench -- --test`; `cargo bench` passes `--bench` alone. Benches
+/// then take their graphs and scenes at test size, so that the check costs seconds.
+pub fn test_mode() -> bool {
+    let args: Vec<String> = std::env::args().collect();
+    args.iter().any(|a| a == "--test") || !args.iter().any(|a| a == "--bench")
+}
+
+/// `full` in a bench run, `small` in test mode (a resolution, a sample count).
+pub fn sized<T>(full: T, small: T) -> T {
+    if test_mode() {
+        small
+    } else {
+        full
+    }
+}
+
 /// Loads a graph of `graphs/` at bench size: the converged references (4096 samples per
 /// pixel) come down to 64, so that a cold run takes seconds, not minutes; everything else is
-/// as the file says.
+/// as the file says. In test mode, the whole graph at test size.
 pub fn bench_graph(name: &str) -> Graph {
     let reg = relume_cli::registry();
     let mut g = Graph::load(&graphs_dir().join(name), &reg).expect("graph loads");
+    if test_mode() {
+        g.shrink_to_test_size(&reg).expect("graph shrinks");
+        return g;
+    }
     for n in g.nodes.clone() {
         if n.kind == "PathTrace" && n.param("spp").is_some_and(|v| v.to_text().parse::<i64>().is_ok_and(|spp| spp > 64)) {
             g.set_param_text(&reg, &format!("{}.spp", n.id), "64").unwrap();
@@ -137,8 +158,10 @@ pub fn run_kind(kind: &str, inputs: &[relume_core::Value]) -> Vec<relume_core::V
     relume_core::run_kind(&relume_cli::registry(), kind, &[], &graphs_dir(), inputs).unwrap_or_else(|e| panic!("{kind}: {e}")).outputs
 }
 
-/// A canonical scene from `graphs/scenes/`, optionally at another resolution.
+/// A canonical scene from `graphs/scenes/`, optionally at another resolution (32² in test
+/// mode).
 pub fn scene(name: &str, size: Option<usize>) -> relume_base::types::Scene {
+    let size = if test_mode() { Some(32) } else { size };
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../graphs/scenes").join(format!("{name}.ron"));
     let mut s = relume_base::scene::format::load_scene_file(&path).expect("scene loads").scene;
     if let Some(n) = size {

@@ -7,21 +7,13 @@
 //! `cargo bench -p relume-benches --bench ptt`; `PTT_BENCH_NODES=1` prints each edit's node
 //! times, `PTT_BENCH_KINDS=view,view+brdf` times only those kinds (to profile one).
 
-use relume_benches::graphs_dir;
+use relume_benches::{graphs_dir, test_mode};
 use relume_core::{Engine, Graph, RunOptions};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;
 
 fn main() {
     divan::main();
-}
-
-/// Whether divan runs each bench once (`--test`).
-fn test_mode() -> bool {
-    // As divan decides: `cargo bench` passes --bench, `cargo bench -- --test` adds --test,
-    // `cargo test` passes neither.
-    let args: Vec<String> = std::env::args().collect();
-    args.iter().any(|a| a == "--test") || !args.iter().any(|a| a == "--bench")
 }
 
 /// ptt_envlit.ron: full size with the workspace's disk cache, or test size.

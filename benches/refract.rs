@@ -8,7 +8,7 @@
 //! `cargo bench -p relume-benches --bench refract`.
 
 use relume_base::types::{Accel, Scene};
-use relume_benches::{add_output, bench_graph};
+use relume_benches::{add_output, bench_graph, sized};
 use relume_core::{shard::run_all, CancelToken, Engine, Graph, RunCtx, RunOptions};
 use relume_volume::eikonal_paths::{trace, EikonalPaths, EikonalPathsIn};
 use relume_volume::eikonal_render::{render, EikonalRender, EikonalRenderIn};
@@ -112,7 +112,8 @@ fn stages() -> &'static Stages {
         let octree = get("octree").get::<Volume>().unwrap().clone();
         // ε = ε′ = 0: every voxel takes the minimum step.
         let fixed = build(&medium, &Octree { uniform: 0.0, flat: 0.0, step: 8.0 }, u64::MAX).unwrap().0;
-        let photons = cx(|c| emit(&scene, accel, &medium, &EmitPhotons { resolution: 384, proxy: Proxy::Active, seed: 1 }, c)).unwrap();
+        let photons =
+            cx(|c| emit(&scene, accel, &medium, &EmitPhotons { resolution: sized(384, 64), proxy: Proxy::Active, seed: 1 }, c)).unwrap();
         let mut s = Stages {
             scene,
             accel_value,
@@ -142,7 +143,7 @@ fn stages() -> &'static Stages {
 fn emit_photons_384(bencher: divan::Bencher) {
     let s = stages();
     bencher.bench(|| {
-        cx(|c| emit(&s.scene, s.accel(), &s.medium, &EmitPhotons { resolution: 384, proxy: Proxy::Active, seed: 1 }, c)).unwrap()
+        cx(|c| emit(&s.scene, s.accel(), &s.medium, &EmitPhotons { resolution: sized(384, 64), proxy: Proxy::Active, seed: 1 }, c)).unwrap()
     });
 }
 
@@ -166,7 +167,7 @@ fn march_fixed(bencher: divan::Bencher, step: f64) {
 
 fn camera_256(s: &Stages) -> relume_base::types::Camera {
     let mut camera = s.scene.camera.clone();
-    (camera.width, camera.height) = (256, 256);
+    (camera.width, camera.height) = (sized(256, 32), sized(256, 32));
     camera
 }
 
@@ -217,7 +218,7 @@ fn render_256_fixed(bencher: divan::Bencher) {
 fn edit_graph() -> Graph {
     let reg = relume_cli::registry();
     let mut g = bench_graph("refract_glass.ron");
-    for (k, v) in [("scene.width", "256"), ("scene.height", "256"), ("paths.samples", "1")] {
+    for (k, v) in [("scene.width", sized("256", "32")), ("scene.height", sized("256", "32")), ("paths.samples", "1")] {
         g.set_param_text(&reg, k, v).unwrap();
     }
     g

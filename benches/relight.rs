@@ -8,7 +8,7 @@
 
 use rayon::prelude::*;
 use relume_base::types::ObjectMaterials;
-use relume_benches::{add_output, bench_graph};
+use relume_benches::{add_output, bench_graph, sized};
 use relume_core::{Engine, RunOptions};
 use relume_relight::relight_pixels::relight;
 use relume_relight::types::Transfer;
@@ -23,7 +23,12 @@ fn setup() -> &'static (Transfer, ObjectMaterials) {
     S.get_or_init(|| {
         let reg = relume_cli::registry();
         let mut g = bench_graph("relight_cornell_bunny.ron");
-        for (k, v) in [("scene.width", "512"), ("scene.height", "512"), ("transfer.spp", "1"), ("transfer.bounce_rays", "1")] {
+        for (k, v) in [
+            ("scene.width", sized("512", "32")),
+            ("scene.height", sized("512", "32")),
+            ("transfer.spp", "1"),
+            ("transfer.bounce_rays", "1"),
+        ] {
             g.set_param_text(&reg, k, v).unwrap();
         }
         add_output(&mut g, "transfer", "transfer.transfer");

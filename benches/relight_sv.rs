@@ -7,7 +7,7 @@
 //! the bounce (`direct_only`), to say where the time goes.
 
 use relume_base::types::{BrdfBasis, ObjectMaterials};
-use relume_benches::{add_output, bench_graph};
+use relume_benches::{add_output, bench_graph, sized};
 use relume_core::{Engine, RunOptions};
 use relume_relight::sv_relight::sv_relight;
 use relume_relight::types::SvTransfer;
@@ -22,7 +22,12 @@ fn setup() -> &'static (SvTransfer, BrdfBasis, ObjectMaterials) {
     S.get_or_init(|| {
         let reg = relume_cli::registry();
         let mut g = bench_graph("relight_sv_spot.ron");
-        for (k, v) in [("scene.width", "512"), ("scene.height", "512"), ("transfer.spp", "4"), ("transfer.bounce_rays", "8")] {
+        for (k, v) in [
+            ("scene.width", sized("512", "64")),
+            ("scene.height", sized("512", "64")),
+            ("transfer.spp", "4"),
+            ("transfer.bounce_rays", "8"),
+        ] {
             g.set_param_text(&reg, k, v).unwrap();
         }
         add_output(&mut g, "transfer", "transfer.transfer");
