@@ -1,6 +1,6 @@
 //! The bidirectional path tracer against the unidirectional one on the scenes the point-based
 //! comparisons use: the Cornell box (area light), the ring (point light, glossy) and the glass
-//! ball (a small lamp, a caustic), and on envlit (an environment map, glossy materials): the
+//! ball (a small lamp, a caustic), the glass ball filled with a scattering medium, and on envlit (an environment map, glossy materials): the
 //! same image within the noise of both, per pixel and in the mean. (Its speed against the path tracer's is measured in the `bidir` bench.)
 
 use relume_base::image::z_test::z_test;
@@ -24,11 +24,11 @@ fn mean(m: &Image, v: &Image) -> (f64, f64) {
 }
 
 #[test]
-fn it_renders_the_path_tracers_image_on_cornell_ring_glass_and_envlit() {
+fn it_renders_the_path_tracers_image_on_cornell_ring_glass_glass_medium_and_envlit() {
     // 256 bidirectional samples against 1,024 of the path tracer (whose variance estimates
     // have heavier tails), 32 × 32: QUALITY's per-pixel z-test (|z| ≤ 3.29 in 99.5 % of the
     // pixels) and the image means within four standard errors.
-    for name in ["cornell", "ring", "glass", "envlit"] {
+    for name in ["cornell", "ring", "glass", "glass-medium", "envlit"] {
         let scene = scene(name, 32);
         let accel = Accel::build(&scene, BuildQuality::Medium);
         let settings = BidirSettings { max_depth: -1, min_depth: 1, rr_depth: 5, seed: 1, only: None };
@@ -40,6 +40,10 @@ fn it_renders_the_path_tracers_image_on_cornell_ring_glass_and_envlit() {
         assert!(z.passes(0.995), "{name}: {} of the pixels pass (mean z {})", z.pass_fraction, z.mean_z);
         let ((mb, sb), (mp, sp)) = (mean(&bm, &bv), mean(&pm, &pv));
         assert!((mb - mp).abs() < 4.0 * (sb * sb + sp * sp).sqrt(), "{name}: {mb} ± {sb} against {mp} ± {sp}");
-        assert!(sb > 0.0 && sb < 0.03 * mb, "{name}: the estimate is noisy but not empty ({sb})");
+        // The light scattered inside glass-medium's ball reaches it only through the glass:
+        // by joins of two points inside the ball, or by a path that happens to hit the small
+        // lamp (4.9 % of the mean measured).
+        let noise = if name == "glass-medium" { 0.06 } else { 0.03 };
+        assert!(sb > 0.0 && sb < noise * mb, "{name}: the estimate is noisy but not empty ({sb} against {mb}; path tracer {sp})");
     }
 }

@@ -1,4 +1,4 @@
-use crate::render::bidir::{unsupported, Bidir, BidirSettings, Splat};
+use crate::render::bidir::{Bidir, BidirSettings, Splat};
 use crate::render::camera::{camera_sample, CameraRays};
 use crate::render::film::{with_ctx, Film};
 use crate::types::accel::Accel;
@@ -16,9 +16,9 @@ params! {
     /// that a unidirectional path tracer reaches only by chance. Same scene conventions as
     /// `PathTrace` (`max_depth` as in Mitsuba 3, Russian roulette from `rr_depth`, one-sided
     /// opaque materials), so the two estimate the same image. Area, point, spot and
-    /// directional lights and environment maps (light subpaths from infinitely far lights
-    /// start on a disk over the scene's bounding sphere); media inside dielectrics are refused
-    /// for now. Each sample's
+    /// directional lights, environment maps (light subpaths from infinitely far lights start
+    /// on a disk over the scene's bounding sphere) and homogeneous media inside dielectrics
+    /// (scattering points joined like surface points). Each sample's
     /// random numbers depend only on (seed, pixel, sample) and splats are added in a fixed
     /// order, so the image has the same bytes on any thread count. Outputs the mean and the
     /// variance of the mean (the light-traced part's from its per-pixel sums of squares).
@@ -61,9 +61,6 @@ pub fn render_part(
     rows: Range<usize>,
     cx: Option<&RunCtx>,
 ) -> Result<SplatRows, NodeError> {
-    if let Some(what) = unsupported(scene) {
-        return Err(NodeError::input("scene", format!("BidirPathTrace does not render {what} yet; PathTrace does")));
-    }
     let cam = &scene.camera;
     let (w, h) = (cam.width, cam.height);
     let mut film = Film::try_new(w, rows.len())?;
@@ -199,7 +196,7 @@ mod tests {
     use crate::reference::path_trace::{self, PathTrace};
     use crate::scene::builder::SceneBuilder;
     use crate::types::accel::BuildQuality;
-    use crate::types::{Light, Material};
+    use crate::types::{Light, Material, Medium};
     use glam::Vec3;
 
     fn lambert(a: f32) -> Material {
@@ -421,15 +418,30 @@ mod tests {
         assert_eq!(crate::testing::first::<Image>(&out), a.0);
     }
 
+    /// A glass ball filled with a scattering medium of scattering coefficient `sigma_s`, under
+    /// the lamp and filling most of the view: the light inside reaches the camera through the
+    /// glass, so the joins of two scattering points inside the ball carry much of it.
+    fn fog(sigma_s: f32) -> Scene {
+        let medium = Some(Medium { sigma_a: Vec3::new(0.1, 0.3, 0.6), sigma_s: Vec3::splat(sigma_s) });
+        SceneBuilder::new(Vec3::new(0.0, 0.45, 1.0), Vec3::new(0.0, 0.35, 0.0), 40.0, 16, 16)
+            .quad("floor", Vec3::new(-1.0, 0.0, 1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -2.0), lambert(0.6), Vec3::ZERO)
+            .quad("lamp", Vec3::new(-0.2, 1.0, -0.2), Vec3::new(0.4, 0.0, 0.0), Vec3::new(0.0, 0.0, 0.4), lambert(0.0), Vec3::splat(10.0))
+            .sphere("fog", Vec3::new(0.0, 0.35, 0.0), 0.3, Material::Dielectric { ior: 1.3, medium }, Vec3::ZERO, false)
+            .build()
+    }
+
     #[test]
-    fn scenes_it_cannot_render_yet_are_refused_with_what_is_missing() {
-        use crate::types::Medium;
-        let fog = Material::Dielectric { ior: 1.3, medium: Some(Medium { sigma_a: Vec3::splat(0.1), sigma_s: Vec3::splat(0.5) }) };
-        let scene = corner(lambert(0.5), lambert(0.5)).sphere("fog", Vec3::new(0.0, 0.35, 0.0), 0.3, fog, Vec3::ZERO, false).build();
-        let accel = Accel::build(&scene, BuildQuality::Fast);
-        let err =
-            render(&scene, &accel, BidirSettings { max_depth: -1, min_depth: 1, rr_depth: 5, seed: 0, only: None }, 1, None).unwrap_err();
-        assert!(matches!(&err, NodeError::Input { msg, .. } if msg.contains("media")), "{err:?}");
+    fn it_agrees_with_the_path_tracer_through_media_inside_glass() {
+        // σt r about 1 and 6 across the ball: single scattering, then many scatterings.
+        // Measured at 4,096 samples, the mean comes out wrong without the transmittance along
+        // the joins inside the ball (18 % too bright at σs 3, 6.5 times at 20), without the
+        // phase function at the light subpath's scattering points (17 % too dark at 3), and
+        // without importance's missing 1/η² on entering the ball (8 % too dark at 3, 7.7 of
+        // its standard errors).
+        for (sigma_s, spp) in [(3.0, 4096), (20.0, 512)] {
+            let scene = fog(sigma_s);
+            agree(&bidir(&scene, spp, -1, None), &path(&scene, spp, -1), 0.9, &format!("σs {sigma_s}"));
+        }
     }
 
     #[test]

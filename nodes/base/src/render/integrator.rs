@@ -220,7 +220,7 @@ impl<'a> Tracer<'a> {
     }
 }
 
-enum MediumEvent {
+pub(crate) enum MediumEvent {
     /// Scatter at distance t with this throughput weight.
     Scatter(f32, Vec3),
     /// Reach the surface with this throughput weight.
@@ -231,7 +231,7 @@ enum MediumEvent {
 /// analytically (weight e^{−σa d}). Otherwise a colour channel is picked uniformly and the
 /// distance sampled from its extinction; weights use the average density over channels
 /// (one-sample MIS), which stays finite for σt = 0 and for σt = 10⁴ (underflow gives 0).
-fn sample_medium(m: &Medium, dist: f32, rng: &mut Sampler) -> MediumEvent {
+pub(crate) fn sample_medium(m: &Medium, dist: f32, rng: &mut Sampler) -> MediumEvent {
     let sigma_t = m.sigma_a + m.sigma_s;
     if m.sigma_s == Vec3::ZERO {
         let tr = if dist.is_finite() { (-sigma_t * dist).exp() } else { Vec3::select(sigma_t.cmpgt(Vec3::ZERO), Vec3::ZERO, Vec3::ONE) };

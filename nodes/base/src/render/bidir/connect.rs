@@ -1,9 +1,9 @@
 //! Joining the subpaths: the contribution of the strategy with `s` light and `t` camera
 //! vertices, before its MIS weight. s = 0: the camera subpath reached an emitter; t = 1: the
 //! light subpath's last vertex seen by the camera (it lands on some pixel); otherwise a shadow
-//! ray between the two subpaths' last vertices.
+//! ray between the two subpaths' last vertices, through the medium both lie in.
 
-use super::vertex::{toward, Mode, Vertex};
+use super::vertex::{toward, Kind, Mode, Vertex};
 use super::Bidir;
 use crate::render::integrator::Counts;
 use glam::Vec3;
@@ -31,7 +31,8 @@ impl Bidir<'_> {
             }
             let fp = self.cam.film_point(qs.p())?;
             let w = -fp.dir;
-            let value = qs.beta * self.sends(qs, w) * fp.importance;
+            let tr = transmittance(qs, &cam[0], fp.dist)?;
+            let value = qs.beta * self.sends(qs, w) * fp.importance * tr;
             if value == Vec3::ZERO || !self.visible(qs, &cam[0], counts) {
                 return None;
             }
@@ -47,7 +48,8 @@ impl Bidir<'_> {
         }
         // From an infinite light no distance falls off: its density is per solid angle.
         let falloff = if qs.is_infinite() { 1.0 } else { 1.0 / dist2 };
-        let value = qs.beta * self.sends(qs, w) * pt.f(-w, Mode::Radiance) * pt.beta * (pt.cos_g(w) * falloff);
+        let tr = transmittance(qs, pt, dist2.sqrt())?;
+        let value = qs.beta * self.sends(qs, w) * pt.f(-w, Mode::Radiance) * pt.beta * tr * (pt.cos_g(w) * falloff);
         if value == Vec3::ZERO || !value.is_finite() || !self.visible(qs, pt, counts) {
             return None;
         }
@@ -55,10 +57,11 @@ impl Bidir<'_> {
     }
 
     /// What the light subpath's vertex `qs` sends toward `w` per its weight, with the cosine
-    /// at `qs`: emission at the light's own vertex, the (adjoint) BSDF elsewhere.
+    /// at `qs`: emission at the light's own vertex, the (adjoint) BSDF or the phase function
+    /// elsewhere.
     fn sends(&self, qs: &Vertex, w: Vec3) -> Vec3 {
         let g = match qs.kind {
-            super::vertex::Kind::Surface => qs.f(w, Mode::Importance),
+            Kind::Surface | Kind::Medium => qs.f(w, Mode::Importance),
             _ => qs.emit(self.scene, w),
         };
         g * qs.cos_g(w)
@@ -79,4 +82,18 @@ impl Bidir<'_> {
         counts.rays += 1;
         !self.accel.occluded(origin, w, 0.0, tmax)
     }
+}
+
+/// Transmittance e^(−σt d) over the distance `dist` between two vertices, through the medium
+/// they lie in (1 outside media). `None` where they lie in different media: a boundary is
+/// between them, which the shadow ray would meet.
+fn transmittance(a: &Vertex, b: &Vertex, dist: f32) -> Option<Vec3> {
+    if a.medium != b.medium {
+        return None;
+    }
+    Some(match a.medium {
+        None => Vec3::ONE,
+        Some(m) if dist.is_finite() => (-(m.sigma_a + m.sigma_s) * dist).exp(),
+        Some(_) => Vec3::ZERO,
+    })
 }

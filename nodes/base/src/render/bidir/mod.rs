@@ -3,7 +3,8 @@
 //! join weighted by multiple importance sampling (power heuristic) over all the strategies
 //! that could have made the same path. It follows the unidirectional tracer's conventions
 //! (one-sided opaque materials, Mitsuba 3's `max_depth`, Russian roulette from `rr_depth`),
-//! so both estimate the same image.
+//! so both estimate the same image, homogeneous media inside dielectrics included (scattering
+//! points are vertices like any other, with the isotropic phase function for a BSDF).
 //!
 //! Light tracing (t = 1) lands on any pixel: those contributions come back as [`Splat`]s for
 //! the caller to add to the image, divided by the samples per pixel.
@@ -22,7 +23,7 @@ use crate::render::camera::CameraRays;
 use crate::render::integrator::{Counts, Sampler};
 use crate::render::lights::LightSampler;
 use crate::types::accel::Accel;
-use crate::types::{Material, Scene};
+use crate::types::Scene;
 use glam::Vec3;
 
 /// A light-tracing contribution to pixel `pixel` (row-major index) of one sample's light
@@ -45,14 +46,6 @@ pub struct BidirSettings {
     /// Only this strategy (s light vertices, t camera vertices), unweighted: each strategy
     /// alone is an unbiased estimate of the paths it can make (for tests).
     pub only: Option<(usize, usize)>,
-}
-
-/// What the bidirectional tracer cannot render yet, as a sentence; `None` when it can.
-pub fn unsupported(scene: &Scene) -> Option<&'static str> {
-    if scene.objects.iter().any(|o| matches!(o.material, Material::Dielectric { medium: Some(_), .. })) {
-        return Some("participating media inside dielectrics");
-    }
-    None
 }
 
 /// Everything shared by the samples of one render.
@@ -79,7 +72,7 @@ pub struct Bidir<'a> {
 const LIGHT_STREAM: u64 = 0x4C49_4748_5450_4154;
 
 impl<'a> Bidir<'a> {
-    /// The tracer of a scene [`unsupported`] accepts.
+    /// The tracer of `scene`.
     pub fn new(scene: &'a Scene, accel: &'a Accel, s: BidirSettings) -> Bidir<'a> {
         // Path segments at most; 0 shows emitters as 1 does, as the path tracer has it.
         let max_segments = if s.max_depth < 0 { usize::MAX - 1 } else { s.max_depth.max(1) as usize };

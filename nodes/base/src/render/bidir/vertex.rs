@@ -1,6 +1,7 @@
 //! The vertices of the bidirectional path tracer's subpaths: what each scatters or emits
-//! toward a direction, and the densities (per unit area at the next vertex) with which its
-//! subpath, or the other subpath run backwards, reaches a neighbour.
+//! toward a direction, and the densities (per unit area at the next vertex, per unit volume
+//! at a point in a medium) with which its subpath, or the other subpath run backwards,
+//! reaches a neighbour.
 
 use crate::brdf;
 use crate::math::frame::Frame;
@@ -8,7 +9,7 @@ use crate::math::sampling::UNIFORM_SPHERE_PDF;
 use crate::render::camera::CameraRays;
 use crate::render::lights::{spot_falloff, LightSampler};
 use crate::render::surface::Surface;
-use crate::types::{Light, Material, Scene};
+use crate::types::{Light, Material, Medium, Scene};
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
 
@@ -33,6 +34,8 @@ pub enum Kind {
     Infinite(Option<usize>),
     /// A scattering point on a surface.
     Surface,
+    /// A scattering point inside a homogeneous medium (isotropic phase function).
+    Medium,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -54,6 +57,9 @@ pub struct Vertex {
     /// sampled it, and as the other subpath would have, run backwards.
     pub pdf_fwd: f32,
     pub pdf_rev: f32,
+    /// The medium the vertex lies in (on a surface, on the side its subpath arrived from);
+    /// `None` outside media, where the camera and the lights are.
+    pub medium: Option<Medium>,
 }
 
 /// A point with no surface (the pinhole, a delta light).
@@ -76,7 +82,7 @@ impl Vertex {
     fn new(kind: Kind, surf: Surface, beta: Vec3, pdf_fwd: f32) -> Vertex {
         let material = Material::Lambert { albedo: Vec3::ZERO };
         let frame = Frame { s: Vec3::X, t: Vec3::Y, n: Vec3::Z };
-        Vertex { kind, surf, material, frame, wo: Vec3::ZERO, beta, delta: false, pdf_fwd, pdf_rev: 0.0 }
+        Vertex { kind, surf, material, frame, wo: Vec3::ZERO, beta, delta: false, pdf_fwd, pdf_rev: 0.0, medium: None }
     }
 
     pub fn camera(p: Vec3) -> Vertex {
@@ -102,6 +108,11 @@ impl Vertex {
     /// A surface point reached along `-wo` with weight `beta`.
     pub fn surface(surf: Surface, material: Material, wo: Vec3, beta: Vec3) -> Vertex {
         Vertex { material, frame: Frame::from_normal(surf.ns), wo, ..Vertex::new(Kind::Surface, surf, beta, 0.0) }
+    }
+
+    /// A scattering point `p` inside `medium`, reached along `-wo` with weight `beta`.
+    pub fn in_medium(p: Vec3, medium: Medium, wo: Vec3, beta: Vec3) -> Vertex {
+        Vertex { wo, medium: Some(medium), ..Vertex::new(Kind::Medium, bare(p), beta, 0.0) }
     }
 
     pub fn p(&self) -> Vec3 {
@@ -144,7 +155,7 @@ impl Vertex {
         match self.kind {
             Kind::Surface => w.dot(self.surf.ns).abs(),
             Kind::AreaLight => w.dot(self.surf.ng).abs(),
-            Kind::Camera | Kind::DeltaLight(_) | Kind::Infinite(_) => 1.0,
+            Kind::Camera | Kind::DeltaLight(_) | Kind::Infinite(_) | Kind::Medium => 1.0,
         }
     }
 
@@ -159,8 +170,12 @@ impl Vertex {
 
     /// The BSDF of a surface vertex from its previous vertex toward `w`, as its subpath
     /// carries it: opaque materials are one-sided, as in the path tracer (both directions on
-    /// the front of the geometric surface); Dirac lobes give 0.
+    /// the front of the geometric surface); Dirac lobes give 0. In a medium, the isotropic
+    /// phase function 1/4π (the same both ways).
     pub fn f(&self, w: Vec3, mode: Mode) -> Vec3 {
+        if self.kind == Kind::Medium {
+            return Vec3::splat(UNIFORM_SPHERE_PDF);
+        }
         if self.kind != Kind::Surface || self.wo.dot(self.surf.ng) <= 0.0 || w.dot(self.surf.ng) <= 0.0 {
             return Vec3::ZERO;
         }
@@ -220,7 +235,7 @@ impl Vertex {
                 }
                 Light::Directional { .. } => 0.0,
             },
-            Kind::Camera | Kind::Infinite(_) => 0.0,
+            Kind::Camera | Kind::Infinite(_) | Kind::Medium => 0.0,
         }
     }
 
@@ -254,6 +269,7 @@ impl Vertex {
             Kind::Infinite(_) => return self.light_pdf(scene, next),
             Kind::Camera => cam.direction_pdf(w),
             Kind::AreaLight | Kind::DeltaLight(_) => self.emit_pdf(scene, w),
+            Kind::Medium => UNIFORM_SPHERE_PDF,
             Kind::Surface => {
                 let ng = self.surf.ng;
                 if brdf::is_delta(&self.material) || from.dot(ng) <= 0.0 || w.dot(ng) <= 0.0 {

@@ -1,15 +1,15 @@
 //! The two subpaths: the camera's and a light's, each a random walk that records at every
 //! vertex its weight and the densities of reaching it from either end.
 
-use super::vertex::{cone_pdf, shading_correction, to_area, toward, Mode, Vertex};
+use super::vertex::{cone_pdf, shading_correction, to_area, toward, Kind, Mode, Vertex};
 use super::Bidir;
 use crate::brdf;
 use crate::math::frame::Frame;
 use crate::math::sampling::{concentric_disk, cosine_hemisphere, uniform_sphere, uniform_triangle, UNIFORM_SPHERE_PDF};
-use crate::render::integrator::{Counts, Sampler};
+use crate::render::integrator::{sample_medium, Counts, MediumEvent, Sampler};
 use crate::render::lights::Emitter;
 use crate::render::surface::Surface;
-use crate::types::{Environment, Light, Material};
+use crate::types::{Environment, Light, Material, Medium};
 use glam::Vec3;
 use std::f32::consts::PI;
 
@@ -111,9 +111,12 @@ impl Bidir<'_> {
     }
 
     /// Extends `path` from its last vertex along the ray (o, d) with weight `beta`, the ray's
-    /// solid-angle density `pdf` (per unit area across the beam after an infinite light), until it has `max` vertices, leaves the scene, meets the back
-    /// of an opaque surface, its BSDF sample fails or Russian roulette ends it (from
-    /// `rr_depth` bounces on, continuing with probability min(β / β₁, 0.95)).
+    /// solid-angle density `pdf` (per unit area across the beam after an infinite light),
+    /// until it has `max` vertices, leaves the scene, meets the back of an opaque surface, its
+    /// BSDF sample fails or Russian roulette ends it (from `rr_depth` bounces on, continuing
+    /// with probability min(β / β₁, 0.95)). Inside a dielectric's medium a scattering point
+    /// may come before the next surface, drawn as the path tracer draws it; the subpath starts
+    /// outside media and enters or leaves one where it crosses the boundary.
     #[allow(clippy::too_many_arguments)]
     fn walk(
         &self,
@@ -128,62 +131,65 @@ impl Bidir<'_> {
         counts: &mut Counts,
     ) {
         let beta1 = beta.max_element();
+        let mut medium: Option<Medium> = None;
         while path.len() < max {
             counts.rays += 1;
-            let Some(hit) = self.accel.intersect(o, d, 0.0, f32::INFINITY) else {
-                if mode == Mode::Radiance && self.scene.environment.is_some() {
-                    path.push(Vertex::infinite(None, d, self.far(d), self.disk, beta, pdf));
+            let hit = self.accel.intersect(o, d, 0.0, f32::INFINITY);
+            let mut scatter_at = None;
+            if let Some(m) = &medium {
+                match sample_medium(m, hit.map_or(f32::INFINITY, |h| h.t), rng) {
+                    MediumEvent::Scatter(t, weight) => {
+                        beta *= weight;
+                        scatter_at = Some(o + d * t);
+                    }
+                    MediumEvent::Pass(weight) => beta *= weight,
                 }
-                break;
-            };
-            let surf = Surface::at(self.scene, &hit, o, d);
-            let material = surf.material(self.scene);
-            if !brdf::is_delta(&material) && d.dot(surf.ng) >= 0.0 {
-                break;
+                if beta == Vec3::ZERO || !beta.is_finite() {
+                    break;
+                }
             }
-            let mut v = Vertex::surface(surf, material, -d, beta);
+            let mut v = match (scatter_at, medium, hit) {
+                (Some(p), Some(m), _) => Vertex::in_medium(p, m, -d, beta),
+                (_, _, None) => {
+                    if mode == Mode::Radiance && self.scene.environment.is_some() {
+                        path.push(Vertex::infinite(None, d, self.far(d), self.disk, beta, pdf));
+                    }
+                    break;
+                }
+                (_, _, Some(hit)) => {
+                    let surf = Surface::at(self.scene, &hit, o, d);
+                    let material = surf.material(self.scene);
+                    if !brdf::is_delta(&material) && d.dot(surf.ng) >= 0.0 {
+                        break;
+                    }
+                    Vertex { medium, ..Vertex::surface(surf, material, -d, beta) }
+                }
+            };
             let prev = &path[path.len() - 1];
             v.pdf_fwd = if prev.is_infinite() {
                 pdf * v.cos_area(d)
             } else {
-                let (w, dist2) = toward(prev.p(), surf.p);
+                let (w, dist2) = toward(prev.p(), v.p());
                 to_area(pdf, &v, w, dist2)
             };
             path.push(v);
             if path.len() >= max {
                 break;
             }
-            let wo = v.frame.to_local(-d);
-            let Some(bs) = brdf::sample(&material, wo, rng.draw2(), rng.draw()) else { break };
-            if !(bs.pdf > 0.0 && bs.pdf.is_finite()) {
-                break;
-            }
-            let wi = v.frame.to_world(bs.wi);
-            if !bs.delta && wi.dot(surf.ng) <= 0.0 {
-                break;
-            }
-            let mut weight = bs.f * (bs.wi.z.abs() / bs.pdf);
-            if mode == Mode::Importance {
-                weight *= shading_correction(&surf, -d, wi);
-                if let Material::Dielectric { ior, .. } = material {
-                    // Importance does not scale by 1/η² across a boundary, radiance does.
-                    if bs.wi.z * wo.z < 0.0 {
-                        let eta = if wo.z > 0.0 { ior } else { 1.0 / ior };
-                        weight *= eta * eta;
-                    }
+            let Some(step) = self.scatter(&v, mode, rng) else { break };
+            let here = path.len() - 1;
+            path[here].delta = step.delta;
+            let (back, back2) = toward(v.p(), path[here - 1].p());
+            path[here - 1].pdf_rev = to_area(step.pdf_rev, &path[here - 1], back, back2);
+            if let Material::Dielectric { medium: inside, .. } = v.material {
+                // Entering the object (against its outward normal) or leaving it.
+                let ng = v.surf.ng;
+                if (step.wi.dot(ng) < 0.0) != (v.wo.dot(ng) < 0.0) {
+                    medium = if step.wi.dot(ng) < 0.0 { inside } else { None };
                 }
             }
-            let here = path.len() - 1;
-            let pdf_rev = if bs.delta {
-                path[here].delta = true;
-                0.0
-            } else {
-                brdf::pdf(&material, bs.wi, wo)
-            };
-            let (back, back2) = toward(surf.p, path[here - 1].p());
-            path[here - 1].pdf_rev = to_area(pdf_rev, &path[here - 1], back, back2);
-            pdf = if bs.delta { 0.0 } else { bs.pdf };
-            beta *= weight;
+            pdf = step.pdf;
+            beta *= step.weight;
             if beta == Vec3::ZERO || !beta.is_finite() {
                 break;
             }
@@ -194,8 +200,52 @@ impl Bidir<'_> {
                 }
                 beta /= q;
             }
-            o = surf.spawn(wi, self.eps);
-            d = wi;
+            o = if v.on_surface() { v.surf.spawn(step.wi, self.eps) } else { v.p() };
+            d = step.wi;
         }
     }
+
+    /// The direction a subpath leaves vertex `v` in (the BSDF's sample on surfaces, uniform
+    /// over the sphere in a medium), its weight f |cos| / pdf as the subpath carries it, and
+    /// the solid-angle densities of that direction forward and backward; `None` where the
+    /// sample fails or leaves an opaque surface through its back.
+    fn scatter(&self, v: &Vertex, mode: Mode, rng: &mut Sampler) -> Option<Step> {
+        if v.kind == Kind::Medium {
+            // Isotropic phase: f = pdf = 1/4π, weight 1.
+            let wi = uniform_sphere(rng.draw2());
+            return Some(Step { wi, weight: Vec3::ONE, pdf: UNIFORM_SPHERE_PDF, pdf_rev: UNIFORM_SPHERE_PDF, delta: false });
+        }
+        let (surf, material) = (&v.surf, v.material);
+        let wo = v.frame.to_local(v.wo);
+        let bs = brdf::sample(&material, wo, rng.draw2(), rng.draw())?;
+        if !(bs.pdf > 0.0 && bs.pdf.is_finite()) {
+            return None;
+        }
+        let wi = v.frame.to_world(bs.wi);
+        if !bs.delta && wi.dot(surf.ng) <= 0.0 {
+            return None;
+        }
+        let mut weight = bs.f * (bs.wi.z.abs() / bs.pdf);
+        if mode == Mode::Importance {
+            weight *= shading_correction(surf, v.wo, wi);
+            if let Material::Dielectric { ior, .. } = material {
+                // Importance does not scale by 1/η² across a boundary, radiance does.
+                if bs.wi.z * wo.z < 0.0 {
+                    let eta = if wo.z > 0.0 { ior } else { 1.0 / ior };
+                    weight *= eta * eta;
+                }
+            }
+        }
+        let (pdf, pdf_rev) = if bs.delta { (0.0, 0.0) } else { (bs.pdf, brdf::pdf(&material, bs.wi, wo)) };
+        Some(Step { wi, weight, pdf, pdf_rev, delta: bs.delta })
+    }
+}
+
+/// One scattering step of a subpath (see [`Bidir::scatter`]); Dirac lobes have densities 0.
+struct Step {
+    wi: Vec3,
+    weight: Vec3,
+    pdf: f32,
+    pdf_rev: f32,
+    delta: bool,
 }
