@@ -57,6 +57,32 @@ fn cornell_bunny_places_the_bunny_on_the_floor_with_dynamic_materials() {
 }
 
 #[test]
+fn cornell_heavy_stands_three_subdivided_meshes_on_the_floor_apart() {
+    let (s, _) = load("cornell-heavy");
+    assert_eq!(s.triangles.len(), 472_632, "the box's 12 triangles and the meshes at 4, 16 and 16 times theirs");
+    assert!(s.objects.iter().all(|o| matches!(o.material, Material::Lambert { .. }) && !o.dynamic));
+    let bounds = |name: &str| {
+        let o = object(&s, name);
+        o.triangles
+            .clone()
+            .flat_map(|t| s.corners(t as usize))
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)))
+    };
+    let boxes: Vec<(Vec3, Vec3)> = ["bunny", "spot", "teapot"].iter().map(|n| bounds(n)).collect();
+    for (name, (lo, hi)) in ["bunny", "spot", "teapot"].iter().zip(&boxes) {
+        assert!((lo.y - -1.0).abs() < 0.02, "{name} rests on the floor: lowest point {}", lo.y);
+        assert!(lo.cmpge(Vec3::splat(-1.01)).all() && hi.cmple(Vec3::splat(1.0)).all(), "{name} inside the box: {lo} {hi}");
+    }
+    for i in 0..3 {
+        for j in i + 1..3 {
+            let ((a0, a1), (b0, b1)) = (boxes[i], boxes[j]);
+            let overlap = a0.cmplt(b1).all() && b0.cmplt(a1).all();
+            assert!(!overlap, "meshes {i} and {j} overlap: {a0} {a1} against {b0} {b1}");
+        }
+    }
+}
+
+#[test]
 fn ring_envlit_and_glass_load_with_their_lights() {
     let (ring, _) = load("ring");
     assert_eq!(ring.lights, vec![Light::Point { position: Vec3::new(-3.0, 1.2, 0.0), intensity: Vec3::splat(40.0) }]);

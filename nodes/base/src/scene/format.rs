@@ -21,7 +21,9 @@
 use super::envmap::Sky;
 use super::obj::load_obj_file;
 use super::shapes::{crease_normals, sphere};
+use super::subdivide::{subdivide, subdivided_count, MAX_LEVELS};
 use crate::image::io::decode_image;
+use crate::types::accel::Accel;
 use crate::types::{Camera, EnvMap, Environment, Light, Material, MaterialMaps, Medium, Object, Scene, Texture};
 use glam::{Mat3, Mat4, Vec2, Vec3};
 use relume_core::ron::fields::{bool_of, f64_in, f64_of, list_of, map_of, str_of, triple, usize_in, variant, Fields};
@@ -252,6 +254,8 @@ impl Builder {
         // Normals are smoothed across edges flatter than this angle and kept sharp across
         // steeper ones (a box stays flat-shaded, a scanned bunny smooth).
         let crease = f.opt("crease_angle").map(|c| f64_in(c, "crease_angle", 0.0, 180.0)).transpose()?.unwrap_or(30.0) as f32;
+        // Midpoint subdivision levels (4× the triangles each, the same surface).
+        let levels = f.opt("subdivide").map(|l| usize_in(l, "subdivide", 0, MAX_LEVELS as usize)).transpose()?.unwrap_or(0) as u32;
         match kind {
             "Obj" => {
                 let pv = f.req("path")?;
@@ -278,7 +282,24 @@ impl Builder {
                         return Err(at(v, format!("exclude: {} has no object \"{x}\"", p.display())));
                     }
                 }
-                for m in models.into_iter().filter(|m| !exclude.contains(&m.name)) {
+                for mut m in models.into_iter().filter(|m| !exclude.contains(&m.name)) {
+                    if levels > 0 {
+                        // Refused before the finer mesh is allocated: no scene may pass what
+                        // the ray tracer's tree indexes.
+                        let n = subdivided_count(m.triangles.len(), levels).filter(|&n| n <= Accel::MAX_TRIANGLES as u64);
+                        if n.is_none() {
+                            return Err(at(
+                                v,
+                                format!(
+                                    "subdivide: {levels} levels of \"{}\" ({} triangles) would pass the {} triangles a scene may hold",
+                                    m.name,
+                                    m.triangles.len(),
+                                    Accel::MAX_TRIANGLES
+                                ),
+                            ));
+                        }
+                        subdivide(&mut m.positions, &mut m.uvs, &mut m.triangles, levels);
+                    }
                     let mat = material
                         .or(m.material)
                         .ok_or_else(|| at(v, format!("object \"{}\" has no material (give `material:` or a usemtl)", m.name)))?;
@@ -294,6 +315,9 @@ impl Builder {
                 let radius = f64_in(f.req("radius")?, "radius", 1e-9, 1e9)? as f32;
                 let rings = f.opt("rings").map(|r| usize_in(r, "rings", 2, 4096)).transpose()?.unwrap_or(96);
                 let mat = material.ok_or_else(|| at(v, "a Sphere needs `material`"))?;
+                if levels > 0 {
+                    return Err(at(v, "a Sphere is made as fine as `rings` says; `subdivide` is for Obj shapes"));
+                }
                 let (pos, nrm, tris) = sphere(center, radius, rings, 2 * rings);
                 self.push_object(
                     name.unwrap_or_else(|| format!("sphere{}", self.objects.len())),
@@ -318,6 +342,7 @@ impl Builder {
             "transform",
             "exclude",
             "crease_angle",
+            "subdivide",
             "center",
             "radius",
             "rings",
@@ -602,5 +627,37 @@ mod tests {
         let Some(Environment::Map(m)) = &s.scene.environment else { panic!("a baked sky") };
         let brightest = m.texels.iter().map(|t| t.x).fold(0.0, f32::max);
         assert!(brightest > 10.0, "the sun is baked in even when smaller than a texel: {brightest}");
+    }
+}
+
+#[cfg(test)]
+mod subdivide_tests {
+    use super::*;
+
+    fn load(shape: &str) -> Result<Scene, String> {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("quad.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n").unwrap();
+        let text = format!(
+            "Scene(camera: (origin: (0, 0, 3), target: (0, 0, 0), up: (0, 1, 0), fov: 40, width: 8, height: 8), materials: {{ \"m\": Lambert(albedo: 0.5) }}, shapes: [{shape}])"
+        );
+        std::fs::write(dir.path().join("a.ron"), text).unwrap();
+        load_scene_file(&dir.path().join("a.ron")).map(|s| s.scene)
+    }
+
+    #[test]
+    fn an_obj_shape_subdivides_into_four_times_the_triangles_a_level() {
+        let plain = load("Obj(path: \"quad.obj\", material: \"m\")").unwrap();
+        let fine = load("Obj(path: \"quad.obj\", material: \"m\", subdivide: 3)").unwrap();
+        assert_eq!((plain.triangles.len(), fine.triangles.len()), (2, 2 * 64));
+        let area = |s: &Scene| (0..s.triangles.len()).map(|t| s.normal_area(t).1).sum::<f32>();
+        assert!((area(&fine) - area(&plain)).abs() < 1e-5, "the same surface");
+    }
+
+    #[test]
+    fn subdivision_past_its_levels_or_on_a_sphere_is_refused() {
+        let err = load("Obj(path: \"quad.obj\", material: \"m\", subdivide: 5)").unwrap_err();
+        assert!(err.contains("subdivide"), "{err}");
+        let err = load("Sphere(center: (0, 0, 0), radius: 1, material: \"m\", subdivide: 1)").unwrap_err();
+        assert!(err.contains("rings"), "{err}");
     }
 }

@@ -1,4 +1,4 @@
-//! Scenes: the file format, OBJ loading, analytic shapes, environment maps, and the scene
+//! Scenes: the file format, OBJ loading, analytic shapes, mesh subdivision, environment maps, and the scene
 //! nodes: LoadScene, MoveObject, DeformMesh, OrbitCamera.
 
 pub mod builder;
@@ -10,4 +10,5 @@ pub mod move_object;
 pub mod obj;
 pub mod orbit_camera;
 pub mod shapes;
+pub mod subdivide;
 pub mod turn_environment;
