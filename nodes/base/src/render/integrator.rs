@@ -185,14 +185,7 @@ impl<'a> Tracer<'a> {
             if !throughput.is_finite() || throughput == Vec3::ZERO {
                 break;
             }
-            if let Material::Dielectric { medium: m, .. } = material {
-                // Entering the object (travelling against its outward normal) or leaving it.
-                let entering = wi.dot(surf.ng) < 0.0;
-                let crossed = (wi.dot(surf.ng) < 0.0) != (-d.dot(surf.ng) < 0.0);
-                if crossed {
-                    medium = if entering { m } else { None };
-                }
-            }
+            medium = medium_after(&material, surf.ng, -d, wi, medium);
             prev_pdf = bs.pdf;
             prev_delta = bs.delta;
             o = surf.spawn(wi, self.eps);
@@ -217,6 +210,23 @@ impl<'a> Tracer<'a> {
         }
         *throughput /= q;
         true
+    }
+}
+
+/// The medium a path travels in after it scatters at a surface of `material` (geometric
+/// normal `ng`) from `wo` (toward where it came from) into `wi`: a dielectric's own medium
+/// where it enters the object (against its outward normal), none where it leaves it, and
+/// `current` where it stays on its side.
+pub(crate) fn medium_after(material: &Material, ng: Vec3, wo: Vec3, wi: Vec3, current: Option<Medium>) -> Option<Medium> {
+    match material {
+        Material::Dielectric { medium, .. } if (wi.dot(ng) < 0.0) != (wo.dot(ng) < 0.0) => {
+            if wi.dot(ng) < 0.0 {
+                *medium
+            } else {
+                None
+            }
+        }
+        _ => current,
     }
 }
 

@@ -6,7 +6,7 @@ use super::Bidir;
 use crate::brdf;
 use crate::math::frame::Frame;
 use crate::math::sampling::{concentric_disk, cosine_hemisphere, uniform_sphere, uniform_triangle, UNIFORM_SPHERE_PDF};
-use crate::render::integrator::{sample_medium, Counts, MediumEvent, Sampler};
+use crate::render::integrator::{medium_after, sample_medium, Counts, MediumEvent, Sampler};
 use crate::render::lights::Emitter;
 use crate::render::surface::Surface;
 use crate::types::{Environment, Light, Material, Medium};
@@ -181,13 +181,7 @@ impl Bidir<'_> {
             path[here].delta = step.delta;
             let (back, back2) = toward(v.p(), path[here - 1].p());
             path[here - 1].pdf_rev = to_area(step.pdf_rev, &path[here - 1], back, back2);
-            if let Material::Dielectric { medium: inside, .. } = v.material {
-                // Entering the object (against its outward normal) or leaving it.
-                let ng = v.surf.ng;
-                if (step.wi.dot(ng) < 0.0) != (v.wo.dot(ng) < 0.0) {
-                    medium = if step.wi.dot(ng) < 0.0 { inside } else { None };
-                }
-            }
+            medium = medium_after(&v.material, v.surf.ng, v.wo, step.wi, medium);
             pdf = step.pdf;
             beta *= step.weight;
             if beta == Vec3::ZERO || !beta.is_finite() {
