@@ -11,7 +11,8 @@ params! {
     /// unbiased; next-event estimation with MIS (power heuristic) against BSDF sampling;
     /// importance-sampled environment maps; smooth dielectrics with homogeneous media;
     /// `max_depth` as in Mitsuba 3 (1: emitters only, 2: direct light, 3: one bounce, −1:
-    /// unbounded with Russian roulette from `rr_depth`); box pixel filter. Samples are taken
+    /// unbounded with Russian roulette from `rr_depth`); `min_depth` leaves out the light of
+    /// shorter paths (3: the indirect light alone); box pixel filter. Samples are taken
     /// in passes of doubling size (progress and cancellation between rows; after each pass the
     /// band so far goes to a watcher that asks, as the editor's viewer does); each pixel's
     /// random numbers depend only on (seed, pixel, sample), so the image has the same bytes on
@@ -23,6 +24,10 @@ params! {
         pub spp: u32 = 16, range = 1..=(1 << 20), unit = "samples/pixel", test = 4;
         /// maximum path segments (Mitsuba's meaning); -1 = unbounded
         pub max_depth: i32 = -1, range = -1..=1024;
+        /// fewest path segments counted: 1 = all light, 3 = indirect only (with max_depth 3,
+        /// one bounce: what a point-based gather's indirect image estimates); the paths are
+        /// the same at every value, so min_depth 3 is max_depth 3 minus max_depth 2 at one seed
+        pub min_depth: u32 = 1, range = 1..=1024;
         /// depth at which Russian roulette starts
         pub rr_depth: u32 = 5, range = 1..=1024;
         /// random seed
@@ -45,7 +50,7 @@ pub fn render_rows(scene: &Scene, accel: &Accel, p: &PathTrace, rows: Range<usiz
         let (mean, var) = (Image::try_new(w, rows.len())?, Image::try_new(w, rows.len())?);
         return Ok(ImageRows::new(w, rows, vec![mean, var], vec![0, 0]));
     }
-    let tracer = Tracer::new(scene, accel, Settings { max_depth: p.max_depth, rr_depth: p.rr_depth, seed: p.seed });
+    let tracer = Tracer::new(scene, accel, Settings { max_depth: p.max_depth, min_depth: p.min_depth, rr_depth: p.rr_depth, seed: p.seed });
     let cam_rays = CameraRays::new(cam);
     let y0 = rows.start;
     with_ctx(cx, |cx| {
@@ -123,7 +128,7 @@ mod tests {
     use relume_core::Value;
 
     fn params(spp: u32, max_depth: i32) -> PathTrace {
-        PathTrace { spp, max_depth, rr_depth: 5, seed: 1 }
+        PathTrace { spp, max_depth, min_depth: 1, rr_depth: 5, seed: 1 }
     }
 
     #[test]
@@ -134,6 +139,24 @@ mod tests {
         let (one, two, three) = (sum(1), sum(2), sum(3));
         assert_eq!(one, 0.0, "no emitter is visible: a point light only");
         assert!(two > 0.0 && three > two, "{two} {three}");
+    }
+
+    #[test]
+    fn min_depth_three_is_the_one_bounce_light_of_the_same_paths() {
+        let scene = test_scene::spheres();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let image = |max_depth, min_depth| {
+            let p = PathTrace { min_depth, ..params(8, max_depth) };
+            render(&scene, &accel, &p, None).unwrap().0.as_floats().to_vec()
+        };
+        let (three, two, bounce) = (image(3, 1), image(2, 1), image(3, 3));
+        let mut sum = 0.0;
+        for ((a, b), c) in three.iter().zip(&two).zip(&bounce) {
+            assert!((a - b - c).abs() <= 1e-5 * a.abs().max(1.0), "{a} - {b} against {c}");
+            sum += *c as f64;
+        }
+        assert!(sum > 0.0, "light bounces between the spheres");
+        assert!(image(2, 3).iter().all(|&x| x == 0.0), "no path is both ≥ 3 and ≤ 2 segments long");
     }
 
     #[test]

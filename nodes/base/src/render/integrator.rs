@@ -19,6 +19,10 @@ use glam::{Vec2, Vec3};
 pub struct Settings {
     /// Mitsuba's max_depth: maximum number of path segments; −1 for no limit.
     pub max_depth: i32,
+    /// Fewest path segments whose light is counted (1: all of it; 3 with `max_depth` 3: the
+    /// one-bounce indirect light alone). The paths and their random numbers are the same at
+    /// every value: only what shorter paths add is left out.
+    pub min_depth: u32,
     /// Depth from which Russian roulette may end paths (Mitsuba's rr_depth, default 5).
     pub rr_depth: u32,
     pub seed: u64,
@@ -119,7 +123,7 @@ impl<'a> Tracer<'a> {
             }
             let Some(hit) = hit else {
                 let le = self.environment(d);
-                if le != Vec3::ZERO {
+                if le != Vec3::ZERO && depth + 1 >= s.min_depth {
                     let w = if prev_delta { 1.0 } else { power_heuristic(prev_pdf, self.lights.pdf_environment(self.scene, d)) };
                     result += throughput * le * w;
                 }
@@ -128,7 +132,7 @@ impl<'a> Tracer<'a> {
             let surf = Surface::at(self.scene, &hit, o, d);
             let obj = &self.scene.objects[surf.object as usize];
             let front = d.dot(surf.ng) < 0.0;
-            if front && obj.emission != Vec3::ZERO {
+            if front && obj.emission != Vec3::ZERO && depth + 1 >= s.min_depth {
                 let w = if prev_delta {
                     1.0
                 } else {
@@ -153,12 +157,14 @@ impl<'a> Tracer<'a> {
             let frame = Frame::from_normal(ns);
             let wo = frame.to_local(-d);
 
-            // Next-event estimation.
+            // Next-event estimation (a path of depth + 2 segments).
             if !brdf::is_delta(&material) {
                 if let Some(ls) = self.lights.sample(self.scene, surf.p, rng.draw(), rng.draw2()) {
                     let wi = frame.to_local(ls.wi);
                     let f = brdf::eval(&material, wo, wi) * wi.z.abs();
-                    if f != Vec3::ZERO && ls.li != Vec3::ZERO && ls.wi.dot(surf.ng) > 0.0 {
+                    // The light sample's numbers are drawn either way, so that `min_depth` leaves
+                    // the paths as they are; the shadow ray is traced only when counted.
+                    if depth + 2 >= s.min_depth && f != Vec3::ZERO && ls.li != Vec3::ZERO && ls.wi.dot(surf.ng) > 0.0 {
                         counts.rays += 1;
                         let origin = surf.spawn(ls.wi, self.eps);
                         let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) - self.eps } else { f32::INFINITY };
