@@ -362,12 +362,14 @@ fn splat_taps(n: usize, dirs: &[Option<Vec3>], d: Vec3, omega: f32, f: &mut impl
         }
         return;
     }
-    // Pixels whose centre lies within the angular radius; the footprint on the disk is at
-    // most sin α wide around (d.x, d.y).
-    let reach = alpha.sin() + 2.0 / nf;
-    let lo = |c: f32| (((c - reach + 1.0) * 0.5 * nf).floor().max(0.0)) as usize;
-    let hi = |c: f32| (((c + reach + 1.0) * 0.5 * nf).ceil().min(nf - 1.0)) as usize;
+    // Pixels whose centre w lies within the angular radius: w · d ≥ cos α, so |w − d| is at
+    // most the chord 2 sin(α/2) = √(2 − 2 cos α), and so is the distance of their centres on
+    // the disk (the projection shortens distances). Only the pixels whose centre lies that
+    // near (d.x, d.y) in x and in y are tested; a margin covers rounding.
     let cos_a = alpha.cos();
+    let chord = (2.0 - 2.0 * cos_a).max(0.0).sqrt() + 1e-4;
+    let lo = |c: f32| (((c - chord + 1.0) * 0.5 * nf - 0.5).floor().max(0.0)) as usize;
+    let hi = |c: f32| (((c + chord + 1.0) * 0.5 * nf - 0.5).ceil().clamp(0.0, nf - 1.0)) as usize;
     let mut any = false;
     for y in lo(d.y)..=hi(d.y) {
         for x in lo(d.x)..=hi(d.x) {
@@ -406,6 +408,38 @@ mod tests {
         let mut one = Microbuffer::new(1);
         one.radiance[0] = Vec3::ONE;
         assert!((one.convolve(&Material::Lambert { albedo: Vec3::ONE }, Vec3::Z).x - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_large_splat_covers_exactly_the_pixels_within_its_angular_radius() {
+        // Against every pixel tested: the box the splat searches must hold all of them, for
+        // nodes from a few pixels to a quarter of the hemisphere, near the zenith and the rim.
+        let mut rng = 0x9e37_79b9_u32;
+        let mut next = || {
+            rng ^= rng << 13;
+            rng ^= rng >> 17;
+            rng ^= rng << 5;
+            rng as f32 / u32::MAX as f32
+        };
+        for n in [8, 16, 32] {
+            let mb = Microbuffer::new(n);
+            for _ in 0..2000 {
+                let (u, v) = (next(), next());
+                let z = (1.0 - u * 0.999).max(1e-3);
+                let r = (1.0 - z * z).sqrt();
+                let phi = v * std::f32::consts::TAU;
+                let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+                let omega = mb.pixel_weight() / z * (1.0 + 200.0 * next() * next());
+                let mut got = Vec::new();
+                mb.splat_writes(d, omega, &mut |i, c| got.push((i, c)));
+                let alpha = (omega / std::f32::consts::PI).sqrt().min(std::f32::consts::FRAC_PI_2);
+                let want: Vec<(usize, f32)> =
+                    (0..n * n).filter(|&i| mb.dirs[i].is_some_and(|w| w.dot(d) >= alpha.cos())).map(|i| (i, 1.0)).collect();
+                if !want.is_empty() {
+                    assert_eq!(got, want, "n {n}, d {d}, omega {omega}");
+                }
+            }
+        }
     }
 
     #[test]
