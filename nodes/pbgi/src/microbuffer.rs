@@ -411,17 +411,21 @@ mod tests {
         assert!((one.convolve(&Material::Lambert { albedo: Vec3::ONE }, Vec3::Z).x - 1.0).abs() < 1e-6);
     }
 
+    /// Uniform numbers in [0, 1] from a xorshift seeded with `seed` (non-zero).
+    fn uniforms(mut state: u32) -> impl FnMut() -> f32 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state as f32 / u32::MAX as f32
+        }
+    }
+
     #[test]
     fn a_large_splat_covers_exactly_the_pixels_within_its_angular_radius() {
         // Against every pixel tested: the box the splat searches must hold all of them, for
         // nodes from a few pixels to a quarter of the hemisphere, near the zenith and the rim.
-        let mut rng = 0x9e37_79b9_u32;
-        let mut next = || {
-            rng ^= rng << 13;
-            rng ^= rng >> 17;
-            rng ^= rng << 5;
-            rng as f32 / u32::MAX as f32
-        };
+        let mut next = uniforms(0x9e37_79b9_u32);
         for n in [8, 16, 32] {
             let mb = Microbuffer::new(n);
             for _ in 0..2000 {
@@ -503,13 +507,7 @@ mod tests {
     fn a_near_disk_is_found_at_every_pixel_its_cone_reaches() {
         // Disks a little more than their radius away, in any direction above the horizon and
         // at any tilt: the searched box must give what testing every pixel gives.
-        let mut rng = 0x2545_f491_u32;
-        let mut next = || {
-            rng ^= rng << 13;
-            rng ^= rng >> 17;
-            rng ^= rng << 5;
-            rng as f32 / u32::MAX as f32
-        };
+        let mut next = uniforms(0x2545_f491_u32);
         let unit = |u: f32, v: f32, z: f32| {
             let r = (1.0 - z * z).max(0.0).sqrt();
             Vec3::new(r * (u * std::f32::consts::TAU).cos(), r * (u * std::f32::consts::TAU).sin(), z * v.signum())
