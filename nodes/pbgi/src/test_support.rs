@@ -67,13 +67,19 @@ pub mod wpbgi_setup {
     use relume_base::types::{Light, Material, Scene, SurfacePoints};
     use relume_core::{CancelToken, RunCtx, Value};
 
+    /// The corner's point light.
+    const LIGHT: Vec3 = Vec3::new(0.3, 1.2, 0.6);
+    const INTENSITY: f32 = 3.0;
+    /// The floor's albedo (and the wall's in `exact_one_bounce`).
+    const ALBEDO: f32 = 0.6;
+
     /// The scene (a grey Lambert floor, the back wall of material `wall`) and its points.
     pub fn corner(wall: Material) -> (Scene, SurfacePoints) {
-        let grey = Material::Lambert { albedo: Vec3::splat(0.6) };
+        let grey = Material::Lambert { albedo: Vec3::splat(ALBEDO) };
         let scene = SceneBuilder::new(Vec3::new(0.0, 1.2, 2.5), Vec3::new(0.0, 0.4, 0.0), 50.0, 12, 12)
             .quad("floor", Vec3::new(-1.0, 0.0, 1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -2.0), grey, Vec3::ZERO)
             .quad("wall", Vec3::new(-1.0, 0.0, -1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 1.5, 0.0), wall, Vec3::ZERO)
-            .light(Light::Point { position: Vec3::new(0.3, 1.2, 0.6), intensity: Vec3::splat(3.0) })
+            .light(Light::Point { position: LIGHT, intensity: Vec3::splat(INTENSITY) })
             .build();
         let pts = relume_base::geometry::sample_surface::sample_surface(
             &scene,
@@ -86,6 +92,37 @@ pub mod wpbgi_setup {
         )
         .unwrap();
         (scene, pts)
+    }
+
+    /// The light a point of the grey corner (`corner` with a grey Lambert wall) reflects toward
+    /// any direction after one bounce: (ρ/π) ∫ L(y) cos θx cos θy / r² dA over the other
+    /// surface (the floor gathers from the wall, the wall from the floor), with L(y) the
+    /// surface's directly lit radiance ρ I cos θ / (π d²). Nothing in the corner shadows, so
+    /// this is the path tracer's expectation; the integral is a midpoint rule on a `cells`²
+    /// grid, in f64.
+    pub fn exact_one_bounce(x: Vec3, normal: Vec3, cells: usize) -> f64 {
+        let rho = ALBEDO as f64 / std::f64::consts::PI;
+        let on_wall = normal.z > 0.5;
+        // The other surface: its corner, two edges and normal.
+        let (o, u, v, ny) = if on_wall {
+            (Vec3::new(-1.0, 0.0, 1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -2.0), Vec3::Y)
+        } else {
+            (Vec3::new(-1.0, 0.0, -1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 1.5, 0.0), Vec3::Z)
+        };
+        let cell_area = u.cross(v).length() as f64 / (cells * cells) as f64;
+        let mut sum = 0.0f64;
+        for a in 0..cells {
+            for b in 0..cells {
+                let y = o + u * ((a as f32 + 0.5) / cells as f32) + v * ((b as f32 + 0.5) / cells as f32);
+                let to_light = LIGHT - y;
+                let radiance = rho * INTENSITY as f64 * ny.dot(to_light.normalize()).max(0.0) as f64 / to_light.length_squared() as f64;
+                let d = y - x;
+                let w = d.normalize();
+                let geometry = normal.dot(w).max(0.0) as f64 * (-ny.dot(w)).max(0.0) as f64 / d.length_squared() as f64;
+                sum += radiance * geometry * cell_area;
+            }
+        }
+        rho * sum
     }
 
     /// Everything a wavelet gather or a view tree reads.

@@ -300,7 +300,7 @@ impl ViewTree {
 mod tests {
     use super::*;
     use crate::gather::gather_with;
-    use crate::test_support::wpbgi_setup::{setup, Setup};
+    use crate::test_support::wpbgi_setup::{exact_one_bounce, setup, Setup};
     use crate::traversal::Traversal;
     use crate::types::Receivers;
     use crate::wavelet_gather::WaveletGather;
@@ -384,6 +384,18 @@ mod tests {
             // that order (the pairs' order instead cost 3.6 % on the floor, sorted near to
             // far 10 %).
             assert!(a > 0.0 && ((b - a) / a).abs() < 0.015, "object {object}: PbgiGather {a}, view tree {b}");
+            // Against the path tracer's expectation (`exact_one_bounce`, on every fourth point
+            // of the surface). Measured: the floor 0.70 % under it, the wall 4.5 %. The wall's
+            // shortfall is the 16² buffer's: PbgiGather's wall is 10 % under at 8², 3.9 % at
+            // 16² and 2.6 % at 32², the floor 3.9 %, 0.8 % and 0.3 % over (all points). An
+            // order-independent resolve of each pixel's splats (front layer, then what lies
+            // behind filling the rest) measured 6.0 % and 3.3 % under at 16²: the order of
+            // arrival is not what darkens the wall.
+            let ks: Vec<usize> = (0..n).filter(|&k| p.object[k] == object).step_by(4).collect();
+            let mean = |v: &dyn Fn(usize) -> f64| ks.iter().map(|&k| v(k)).sum::<f64>() / ks.len() as f64;
+            let exact = mean(&|k| exact_one_bounce(p.position[k], p.normal[k], 200));
+            let (view_mean, bound) = (mean(&|k| view[k]), if object == 0 { 0.01 } else { 0.06 });
+            assert!(((view_mean - exact) / exact).abs() < bound, "object {object}: view tree {view_mean}, exact {exact}");
         }
         let rms = |v: &dyn Fn(usize) -> f64| ((0..n).map(|k| v(k).powi(2)).sum::<f64>() / n as f64).sqrt();
         let diff = rms(&|k| view[k] - pbgi.pixels[k][0] as f64) / rms(&|k| pbgi.pixels[k][0] as f64);
