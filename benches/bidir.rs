@@ -61,8 +61,13 @@ fn bidir(s: &Scene, accel: &Accel) -> (Image, Image) {
 }
 
 fn path(s: &Scene, accel: &Accel) -> (Image, Image) {
-    let (m, v, _, _) =
-        path_trace::render(s, accel, &PathTrace { spp: SPP, max_depth: -1, min_depth: 1, rr_depth: 5, seed: 0 }, None).unwrap();
+    let (m, v, _, _) = path_trace::render(
+        s,
+        accel,
+        &PathTrace { spp: SPP, max_depth: -1, min_depth: 1, rr_depth: 5, seed: 0, fresnel_reflection: true },
+        None,
+    )
+    .unwrap();
     (m, v)
 }
 

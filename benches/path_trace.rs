@@ -18,6 +18,6 @@ fn cornell_256(bencher: divan::Bencher, threads: usize) {
     let s = scene("cornell", Some(256));
     let accel = Accel::build(&s, BuildQuality::Medium);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-    let p = PathTrace { spp: SPP, max_depth: -1, min_depth: 1, rr_depth: 5, seed: 0 };
+    let p = PathTrace { spp: SPP, max_depth: -1, min_depth: 1, rr_depth: 5, seed: 0, fresnel_reflection: true };
     bencher.counter(ItemsCount::new(256 * 256 * SPP as usize)).bench_local(|| pool.install(|| render(&s, &accel, &p, None).unwrap().2));
 }

@@ -34,8 +34,13 @@ fn it_renders_the_path_tracers_image_on_cornell_ring_glass_glass_medium_and_envl
         let settings = BidirSettings { max_depth: -1, min_depth: 1, rr_depth: 5, seed: 1, only: None };
         let (bm, bv, c) = bidir_path_trace::render(&scene, &accel, settings, 256, None).unwrap();
         assert_eq!((c[1], c[2]), (0, 0), "{name}: no NaN or infinite samples");
-        let (pm, pv, _, _) =
-            path_trace::render(&scene, &accel, &PathTrace { spp: 1024, max_depth: -1, min_depth: 1, rr_depth: 5, seed: 2 }, None).unwrap();
+        let (pm, pv, _, _) = path_trace::render(
+            &scene,
+            &accel,
+            &PathTrace { spp: 1024, max_depth: -1, min_depth: 1, rr_depth: 5, seed: 2, fresnel_reflection: true },
+            None,
+        )
+        .unwrap();
         let z = z_test(&bm, &bv, &pm, &pv, 3.29).unwrap();
         assert!(z.passes(0.995), "{name}: {} of the pixels pass (mean z {})", z.pass_fraction, z.mean_z);
         let ((mb, sb), (mp, sp)) = (mean(&bm, &bv), mean(&pm, &pv));

@@ -10,7 +10,8 @@ use relume_base::types::{EnvMap, Environment, Image, Light, Material, Scene};
 
 fn trace(scene: &Scene, spp: u32, max_depth: i32) -> (Image, Image) {
     let accel = Accel::build(scene, BuildQuality::Medium);
-    let (m, v, _, nonfinite) = render(scene, &accel, &PathTrace { spp, max_depth, min_depth: 1, rr_depth: 5, seed: 3 }, None).unwrap();
+    let (m, v, _, nonfinite) =
+        render(scene, &accel, &PathTrace { spp, max_depth, min_depth: 1, rr_depth: 5, seed: 3, fresnel_reflection: true }, None).unwrap();
     assert_eq!(nonfinite, 0, "no NaN or infinite samples");
     assert!(m.as_floats().iter().chain(v.as_floats()).all(|x| x.is_finite() && *x >= 0.0), "finite, non-negative output");
     (m, v)
@@ -103,7 +104,7 @@ fn direct_lighting_of_a_diffuse_quad_matches_the_analytic_irradiance() {
 fn one_and_two_threads_give_the_same_bytes() {
     let scene = relume_tests::small_cornell();
     let accel = Accel::build(&scene, BuildQuality::Medium);
-    let p = PathTrace { spp: 8, max_depth: -1, min_depth: 1, rr_depth: 5, seed: 9 };
+    let p = PathTrace { spp: 8, max_depth: -1, min_depth: 1, rr_depth: 5, seed: 9, fresnel_reflection: true };
     let run = |threads| {
         rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| render(&scene, &accel, &p, None).unwrap())
     };

@@ -116,7 +116,14 @@ fn cornell_spot_textures_the_cow_and_the_path_tracer_shows_the_texture() {
     let mut plain = small.clone();
     plain.objects.iter_mut().for_each(|o| *o.maps = Default::default());
     let accel = relume_base::types::Accel::build(&small, relume_base::types::accel::BuildQuality::Fast);
-    let pt = relume_base::reference::path_trace::PathTrace { spp: 16, max_depth: 2, min_depth: 1, rr_depth: 5, seed: 1 };
+    let pt = relume_base::reference::path_trace::PathTrace {
+        spp: 16,
+        max_depth: 2,
+        min_depth: 1,
+        rr_depth: 5,
+        seed: 1,
+        fresnel_reflection: true,
+    };
     let render = |sc: &Scene| relume_base::reference::path_trace::render(sc, &accel, &pt, None).unwrap().0;
     let (textured, untextured) = (render(&small), render(&plain));
     let cam = relume_base::render::camera::CameraRays::new(&small.camera);

@@ -63,14 +63,28 @@ fn each_edit_of_the_refraction_graph_reruns_only_what_it_reaches() {
     };
     // Orbiting: the camera, its paths and their shading, nothing else (the reference keeps the
     // scene's view).
-    assert_eq!(rerun("camera.azimuth", "20"), ["camera", "error", "paths", "render"]);
+    assert_eq!(rerun("camera.azimuth", "20"), ["camera", "error", "error_no_fresnel", "paths", "render"]);
     // Moving the light: the photons onward, and the geometry it is part of (the lamp is a
     // sphere in the BVH), and the reference; the camera's paths are shaded again, never
     // traced again.
     assert_eq!(
         rerun("light.translation", "(0.2, 0.0, 0.0)"),
-        ["bvh", "emit", "error", "full_bvh", "light", "march", "pt", "pt_error", "reference", "render"]
+        [
+            "bvh",
+            "emit",
+            "error",
+            "error_no_fresnel",
+            "fresnel_cost",
+            "full_bvh",
+            "light",
+            "march",
+            "pt",
+            "pt_error",
+            "reference",
+            "reference_no_fresnel",
+            "render"
+        ]
     );
     // A paint stroke: the octree onward, never the voxelisation.
-    assert_eq!(rerun("paint.weight", "0.2"), ["emit", "error", "march", "octree", "paint", "paths", "render"]);
+    assert_eq!(rerun("paint.weight", "0.2"), ["emit", "error", "error_no_fresnel", "march", "octree", "paint", "paths", "render"]);
 }

@@ -46,8 +46,11 @@ impl VertexPathTrace {
                 aim[v as usize].get_or_insert(p + (c - p) * 1e-3);
             }
         }
-        let tracer =
-            Tracer::new(scene, accel, Settings { max_depth: self.max_depth, min_depth: 1, rr_depth: self.rr_depth, seed: self.seed });
+        let tracer = Tracer::new(
+            scene,
+            accel,
+            Settings { max_depth: self.max_depth, min_depth: 1, rr_depth: self.rr_depth, seed: self.seed, fresnel_reflection: true },
+        );
         let (eye, back) = (scene.camera.origin, 1e-3 * scene.extent());
         let per = cx.par_map(n, |v| {
             let Some(p) = aim[v] else { return (Vec3::ZERO, 0) };

@@ -185,7 +185,9 @@ mod tests {
         let a = accel.get::<Accel>().unwrap();
         let rows = reference_rows(&s, a, t.counts, &b, &m, ReferenceBrdf::Analytic, 0..16, None).unwrap();
         let [ours, ours_var]: [Image; 2] = gather_rows(16, 16, 2, &[&rows]).unwrap().0.try_into().unwrap();
-        let (pt, pt_var, _, _) = render(&s, a, &PathTrace { spp: 1024, max_depth: 3, min_depth: 1, rr_depth: 5, seed: 4 }, None).unwrap();
+        let (pt, pt_var, _, _) =
+            render(&s, a, &PathTrace { spp: 1024, max_depth: 3, min_depth: 1, rr_depth: 5, seed: 4, fresnel_reflection: true }, None)
+                .unwrap();
         let mean = |img: &Image| img.as_floats().iter().map(|v| *v as f64).sum::<f64>() / img.as_floats().len() as f64;
         let (x, y) = (mean(&ours), mean(&pt));
         assert!((x - y).abs() < 0.03 * y, "relighting paths {x} vs path tracer {y}");

@@ -221,8 +221,13 @@ mod tests {
 
     fn path(scene: &Scene, spp: u32, max_depth: i32) -> (Image, Image) {
         let accel = Accel::build(scene, BuildQuality::Fast);
-        let (m, v, _, _) =
-            path_trace::render(scene, &accel, &PathTrace { spp, max_depth, min_depth: 1, rr_depth: 5, seed: 11 }, None).unwrap();
+        let (m, v, _, _) = path_trace::render(
+            scene,
+            &accel,
+            &PathTrace { spp, max_depth, min_depth: 1, rr_depth: 5, seed: 11, fresnel_reflection: true },
+            None,
+        )
+        .unwrap();
         (m, v)
     }
 

@@ -77,7 +77,11 @@ fn shade(
 /// `cx` reports progress and cancels; `None` outside a graph.
 pub fn render_rows(scene: &Scene, accel: &Accel, p: &DirectLight, rows: Range<usize>, cx: Option<&RunCtx>) -> Result<ImageRows, NodeError> {
     let w = scene.camera.width;
-    let t = Tracer::new(scene, accel, Settings { max_depth: 2, min_depth: 1, rr_depth: 5, seed: p.seed ^ 0xD1EC_7000 });
+    let t = Tracer::new(
+        scene,
+        accel,
+        Settings { max_depth: 2, min_depth: 1, rr_depth: 5, seed: p.seed ^ 0xD1EC_7000, fresnel_reflection: true },
+    );
     let cam_rays = CameraRays::new(&scene.camera);
     let (spp, ls) = (p.pixel_samples.max(1), p.light_samples.max(1));
     let y0 = rows.start;
@@ -187,7 +191,7 @@ mod tests {
         let scene = area_lit();
         let accel = Accel::build(&scene, BuildQuality::Fast);
         let (img, rays) = render(&scene, &accel, &params(64, 4, 1), None).unwrap();
-        let pt = PathTrace { spp: 1024, max_depth: 2, min_depth: 1, rr_depth: 5, seed: 3 };
+        let pt = PathTrace { spp: 1024, max_depth: 2, min_depth: 1, rr_depth: 5, seed: 3, fresnel_reflection: true };
         let (mean, var, _, _) = path_trace::render(&scene, &accel, &pt, None).unwrap();
         assert!(rays >= 16 * 16 * 64, "{rays}");
         let (a, b) = (img.as_floats(), mean.as_floats());
@@ -210,7 +214,14 @@ mod tests {
             |imgs: [Image; 2]| imgs[0].as_floats().iter().zip(imgs[1].as_floats()).map(|(x, y)| ((x - y) as f64).powi(2)).sum::<f64>();
         let dl = spread([1, 2].map(|s| render(&scene, &accel, &params(16, 4, s), None).unwrap().0));
         let pt = spread([1, 2].map(|s| {
-            path_trace::render(&scene, &accel, &PathTrace { spp: 64, max_depth: 2, min_depth: 1, rr_depth: 5, seed: s }, None).unwrap().0
+            path_trace::render(
+                &scene,
+                &accel,
+                &PathTrace { spp: 64, max_depth: 2, min_depth: 1, rr_depth: 5, seed: s, fresnel_reflection: true },
+                None,
+            )
+            .unwrap()
+            .0
         }));
         assert!(dl < 0.5 * pt, "{dl} vs {pt}");
     }

@@ -12,7 +12,8 @@ params! {
     /// importance-sampled environment maps; smooth dielectrics with homogeneous media;
     /// `max_depth` as in Mitsuba 3 (1: emitters only, 2: direct light, 3: one bounce, −1:
     /// unbounded with Russian roulette from `rr_depth`); `min_depth` leaves out the light of
-    /// shorter paths (3: the indirect light alone); box pixel filter. Samples are taken
+    /// shorter paths (3: the indirect light alone); `fresnel_reflection: false` refracts every
+    /// path at glass, leaving its reflection out; box pixel filter. Samples are taken
     /// in passes of doubling size (progress and cancellation between rows; after each pass the
     /// band so far goes to a watcher that asks, as the editor's viewer does); each pixel's
     /// random numbers depend only on (seed, pixel, sample), so the image has the same bytes on
@@ -32,6 +33,10 @@ params! {
         pub rr_depth: u32 = 5, range = 1..=1024;
         /// random seed
         pub seed: u64 = 0, range = 0..=u32::MAX;
+        /// reflect at smooth dielectrics by Fresnel; false: every path refracts (total internal
+        /// reflection still reflects), the light model of the refraction pipeline, to measure
+        /// what leaving the reflection out costs
+        pub fresnel_reflection: bool = true;
     }
 }
 
@@ -50,7 +55,17 @@ pub fn render_rows(scene: &Scene, accel: &Accel, p: &PathTrace, rows: Range<usiz
         let (mean, var) = (Image::try_new(w, rows.len())?, Image::try_new(w, rows.len())?);
         return Ok(ImageRows::new(w, rows, vec![mean, var], vec![0, 0]));
     }
-    let tracer = Tracer::new(scene, accel, Settings { max_depth: p.max_depth, min_depth: p.min_depth, rr_depth: p.rr_depth, seed: p.seed });
+    let tracer = Tracer::new(
+        scene,
+        accel,
+        Settings {
+            max_depth: p.max_depth,
+            min_depth: p.min_depth,
+            rr_depth: p.rr_depth,
+            seed: p.seed,
+            fresnel_reflection: p.fresnel_reflection,
+        },
+    );
     let cam_rays = CameraRays::new(cam);
     let y0 = rows.start;
     with_ctx(cx, |cx| {
@@ -128,7 +143,7 @@ mod tests {
     use relume_core::Value;
 
     fn params(spp: u32, max_depth: i32) -> PathTrace {
-        PathTrace { spp, max_depth, min_depth: 1, rr_depth: 5, seed: 1 }
+        PathTrace { spp, max_depth, min_depth: 1, rr_depth: 5, seed: 1, fresnel_reflection: true }
     }
 
     #[test]
@@ -139,6 +154,31 @@ mod tests {
         let (one, two, three) = (sum(1), sum(2), sum(3));
         assert_eq!(one, 0.0, "no emitter is visible: a point light only");
         assert!(two > 0.0 && three > two, "{two} {three}");
+    }
+
+    #[test]
+    fn without_fresnel_reflection_a_glass_sphere_passes_all_the_light_behind_it() {
+        // A glass sphere (index 1.5) in front of a large emitter of radiance 1, seen through
+        // its centre: refracting in and out, radiance × 1/η² × η² = 1 exactly when nothing
+        // reflects; with Fresnel reflection about (1 − F)² / (1 − F²) = 0.923 (F = 0.04 at
+        // each interface, the rest going back to the black sky).
+        use crate::scene::builder::SceneBuilder;
+        use crate::types::Material;
+        use glam::Vec3;
+        let glass = Material::Dielectric { ior: 1.5, medium: None };
+        let black = Material::Lambert { albedo: Vec3::ZERO };
+        let scene = SceneBuilder::new(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, 2.0, 3, 3)
+            .sphere("glass", Vec3::ZERO, 1.0, glass, Vec3::ZERO, false)
+            .quad("lamp", Vec3::new(-10.0, -10.0, -5.0), Vec3::new(20.0, 0.0, 0.0), Vec3::new(0.0, 20.0, 0.0), black, Vec3::ONE)
+            .build();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let centre = |fresnel_reflection| {
+            let p = PathTrace { fresnel_reflection, ..params(256, -1) };
+            render(&scene, &accel, &p, None).unwrap().0.pixels[4][0]
+        };
+        let (without, with) = (centre(false), centre(true));
+        assert!((without - 1.0).abs() < 1e-4, "without reflection {without}");
+        assert!((with - 0.923).abs() < 0.02, "with reflection {with}");
     }
 
     #[test]

@@ -26,6 +26,9 @@ pub struct Settings {
     /// Depth from which Russian roulette may end paths (Mitsuba's rr_depth, default 5).
     pub rr_depth: u32,
     pub seed: u64,
+    /// Whether smooth dielectrics reflect (Fresnel); without, every path refracts except
+    /// under total internal reflection, with the same random numbers.
+    pub fresnel_reflection: bool,
 }
 
 /// Per-sample random numbers: (seed, sample id, running dimension) → uniform [0, 1), the
@@ -177,7 +180,11 @@ impl<'a> Tracer<'a> {
             }
 
             // BSDF sampling.
-            let Some(bs) = brdf::sample(&material, wo, rng.draw2(), rng.draw()) else { break };
+            let (u2, uc) = (rng.draw2(), rng.draw());
+            // Without Fresnel reflection a dielectric always draws refraction (uc ≥ F), which
+            // total internal reflection (F = 1) still overrules.
+            let uc = if s.fresnel_reflection || !matches!(material, Material::Dielectric { .. }) { uc } else { 1.0 };
+            let Some(bs) = brdf::sample(&material, wo, u2, uc) else { break };
             if bs.pdf <= 0.0 || !bs.pdf.is_finite() {
                 break;
             }
