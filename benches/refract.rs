@@ -187,7 +187,7 @@ fn shade_256(s: &Stages, paths: &ViewPaths) -> relume_base::types::Image {
         caustics: &s.caustics,
         paths,
     };
-    cx(|c| render(&i, &EikonalRender { g: 0.0 }, c)).unwrap().0
+    cx(|c| render(&i, &EikonalRender { g: 0.0, lamp_samples: 4 }, c)).unwrap().0
 }
 
 fn render_256(s: &Stages, octree: &Volume, adaptive: bool) -> relume_base::types::Image {

@@ -87,7 +87,7 @@ fn render(scene: &Scene, accel: &Accel, m: &Volume, oct: &Volume, radiance: &Vol
     let p = EikonalPaths { samples: 1, step: 1.0, adaptive: true, integrator: Integrator::Verlet };
     let paths = with_cx(|cx| eikonal_paths::trace(&EikonalPathsIn { accel, medium: m, octree: oct, camera: &camera }, &p, cx)).unwrap();
     let i = EikonalRenderIn { scene, accel, medium: m, octree: oct, radiance, caustics, paths: &paths };
-    with_cx(|cx| eikonal_render::render(&i, &EikonalRender { g: 0.0 }, cx)).unwrap().0
+    with_cx(|cx| eikonal_render::render(&i, &EikonalRender { g: 0.0, lamp_samples: 4 }, cx)).unwrap().0
 }
 
 /// A 3-channel medium (n, κ = 0, σ = 0) of `d`³ voxels over `lo … hi`, n given at each

@@ -1,9 +1,10 @@
-use super::optics::{box_interval, luminance, optical_depth, photon_lights, Clearance, PhotonLight};
+use super::optics::{box_interval, lamp_point, luminance, optical_depth, photon_lights, Clearance, PhotonLight};
 use crate::types::view_paths::Gather;
 use crate::types::{CausticMap, ViewPaths, Volume};
 use glam::Vec3;
 use relume_base::brdf;
 use relume_base::math::frame::Frame;
+use relume_base::math::rng::uniform;
 use relume_base::render::film::per_pixel;
 use relume_base::render::integrator::Counts;
 use relume_base::render::lights::delta_sample;
@@ -20,8 +21,9 @@ params! {
     /// transmittance (the fluence and mean light direction `MarchPhotons` stored; phase
     /// Henyey–Greenstein of `g` about that direction, blended toward isotropic as the stored light
     /// is less directed; `g` = 0 is isotropic), and takes the light from where it leaves: a surface
-    /// it meets is shaded by its BSDF under each light (the pipeline's point lights, shadowed by the
-    /// scene and by the medium's transmittance along the straight shadow ray; a shadow ray crossing
+    /// it meets is shaded by its BSDF under each light (the pipeline's lights, shadowed by the
+    /// scene and by the medium's transmittance along straight shadow rays, `lamp_samples` of them
+    /// spread over the disk of a light of some size, seeded by the point; a shadow ray crossing
     /// voxels where rays bend gets nothing, that light arriving as photons), plus the caustic map's
     /// irradiance × its diffuse albedo; with no surface, the environment. Pixels average their
     /// samples. The surfaces inside the medium's box must be those the paths met (`accel` with
@@ -31,6 +33,9 @@ params! {
     pub struct EikonalRender {
         /// Henyey–Greenstein asymmetry of the medium (0: isotropic)
         pub g: f32 = 0.0, range = -0.99..=0.99;
+        /// shadow rays a shaded point sends toward a light of some size (an emissive object),
+        /// spread over the disk it shows: its penumbra
+        pub lamp_samples: u32 = 4, range = 1..=256, test = 1;
     }
 }
 
@@ -41,6 +46,16 @@ outputs!(pub EikonalRenderOut { image: Image });
 pub fn henyey_greenstein(g: f32, cos: f32) -> f32 {
     let d = 1.0 + g * g - 2.0 * g * cos;
     (1.0 - g * g) / (4.0 * PI * d * d.sqrt().max(1e-12))
+}
+
+/// The golden ratio's fraction: successive shadow rays turn by it around the lamp's disk.
+const GOLDEN: f32 = 0.618_034;
+
+/// A number that names a surface point (the bits of its coordinates, mixed), to seed its
+/// shadow rays: the same point gets the same rays on any thread and in any order.
+fn point_id(p: Vec3) -> u64 {
+    let [x, y, z] = p.to_array().map(|c| c.to_bits() as u64);
+    x ^ y.rotate_left(21) ^ z.rotate_left(42)
 }
 
 /// Everything the pixels share.
@@ -87,7 +102,7 @@ impl Render<'_> {
         }
         let frame = Frame::from_normal(s.ns);
         let lwo = frame.to_local(wo);
-        for l in &self.lights {
+        for (k, l) in self.lights.iter().enumerate() {
             let Some((wi, dist, li)) = delta_sample(&l.light, s.p) else { continue };
             if wi.dot(s.ng) <= 0.0 {
                 continue;
@@ -97,17 +112,31 @@ impl Render<'_> {
             if f == Vec3::ZERO {
                 continue;
             }
-            counts.rays += 1;
             // Off the surface by a size relative to the scene and to |p| (Surface::spawn's
             // offset grows with the square of the scene's size).
             let side = if wi.dot(s.ng) >= 0.0 { 1.0 } else { -1.0 };
             let origin = s.p + s.ng * (side * (self.eps + 1e-6 * s.p.abs().max_element()));
-            let tmax = if dist.is_finite() { (dist - l.radius * 1.001) * (1.0 - 1e-4) } else { f32::INFINITY };
-            // Light whose straight line crosses voxels where rays bend arrives as photons
-            // (the caustic map), never here.
-            if tmax > 0.0 && !self.clearance.crosses_bends(origin, wi, tmax) && !self.accel.occluded(origin, wi, 0.0, tmax) {
-                out += f * li * self.transmittance(origin, wi, tmax);
+            let n = if l.radius > 0.0 && dist.is_finite() { self.p.lamp_samples.max(1) } else { 1 };
+            let mut seen = 0.0;
+            for j in 0..n {
+                counts.rays += 1;
+                let (dir, tmax) = if n == 1 {
+                    (wi, if dist.is_finite() { (dist - l.radius * 1.001) * (1.0 - 1e-4) } else { f32::INFINITY })
+                } else {
+                    // Stratified over the disk's area, seeded by the point and the light.
+                    let id = point_id(s.p);
+                    let u = ((j as f32 + uniform(k as u64, id, 0)) / n as f32, (uniform(k as u64, id, 1) + j as f32 * GOLDEN).fract());
+                    let to = lamp_point(s.p + wi * dist, l.radius, -wi, u) - origin;
+                    let len = to.length();
+                    (to / len, (len - l.radius * 1.001) * (1.0 - 1e-4))
+                };
+                // Light whose straight line crosses voxels where rays bend arrives as photons
+                // (the caustic map), never here.
+                if tmax > 0.0 && !self.clearance.crosses_bends(origin, dir, tmax) && !self.accel.occluded(origin, dir, 0.0, tmax) {
+                    seen += self.transmittance(origin, dir, tmax);
+                }
             }
+            out += f * li * (seen / n as f32);
         }
         out + brdf::diffuse_albedo(&material) / PI * self.caustics.lookup(s.object, s.p)
     }
@@ -215,7 +244,7 @@ pub fn render(i: &EikonalRenderIn, p: &EikonalRender, cx: &RunCtx) -> Result<(Im
     })
 }
 
-#[node(category = "volume", version = 7, metrics = ["rays"])]
+#[node(category = "volume", version = 8, metrics = ["rays"])]
 impl EikonalRender {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The image at the paths' pixels, the octree's clearance as a byte a voxel (its 8
@@ -263,10 +292,43 @@ mod tests {
         let paths = view_paths(&without, &m, &oct, &cam, &paths_params());
         let (rad, map) = (Volume::try_new([1; 3], 6, m.min, m.max, 0.0, u64::MAX).unwrap(), CausticMap::none());
         let i = EikonalRenderIn { scene: &s, accel: &with, medium: &m, octree: &oct, radiance: &rad, caustics: &map, paths: &paths };
-        let e = with_cx(|cx| render(&i, &EikonalRender { g: 0.0 }, cx)).unwrap_err();
+        let e = with_cx(|cx| render(&i, &EikonalRender { g: 0.0, lamp_samples: 4 }, cx)).unwrap_err();
         assert!(e.to_string().contains("not those the paths stopped at"), "{e}");
         let i = EikonalRenderIn { accel: &without, ..i };
-        assert!(with_cx(|cx| render(&i, &EikonalRender { g: 0.0 }, cx)).is_ok());
+        assert!(with_cx(|cx| render(&i, &EikonalRender { g: 0.0, lamp_samples: 4 }, cx)).is_ok());
+    }
+
+    #[test]
+    fn a_lamp_of_some_size_casts_a_penumbra_and_lights_the_open_floor_as_a_point() {
+        // The glass sphere as an opaque occluder (in the BVH, the medium far away) under the
+        // scene's spherical lamp: one shadow ray toward the lamp's centre gives each floor
+        // point all or none of its light; rays spread over the lamp's disk give the points at
+        // the shadow's edge a part of it, and the open floor exactly what the centre gives.
+        let s = glass();
+        let mut m = voxelize(&s, "glass", 8);
+        m.data.chunks_mut(3).for_each(|c| c.copy_from_slice(&[1.0, 0.0, 0.0]));
+        (m.min, m.max) = (m.min + Vec3::splat(100.0), m.max + Vec3::splat(100.0));
+        let oct = octree_of(&m);
+        let (rad, map) = (Volume::try_new([1; 3], 6, m.min, m.max, 0.0, u64::MAX).unwrap(), CausticMap::none());
+        let mut cam = s.camera.clone();
+        (cam.width, cam.height) = (48, 48);
+        let shot = |accel: &Accel, lamp_samples| {
+            let paths = view_paths(accel, &m, &oct, &cam, &paths_params());
+            let i = EikonalRenderIn { scene: &s, accel, medium: &m, octree: &oct, radiance: &rad, caustics: &map, paths: &paths };
+            with_cx(|cx| render(&i, &EikonalRender { g: 0.0, lamp_samples }, cx)).unwrap().0
+        };
+        let (open, with) = (accel_without(&s, "glass"), accel_without(&s, ""));
+        let lit = shot(&open, 1);
+        let fractions = |img: &Image| -> Vec<f32> {
+            let floor = (0..img.pixels.len()).filter(|&k| k >= 24 * 48 && lit.pixels[k][0] > 0.0);
+            floor.map(|k| img.pixels[k][0] / lit.pixels[k][0]).collect()
+        };
+        let partial = |f: &[f32]| f.iter().filter(|&&x| x > 0.05 && x < 0.95).count();
+        let (hard, soft) = (fractions(&shot(&with, 1)), fractions(&shot(&with, 16)));
+        assert_eq!(partial(&hard), 0, "a point lamp's shadow is all or nothing");
+        assert!(partial(&soft) > 5, "{} floor points in the penumbra", partial(&soft));
+        let open_floor = soft.iter().zip(&hard).filter(|(_, h)| **h >= 0.999).filter(|(s, _)| (**s - 1.0).abs() > 1e-5).count();
+        assert!(open_floor < soft.len() / 10, "{open_floor} of the fully lit points changed");
     }
 
     #[test]

@@ -1,4 +1,4 @@
-use super::optics::{box_interval, intensity_along, luminance, photon_lights, PhotonLight};
+use super::optics::{across, box_interval, intensity_along, lamp_point, luminance, photon_lights, PhotonLight};
 use crate::types::{Photons, Volume};
 use glam::Vec3;
 use relume_base::math::cubemap::rect_solid_angle;
@@ -14,8 +14,10 @@ params! {
     /// whose ray (jittered inside the texel, seeded) reaches the proxy unoccluded emits one photon
     /// at the entry point. Power: the light's intensity along the ray × the texel's exact solid
     /// angle (point, spot), or the irradiance × the texel's area (directional) — so an empty
-    /// volume under a directional light holds fluence E. Emissive objects become point lights of
-    /// the same power at their centroids (`optics::photon_lights`). The proxy is the box of the
+    /// volume under a directional light holds fluence E. Emissive objects become lights of the
+    /// same power at their centroids, each photon leaving from a seeded point of the disk the
+    /// object shows along its direction, as a uniformly bright sphere sends it
+    /// (`optics::photon_lights`, `optics::lamp_point`). The proxy is the box of the
     /// voxels that differ from empty space (n ≠ 1 or κ > 0), one voxel wider (`Active`: photons
     /// through the rest would go straight and deposit nothing), or the whole box. A light inside
     /// the proxy is an error. Rows in parallel, the same photons on any thread count.
@@ -66,13 +68,6 @@ pub fn active_box(m: &Volume) -> Option<(Vec3, Vec3)> {
     Some((m.min + a * h, m.min + b * h))
 }
 
-/// Two unit vectors completing `w` to an orthonormal frame.
-fn frame(w: Vec3) -> (Vec3, Vec3) {
-    let a = if w.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
-    let e1 = w.cross(a).normalize();
-    (e1, w.cross(e1))
-}
-
 /// The photons of light `l` (number `k` among the lights) into the box `lo … hi`.
 fn emit_one(l: &PhotonLight, k: u32, lo: Vec3, hi: Vec3, accel: &Accel, p: &EmitPhotons, cx: &RunCtx) -> Result<Photons, NodeError> {
     let res = p.resolution as usize;
@@ -83,7 +78,7 @@ fn emit_one(l: &PhotonLight, k: u32, lo: Vec3, hi: Vec3, accel: &Accel, p: &Emit
     let rows = match l.light {
         Light::Directional { direction, irradiance } => {
             let w = direction.normalize();
-            let (e1, e2) = frame(w);
+            let (e1, e2) = across(w);
             let side = 2.0 * r / res as f32;
             let power = irradiance * side * side;
             cx.par_map(res, |j| {
@@ -111,7 +106,7 @@ fn emit_one(l: &PhotonLight, k: u32, lo: Vec3, hi: Vec3, accel: &Accel, p: &Emit
                 )));
             }
             let w = to / dist;
-            let (e1, e2) = frame(w);
+            let (e1, e2) = across(w);
             let tan = (r / (dist * dist - r * r).sqrt()) as f64;
             let side = 2.0 * tan / res as f64;
             let start = l.radius * 1.001;
@@ -122,13 +117,15 @@ fn emit_one(l: &PhotonLight, k: u32, lo: Vec3, hi: Vec3, accel: &Accel, p: &Emit
                     let (x0, y0) = (i as f64 * side - tan, j as f64 * side - tan);
                     let (x, y) = (x0 + side * uniform(seed, id, 0) as f64, y0 + side * uniform(seed, id, 1) as f64);
                     let d = (w + e1 * x as f32 + e2 * y as f32).normalize();
-                    let Some((t0, _)) = box_interval(position, d, lo, hi) else { continue };
-                    if t0 <= start || accel.occluded(position, d, start, t0) {
+                    // A lamp of some size sends this direction's light from all of its disk.
+                    let o = lamp_point(position, l.radius, d, (uniform(seed, id, 2), uniform(seed, id, 3)));
+                    let Some((t0, _)) = box_interval(o, d, lo, hi) else { continue };
+                    if t0 <= start || accel.occluded(o, d, start, t0) {
                         continue;
                     }
                     let power = intensity_along(&l.light, d) * rect_solid_angle(x0, x0 + side, y0, y0 + side) as f32;
                     if power.max_element() > 0.0 {
-                        out.push((position + d * t0, d, power));
+                        out.push((o + d * t0, d, power));
                     }
                 }
                 out
@@ -181,7 +178,7 @@ pub fn emit(scene: &Scene, accel: &Accel, medium: &Volume, p: &EmitPhotons, cx: 
     Ok(all)
 }
 
-#[node(category = "volume", metrics = ["photons", "lights", "power_w"], outputs = [photons])]
+#[node(category = "volume", version = 2, metrics = ["photons", "lights", "power_w"], outputs = [photons])]
 impl EmitPhotons {
     fn memory(&self, _inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let most = Photons::bytes_for((self.resolution as u64).pow(2));
@@ -261,6 +258,28 @@ mod tests {
         // Only the top face is seen from above at this distance? No: sides too, at grazing
         // angles; the photons enter at the box's surface either way.
         assert!(ph.position.iter().all(|x| x.abs().max_element() > 0.9999));
+    }
+
+    #[test]
+    fn a_lamp_of_some_size_sends_each_direction_from_all_of_its_disk() {
+        // An emissive sphere of radius 0.3 five units above the box: every photon's line
+        // passes within 0.3 of its centre, spread over the disk by area (mean squared distance
+        // r²/2), and the power stays that of a point lamp of the same intensity.
+        use relume_base::scene::builder::SceneBuilder;
+        let (c, r) = (Vec3::new(0.0, 5.0, 0.0), 0.3);
+        let black = relume_base::types::Material::Lambert { albedo: Vec3::ZERO };
+        let lamp =
+            SceneBuilder::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 4, 4).sphere("lamp", c, r, black, Vec3::ONE, false).build();
+        let p = EmitPhotons { resolution: 200, proxy: Proxy::Box, seed: 1 };
+        let ph = run(&lamp, &medium(1.2), &p);
+        let dist2: Vec<f32> = ph.position.iter().zip(&ph.direction).map(|(x, d)| (c - *x).cross(*d).length_squared()).collect();
+        assert!(dist2.iter().all(|&q| q <= r * r * 1.0001), "every line passes through the disk");
+        let mean = dist2.iter().sum::<f32>() / dist2.len() as f32;
+        assert!((mean / (r * r / 2.0) - 1.0).abs() < 0.05, "mean squared distance {mean}, area-uniform {}", r * r / 2.0);
+        let point = photon_lights(&lamp).pop().unwrap().light;
+        let as_point = run(&empty_scene(vec![point]), &medium(1.2), &p).total_power();
+        let ratio = ph.total_power() / as_point;
+        assert!((ratio - Vec3::ONE).abs().max_element() < 0.05, "{ratio}");
     }
 
     #[test]

@@ -18,10 +18,11 @@ pub struct PhotonLight {
     pub radius: f32,
 }
 
-/// The scene's delta lights, then each emissive object as a point light at its area centroid
+/// The scene's delta lights, then each emissive object as a light at its area centroid
 /// emitting its power Φ = π L A uniformly (intensity Φ / 4π = L A / 4 per channel, L the mean
-/// emitted radiance): exact for a sphere, whose intensity is π r² L in every direction
-/// (docs/SCENES.md lets pipeline 3 treat the `glass` scene's small spherical light so).
+/// emitted radiance), of the radius of the object's farthest vertex: exact for a sphere, whose
+/// intensity is π r² L in every direction and whose light in any direction leaves the disk
+/// across it (`lamp_point`).
 pub fn photon_lights(scene: &Scene) -> Vec<PhotonLight> {
     let mut out: Vec<PhotonLight> = scene.lights.iter().map(|l| PhotonLight { light: l.clone(), radius: 0.0 }).collect();
     for (k, o) in scene.objects.iter().enumerate() {
@@ -44,6 +45,26 @@ pub fn photon_lights(scene: &Scene) -> Vec<PhotonLight> {
         out.push(PhotonLight { light: Light::Point { position: c, intensity: o.emission * (area as f32 / 4.0) }, radius });
     }
     out
+}
+
+/// A point of the disk a light of radius `radius` centred at `centre` shows along unit
+/// direction `w` (the disk through its centre, across `w`), at uniform numbers `u` (area
+/// uniform): where light leaving a uniformly bright sphere in direction `w` starts, and where
+/// a shadow ray from a point it lights may aim. `centre` itself for a light of radius 0.
+pub fn lamp_point(centre: Vec3, radius: f32, w: Vec3, u: (f32, f32)) -> Vec3 {
+    if radius <= 0.0 {
+        return centre;
+    }
+    let (e1, e2) = across(w);
+    let (r, phi) = (radius * u.0.sqrt(), std::f32::consts::TAU * u.1);
+    centre + e1 * (r * phi.cos()) + e2 * (r * phi.sin())
+}
+
+/// Two unit vectors completing unit `w` to an orthonormal frame.
+pub fn across(w: Vec3) -> (Vec3, Vec3) {
+    let a = if w.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
+    let e1 = w.cross(a).normalize();
+    (e1, w.cross(e1))
 }
 
 /// Radiant intensity of a point or spot light along unit direction `d` (zero for directional).

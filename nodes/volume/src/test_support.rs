@@ -100,7 +100,7 @@ pub fn render_image(
 ) -> Image {
     let paths = view_paths(accel, m, oct, camera, p);
     let i = EikonalRenderIn { scene, accel, medium: m, octree: oct, radiance, caustics, paths: &paths };
-    with_cx(|cx| eikonal_render::render(&i, &EikonalRender { g: 0.0 }, cx)).unwrap().0
+    with_cx(|cx| eikonal_render::render(&i, &EikonalRender { g: 0.0, lamp_samples: 4 }, cx)).unwrap().0
 }
 
 /// EikonalPaths' defaults.
