@@ -590,6 +590,26 @@ mod tests {
     }
 
     #[test]
+    fn the_caustic_map_holds_what_the_glass_intercepts_and_creates_no_light() {
+        // The glass scene at 64³: photons whose straight line crosses bending voxels land on
+        // the floor's map. Their power is at least what the sphere (radius 0.5, 2.874 from
+        // the lamp's centre, intensity π r² L = 8.04) intercepts, I Ω = 0.771 (the blurred
+        // shell around it bends light too), and at most what entered the medium's box.
+        use crate::test_support::*;
+        let (s, m, oct, a, ph) = glass_stages(64, 192);
+        let (_, map) = march(&s, &a, &m, &oct, &ph, &march_params(128));
+        let landed: f64 = map.texels.iter().map(|t| t.x as f64).sum::<f64>() * map.texel_area() as f64;
+        let entered: f64 = ph.power.iter().map(|p| p.x as f64).sum();
+        let intensity = 400.0 * std::f64::consts::PI * 0.08f64.powi(2);
+        let omega = std::f64::consts::TAU * (1.0 - (1.0 - (0.5f64 / 8.26f64.sqrt()).powi(2)).sqrt());
+        assert!(
+            landed > 0.98 * intensity * omega && landed < entered,
+            "{landed} landed, {} intercepted, {entered} entered",
+            intensity * omega
+        );
+    }
+
+    #[test]
     fn a_luneburg_lens_focuses_a_parallel_beam_on_its_far_side() {
         // n = √(2 − r²/R²): a parallel beam along −y meets at the sphere's bottom point
         // (0, −R, 0) (Luneburg 1944); the floor touches it there.
