@@ -301,6 +301,19 @@ pub fn furnace_ratios(g: &Graph) -> [f64; 3] {
     [min / expected, mean / expected, max / expected]
 }
 
+/// Σ over the three channels of the pixels with x ∈ [x0, x1) × width, y ∈ [y0, y1) × height
+/// (fractions of the image).
+pub fn region_sum(img: &relume_base::types::Image, x: [f32; 2], y: [f32; 2]) -> f64 {
+    let (w, h) = (img.width as f32, img.height as f32);
+    let mut s = 0.0;
+    for py in (y[0] * h) as usize..(y[1] * h) as usize {
+        for px in (x[0] * w) as usize..(x[1] * w) as usize {
+            s += img.pixels[py * img.width + px].iter().map(|&c| c as f64).sum::<f64>();
+        }
+    }
+    s
+}
+
 /// Σ|a − b| / Σ|b| over two images' floats: how far `a` is from `b`, relative to `b`.
 pub fn relative_l1(a: &relume_base::types::Image, b: &relume_base::types::Image) -> f64 {
     let diff: f64 = a.as_floats().iter().zip(b.as_floats()).map(|(x, y)| (x - y).abs() as f64).sum();

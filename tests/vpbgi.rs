@@ -4,7 +4,7 @@
 //! seen through it.
 
 use relume_base::types::{Image, Metrics};
-use relume_tests::{engine, load_graph, ran, run, run_outputs};
+use relume_tests::{engine, load_graph, ran, region_sum, run, run_outputs};
 
 /// `vpbgi_cornell.ron` at `size`² with `count` points.
 fn vpbgi_graph(size: usize, count: usize, spp: usize) -> relume_core::Graph {
@@ -49,18 +49,6 @@ fn changing_bounces_reruns_the_view_tree_onward_only() {
     assert_eq!(ran(&run(&e, &g)), onward);
     g.set_param_text(&reg, "views.view_threshold", "0.01").unwrap();
     assert_eq!(ran(&run(&e, &g)), onward);
-}
-
-/// Σ over the three channels of the pixels with x ∈ [x0, x1) × width, y ∈ [y0, y1) × height.
-fn region_sum(img: &Image, x: [f32; 2], y: [f32; 2]) -> f64 {
-    let (w, h) = (img.width as f32, img.height as f32);
-    let mut s = 0.0;
-    for py in (y[0] * h) as usize..(y[1] * h) as usize {
-        for px in (x[0] * w) as usize..(x[1] * w) as usize {
-            s += img.pixels[py * img.width + px].iter().map(|&c| c as f64).sum::<f64>();
-        }
-    }
-    s
 }
 
 #[test]
