@@ -117,14 +117,13 @@ impl Render<'_> {
             let side = if wi.dot(s.ng) >= 0.0 { 1.0 } else { -1.0 };
             let origin = s.p + s.ng * (side * (self.eps + 1e-6 * s.p.abs().max_element()));
             let n = if l.radius > 0.0 && dist.is_finite() { self.p.lamp_samples.max(1) } else { 1 };
-            let mut seen = 0.0;
+            let (mut seen, id) = (0.0, if n > 1 { point_id(s.p) } else { 0 });
             for j in 0..n {
                 counts.rays += 1;
                 let (dir, tmax) = if n == 1 {
                     (wi, if dist.is_finite() { (dist - l.radius * 1.001) * (1.0 - 1e-4) } else { f32::INFINITY })
                 } else {
                     // Stratified over the disk's area, seeded by the point and the light.
-                    let id = point_id(s.p);
                     let u = ((j as f32 + uniform(k as u64, id, 0)) / n as f32, (uniform(k as u64, id, 1) + j as f32 * GOLDEN).fract());
                     let to = lamp_point(s.p + wi * dist, l.radius, -wi, u) - origin;
                     let len = to.length();
