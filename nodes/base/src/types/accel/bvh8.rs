@@ -13,6 +13,9 @@
 //! loops; the stack a walk needs is seven entries per level, counted when the tree is built or
 //! checked.
 
+#[cfg(target_arch = "x86_64")]
+mod avx2;
+
 use glam::{Vec3A, Vec4};
 use obvhs::bvh2::Bvh2;
 use std::mem::MaybeUninit;
@@ -110,62 +113,6 @@ impl Tri4 {
         (ok.bitmask(), t, u, v)
     }
 
-    /// `solve` for two packets at once in one AVX register (`a` in lanes 0–3, `b` in lanes
-    /// 4–7), operation for operation as `solve`, so every lane gets the same bits.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn solve_pair(a: &Tri4, b: &Tri4, o: [f32; 3], d: [f32; 3], tmin: f32, tmax: f32) -> (u32, [f32; 8], [f32; 8], [f32; 8]) {
-        use std::arch::x86_64::*;
-        use wide8::{cross, dot};
-        // SAFETY: each row of a packet is four floats; unaligned loads and stores.
-        unsafe {
-            let mut c = [_mm256_setzero_ps(); 9];
-            for (k, ck) in c.iter_mut().enumerate() {
-                *ck = _mm256_loadu2_m128(b.c[k].as_ptr(), a.c[k].as_ptr());
-            }
-            let splat = |v: [f32; 3]| [_mm256_set1_ps(v[0]), _mm256_set1_ps(v[1]), _mm256_set1_ps(v[2])];
-            let (o, d) = (splat(o), splat(d));
-            let (v0, e1, e2) = ([c[0], c[1], c[2]], [c[3], c[4], c[5]], [c[6], c[7], c[8]]);
-            let p = cross(d, e2);
-            let det = dot(e1, p);
-            let inv = _mm256_div_ps(_mm256_set1_ps(1.0), det);
-            let s = [_mm256_sub_ps(o[0], v0[0]), _mm256_sub_ps(o[1], v0[1]), _mm256_sub_ps(o[2], v0[2])];
-            let u = _mm256_mul_ps(dot(s, p), inv);
-            let q = cross(s, e1);
-            let v = _mm256_mul_ps(dot(d, q), inv);
-            let t = _mm256_mul_ps(dot(e2, q), inv);
-            let abs = _mm256_and_ps(det, _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff)));
-            let (zero, one) = (_mm256_setzero_ps(), _mm256_set1_ps(1.0));
-            let ok = [
-                _mm256_cmp_ps::<_CMP_GE_OQ>(abs, _mm256_set1_ps(1e-30)),
-                _mm256_cmp_ps::<_CMP_GE_OQ>(u, zero),
-                _mm256_cmp_ps::<_CMP_LE_OQ>(u, one),
-                _mm256_cmp_ps::<_CMP_GE_OQ>(v, zero),
-                _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_add_ps(u, v), one),
-                _mm256_cmp_ps::<_CMP_GT_OQ>(t, _mm256_set1_ps(tmin)),
-                _mm256_cmp_ps::<_CMP_LT_OQ>(t, _mm256_set1_ps(tmax)),
-            ]
-            .into_iter()
-            .fold(_mm256_castsi256_ps(_mm256_set1_epi32(-1)), |m, c| _mm256_and_ps(m, c));
-            let (mut tt, mut uu, mut vv) = ([0.0; 8], [0.0; 8], [0.0; 8]);
-            _mm256_storeu_ps(tt.as_mut_ptr(), t);
-            _mm256_storeu_ps(uu.as_mut_ptr(), u);
-            _mm256_storeu_ps(vv.as_mut_ptr(), v);
-            (_mm256_movemask_ps(ok) as u32, tt, uu, vv)
-        }
-    }
-
-    /// `closest` over two packets in one AVX register: lane 0–3 of `a`, 4–7 of `b`; the same hit
-    /// as testing `a`, then `b` up to `a`'s hit.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn closest_pair(a: &Tri4, b: &Tri4, o: [f32; 3], d: [f32; 3], tmin: f32, tmax: f32) -> Option<(usize, f32, f32, f32)> {
-        let (mask, t, u, v) = Tri4::solve_pair(a, b, o, d, tmin, tmax);
-        lowest(mask, &t, &u, &v)
-    }
-
     /// (lane, t, b1, b2) of the closest hit within (tmin, tmax), the lower lane on a tie.
     #[inline(always)]
     fn closest(&self, o: [Vec4; 3], d: [Vec4; 3], tmin: f32, tmax: f32) -> Option<(usize, f32, f32, f32)> {
@@ -186,28 +133,6 @@ fn lowest(mut mask: u32, t: &[f32], u: &[f32], v: &[f32]) -> Option<(usize, f32,
         }
     }
     best
-}
-
-/// Three-vector products over eight lanes, in the order `Tri4::solve` takes them.
-#[cfg(target_arch = "x86_64")]
-mod wide8 {
-    use std::arch::x86_64::*;
-
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    pub fn cross(a: [__m256; 3], b: [__m256; 3]) -> [__m256; 3] {
-        [
-            _mm256_sub_ps(_mm256_mul_ps(a[1], b[2]), _mm256_mul_ps(a[2], b[1])),
-            _mm256_sub_ps(_mm256_mul_ps(a[2], b[0]), _mm256_mul_ps(a[0], b[2])),
-            _mm256_sub_ps(_mm256_mul_ps(a[0], b[1]), _mm256_mul_ps(a[1], b[0])),
-        ]
-    }
-
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    pub fn dot(a: [__m256; 3], b: [__m256; 3]) -> __m256 {
-        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(a[0], b[0]), _mm256_mul_ps(a[1], b[1])), _mm256_mul_ps(a[2], b[2]))
-    }
 }
 
 /// Children per node.
@@ -355,43 +280,26 @@ impl Bvh8 {
     /// The closest hit along `o + t d` for t in (tmin, tmax): (t, packet lane, b1, b2), the
     /// lane counted over all packets (`lanes` names its primitive).
     pub fn intersect(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> Option<(f32, usize, f32, f32)> {
+        if !self.walks(o, d) {
+            return None;
+        }
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2.
-            return unsafe { self.intersect_avx2(o, d, tmin, tmax) };
+            return self.with_stack(|stack| unsafe { self.walk_avx2::<true>(o, d, tmin, tmax, stack) });
         }
-        self.intersect_lanes::<false>(o, d, tmin, tmax)
+        self.intersect_portable(o, d, tmin, tmax)
     }
 
-    /// `intersect` compiled for AVX2: a node's eight slab tests in one register (the same
-    /// IEEE operations lane by lane, so the same hits).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn intersect_avx2(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> Option<(f32, usize, f32, f32)> {
-        self.intersect_lanes::<true>(o, d, tmin, tmax)
-    }
-
-    #[inline(always)]
-    fn intersect_lanes<const AVX2: bool>(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> Option<(f32, usize, f32, f32)> {
+    /// `intersect` four lanes at a time, on any CPU.
+    fn intersect_portable(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> Option<(f32, usize, f32, f32)> {
         let (o4, d4) = (splat(o), splat(d));
         let mut best = None;
-        self.walk::<true, AVX2>(o, d, tmin, tmax, |first, count, tmax| {
-            // With AVX2, two packets a pass (the same hit as one after the other).
-            let mut done = 0;
-            #[cfg(target_arch = "x86_64")]
-            while AVX2 && done + 1 < count {
-                let (a, b) = (&self.packets[first + done], &self.packets[first + done + 1]);
-                // SAFETY: `AVX2` is true only where the CPU has AVX2.
-                if let Some((lane, t, u, v)) = unsafe { Tri4::closest_pair(a, b, o.to_array(), d.to_array(), tmin, *tmax) } {
-                    *tmax = t;
-                    best = Some((t, 4 * (first + done) + lane, u, v));
-                }
-                done += 2;
-            }
-            for (i, packet) in self.packets[first + done..first + count].iter().enumerate() {
+        self.walk::<true>(o, d, tmin, tmax, |first, count, tmax| {
+            for (i, packet) in self.packets[first..first + count].iter().enumerate() {
                 if let Some((lane, t, u, v)) = packet.closest(o4, d4, tmin, *tmax) {
                     *tmax = t;
-                    best = Some((t, 4 * (first + done + i) + lane, u, v));
+                    best = Some((t, 4 * (first + i) + lane, u, v));
                 }
             }
             false
@@ -401,116 +309,129 @@ impl Bvh8 {
 
     /// Whether anything blocks `o + t d` for t in (tmin, tmax); stops at the first blocker.
     pub fn occluded(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> bool {
+        if !self.walks(o, d) {
+            return false;
+        }
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2.
-            return unsafe { self.occluded_avx2(o, d, tmin, tmax) };
+            return self.with_stack(|stack| unsafe { self.walk_avx2::<false>(o, d, tmin, tmax, stack) }).is_some();
         }
-        self.occluded_lanes::<false>(o, d, tmin, tmax)
+        self.occluded_portable(o, d, tmin, tmax)
     }
 
-    /// `occluded` compiled for AVX2, as `intersect_avx2`.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn occluded_avx2(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> bool {
-        self.occluded_lanes::<true>(o, d, tmin, tmax)
-    }
-
-    #[inline(always)]
-    fn occluded_lanes<const AVX2: bool>(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> bool {
+    /// `occluded` four lanes at a time, on any CPU.
+    fn occluded_portable(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> bool {
         let (o4, d4) = (splat(o), splat(d));
         let mut blocked = false;
-        self.walk::<false, AVX2>(o, d, tmin, tmax, |first, count, _| {
-            let mut done = 0;
-            #[cfg(target_arch = "x86_64")]
-            while AVX2 && done + 1 < count {
-                let (a, b) = (&self.packets[first + done], &self.packets[first + done + 1]);
-                // SAFETY: `AVX2` is true only where the CPU has AVX2.
-                if unsafe { Tri4::solve_pair(a, b, o.to_array(), d.to_array(), tmin, tmax) }.0 != 0 {
-                    blocked = true;
-                    return true;
-                }
-                done += 2;
-            }
-            blocked = self.packets[first + done..first + count].iter().any(|p| p.hits(o4, d4, tmin, tmax) != 0);
+        self.walk::<false>(o, d, tmin, tmax, |first, count, _| {
+            blocked = self.packets[first..first + count].iter().any(|p| p.hits(o4, d4, tmin, tmax) != 0);
             blocked
         });
         blocked
     }
 
+    /// Whether a ray has anything to walk: a tree with nodes, and a finite ray (a ray that is
+    /// not finite meets nothing).
+    fn walks(&self, o: Vec3A, d: Vec3A) -> bool {
+        !self.nodes.is_empty() && o.is_finite() && d.is_finite()
+    }
+
+    /// Runs `f` with a walk's stack: on the thread's stack, or on the heap for trees deeper
+    /// than that holds. Entries are read only below the top, where they were written, so the
+    /// stack is left uninitialised.
+    #[inline(always)]
+    fn with_stack<R>(&self, f: impl FnOnce(&mut [MaybeUninit<(u32, f32)>]) -> R) -> R {
+        if self.stack <= INLINE_STACK {
+            f(&mut [MaybeUninit::uninit(); INLINE_STACK])
+        } else {
+            f(&mut vec![MaybeUninit::uninit(); self.stack])
+        }
+    }
+
     /// Visits the leaves a ray meets, nearest box first, skipping stacked children whose box
     /// starts beyond `tmax`; `leaf(first, count, &mut tmax)` may shorten the ray, and ends the
-    /// walk by returning true. A ray that is not finite meets nothing.
+    /// walk by returning true. The ray is finite and the tree has nodes (`walks`).
     #[inline(always)]
-    fn walk<const ORDERED: bool, const AVX2: bool>(
-        &self,
-        o: Vec3A,
-        d: Vec3A,
-        tmin: f32,
-        tmax: f32,
-        mut leaf: impl FnMut(usize, usize, &mut f32) -> bool,
-    ) {
-        if self.nodes.is_empty() || !(o.is_finite() && d.is_finite()) {
-            return;
-        }
+    fn walk<const ORDERED: bool>(&self, o: Vec3A, d: Vec3A, tmin: f32, tmax: f32, mut leaf: impl FnMut(usize, usize, &mut f32) -> bool) {
         let ray = Slabs::new(o, d);
-        // One call site for `leaf` (so that it is inlined): the stack on the thread's stack, or
-        // on the heap for trees deeper than that holds. Entries are read only below `sp`,
-        // where they were written, so the inline stack is left uninitialised.
-        let (mut inline, mut heap) = ([MaybeUninit::<(u32, f32)>::uninit(); INLINE_STACK], Vec::new());
-        let stack: &mut [MaybeUninit<(u32, f32)>] = if self.stack <= INLINE_STACK {
-            &mut inline
-        } else {
-            heap.resize(self.stack, MaybeUninit::uninit());
-            &mut heap
-        };
-        let (mut sp, mut cur, mut tmax) = (0, 0u32, tmax);
-        loop {
-            if cur & LEAF != 0 {
-                let (first, count) = leaf_range(cur);
-                if leaf(first, count, &mut tmax) {
-                    return;
-                }
-            } else {
-                let node = &self.nodes[cur as usize];
-                let (near, mut mask) = ray.enter::<AVX2>(node, tmin, tmax);
-                if mask != 0 {
-                    let mut kids = [(0.0f32, 0u32); WIDTH];
-                    let mut k = 0;
-                    while mask != 0 {
-                        let lane = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
-                        kids[k] = (near[lane], node.child[lane]);
-                        k += 1;
-                    }
-                    // Farthest first: insertion sort of at most `WIDTH`.
-                    for i in (1..k).filter(|_| ORDERED) {
-                        let mut j = i;
-                        while j > 0 && kids[j - 1].0 < kids[j].0 {
-                            kids.swap(j - 1, j);
-                            j -= 1;
-                        }
-                    }
-                    for &(t, c) in &kids[..k - 1] {
-                        stack[sp].write((c, t));
-                        sp += 1;
-                    }
-                    cur = kids[k - 1].1;
-                    continue;
-                }
-            }
+        self.with_stack(|stack| {
+            let (mut sp, mut cur, mut tmax) = (0, 0u32, tmax);
             loop {
-                if sp == 0 {
-                    return;
+                if cur & LEAF != 0 {
+                    let (first, count) = leaf_range(cur);
+                    if leaf(first, count, &mut tmax) {
+                        return;
+                    }
+                } else {
+                    let node = &self.nodes[cur as usize];
+                    let (near, mask) = ray.enter_halves(node, tmin, tmax);
+                    if mask != 0 {
+                        cur = descend::<ORDERED>(node, &near, mask, stack, &mut sp);
+                        continue;
+                    }
                 }
-                sp -= 1;
-                // SAFETY: entry `sp` was written when the stack last grew past it.
-                let (c, t) = unsafe { stack[sp].assume_init() };
-                if t < tmax {
-                    cur = c;
-                    break;
+                match pop(stack, &mut sp, tmax) {
+                    Some(c) => cur = c,
+                    None => return,
                 }
             }
+        })
+    }
+}
+
+/// The child of `node` a walk goes to next among those of `mask` (entered at `near`): the
+/// nearest with `ORDERED`, else the last met; the others are stacked, farthest deepest.
+#[inline(always)]
+fn descend<const ORDERED: bool>(
+    node: &Node,
+    near: &[f32; WIDTH],
+    mut mask: u32,
+    stack: &mut [MaybeUninit<(u32, f32)>],
+    sp: &mut usize,
+) -> u32 {
+    let mut kids = [(0.0f32, 0u32); WIDTH];
+    let mut k = 0;
+    while mask != 0 {
+        let lane = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        kids[k] = (near[lane], node.child[lane]);
+        k += 1;
+    }
+    if ORDERED {
+        farthest_first(&mut kids[..k]);
+    }
+    for &(t, c) in &kids[..k - 1] {
+        stack[*sp].write((c, t));
+        *sp += 1;
+    }
+    kids[k - 1].1
+}
+
+/// The next stacked child whose box starts before `tmax` (the others are dropped), or `None`
+/// when the stack is spent.
+#[inline(always)]
+fn pop(stack: &[MaybeUninit<(u32, f32)>], sp: &mut usize, tmax: f32) -> Option<u32> {
+    while *sp > 0 {
+        *sp -= 1;
+        // SAFETY: entry `sp` was written when the stack last grew past it.
+        let (c, t) = unsafe { stack[*sp].assume_init() };
+        if t < tmax {
+            return Some(c);
+        }
+    }
+    None
+}
+
+/// Sorts a node's children met, farthest entry first (insertion sort of at most `WIDTH`), so
+/// that the nearest is walked next and the rest are stacked behind it.
+#[inline(always)]
+fn farthest_first(kids: &mut [(f32, u32)]) {
+    for i in 1..kids.len() {
+        let mut j = i;
+        while j > 0 && kids[j - 1].0 < kids[j].0 {
+            kids.swap(j - 1, j);
+            j -= 1;
         }
     }
 }
@@ -537,20 +458,7 @@ impl Slabs {
     }
 
     /// Entry distances of the children and the mask of those the ray meets within
-    /// (tmin, tmax): with `AVX2` (only inside functions compiled for it, called once the CPU
-    /// was seen to have it) in one eight-lane register, otherwise in two halves of four. Both
-    /// do the same IEEE operations lane by lane, so they give the same bits.
-    #[inline(always)]
-    fn enter<const AVX2: bool>(&self, node: &Node, tmin: f32, tmax: f32) -> ([f32; WIDTH], u32) {
-        #[cfg(target_arch = "x86_64")]
-        if AVX2 {
-            // SAFETY: `AVX2` is true only where the CPU has AVX2.
-            return unsafe { self.enter_avx2(node, tmin, tmax) };
-        }
-        self.enter_halves(node, tmin, tmax)
-    }
-
-    /// `enter` four lanes at a time. A NaN distance (an origin on a slab plane of a flat axis)
+    /// (tmin, tmax), four lanes at a time. A NaN distance (an origin on a slab plane of a flat axis)
     /// is ignored, so that axis does not cull: `max` and `min` give their second operand when
     /// the first is NaN.
     #[inline(always)]
@@ -568,30 +476,6 @@ impl Slabs {
             near.write_to_slice(&mut out[h..h + 4]);
         }
         (out, hit)
-    }
-
-    /// `enter` in one AVX register of eight lanes, operation for operation as `enter_halves`.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn enter_avx2(&self, node: &Node, tmin: f32, tmax: f32) -> ([f32; WIDTH], u32) {
-        use std::arch::x86_64::*;
-        const _: () = assert!(WIDTH == 8);
-        let (mut near, mut far) = (_mm256_set1_ps(tmin), _mm256_set1_ps(tmax));
-        // SAFETY: each bounds row is eight floats; unaligned loads and stores.
-        unsafe {
-            for a in 0..3 {
-                let (o, inv) = (_mm256_set1_ps(self.o[a]), _mm256_set1_ps(self.inv[a]));
-                let lo = _mm256_loadu_ps(node.bounds[self.near[a]].as_ptr());
-                let hi = _mm256_loadu_ps(node.bounds[self.near[a] ^ 1].as_ptr());
-                near = _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(lo, o), inv), near);
-                far = _mm256_min_ps(_mm256_mul_ps(_mm256_sub_ps(hi, o), inv), far);
-            }
-            let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, _mm256_mul_ps(far, _mm256_set1_ps(FAR_WIDEN))));
-            let mut out = [0.0; WIDTH];
-            _mm256_storeu_ps(out.as_mut_ptr(), near);
-            (out, hit as u32)
-        }
     }
 }
 
@@ -651,10 +535,10 @@ mod tests {
             let o = Vec3A::new(u(0), u(1), u(2)) * 4.0 - Vec3A::splat(2.0);
             let d = (Vec3A::new(u(3), u(4), u(5)) * 2.0 - Vec3A::ONE).normalize();
             let brute = tris.iter().filter_map(|t| t.intersect(o, d, 0.0, f32::INFINITY)).map(|h| h.0).fold(f32::INFINITY, f32::min);
-            let found = tree.intersect_lanes::<false>(o, d, 0.0, f32::INFINITY);
+            let found = tree.intersect_portable(o, d, 0.0, f32::INFINITY);
             assert_eq!(found.map_or(f32::INFINITY, |h| h.0), brute, "ray {i}");
-            assert_eq!(tree.occluded_lanes::<false>(o, d, 0.0, f32::INFINITY), brute.is_finite());
-            assert_eq!(tree.occluded_lanes::<false>(o, d, 0.0, brute), false, "nothing before the closest hit");
+            assert_eq!(tree.occluded_portable(o, d, 0.0, f32::INFINITY), brute.is_finite());
+            assert_eq!(tree.occluded_portable(o, d, 0.0, brute), false, "nothing before the closest hit");
             // The dispatching entry points (AVX2 where the CPU has it) give the same bits.
             assert_eq!(tree.intersect(o, d, 0.0, f32::INFINITY), found);
             assert_eq!(tree.occluded(o, d, 0.0, brute * 1.5), brute.is_finite());
@@ -714,7 +598,8 @@ mod tests {
             let then = b.closest(splat(o), splat(d), 0.0, first.map_or(tmax, |h| h.1)).map(|h| (h.0 + 4, h.1, h.2, h.3));
             let (o3, d3) = (o.to_array(), d.to_array());
             // SAFETY: the CPU has AVX2.
-            let pair = unsafe { Tri4::closest_pair(&a, &b, o3, d3, 0.0, tmax) };
+            let pair = unsafe { Tri4::solve_pair(&a, &b, o3, d3, 0.0, tmax) };
+            let pair = lowest(pair.0, &pair.1, &pair.2, &pair.3);
             assert_eq!(pair, then.or(first), "pair {i}");
             let any = a.hits(splat(o), splat(d), 0.0, tmax) | b.hits(splat(o), splat(d), 0.0, tmax);
             assert_eq!(unsafe { Tri4::solve_pair(&a, &b, o3, d3, 0.0, tmax) }.0 != 0, any != 0);
