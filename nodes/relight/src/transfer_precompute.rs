@@ -4,7 +4,7 @@ use super::terms::{Channels, TermSet};
 use crate::types::{floats_and_stride, PathCounts, Transfer, TransferRows, MAX_TRANSFER_BYTES};
 use relume_base::render::film::with_ctx;
 use relume_base::types::accel::Accel;
-use relume_base::types::{row_spec, BrdfBasis, Scene};
+use relume_base::types::{row_spec, BrdfBasis, Image, Scene};
 use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, params, NodeError, RunCtx, ShardSpec};
 use std::ops::Range;
@@ -19,7 +19,9 @@ params! {
     /// rouletted or importance-sampled by them. Camera samples are jittered over the pixel (the
     /// reference's box filter); a pixel takes the object most of its samples hit (the object-id
     /// image) and drops the reflected light of the others (counted: `dropped_samples`,
-    /// `mixed_pixels`). Light seen directly (emitters, the environment) has an image of its own
+    /// `mixed_pixels`; the `dropped` image holds each pixel's share of dropped samples, 0 where
+    /// one object covers it: the pixels a z-test against the reference can hold the model to).
+    /// Light seen directly (emitters, the environment) has an image of its own
     /// (`images_emitted`) averaged over every camera sample, so a light's edge is antialiased as in
     /// the reference. Seeded: the same bytes on any thread count and
     /// any sharding (sharded over image rows for `relume shard` / `--processes`); `paths` gives
@@ -32,7 +34,7 @@ params! {
 }
 
 inputs!(pub TransferPrecomputeIn { scene: Scene, accel: Accel, basis: BrdfBasis });
-outputs!(pub TransferPrecomputeOut { transfer: Transfer, paths: PathCounts });
+outputs!(pub TransferPrecomputeOut { transfer: Transfer, paths: PathCounts, dropped: Image });
 
 /// The terms of the scene after the checks, with the bytes they will hold refused over the
 /// limit: 16 GiB or the run's memory budget (`--memory-budget`), the lower.
@@ -79,17 +81,20 @@ pub fn precompute_rows(
     let paths = Paths::new(scene, accel, counts, &shade, &slots);
     let mut data = vec![0.0f32; rows.len() * w * stride];
     let mut class = vec![0u32; rows.len() * w];
+    let mut dropped = vec![0u32; rows.len() * w];
     let y0 = rows.start;
     let row_stats = with_ctx(cx, |cx| {
         cx.par_map(rows.len(), |r| {
             let mut out = vec![0.0f32; w * stride];
             let mut classes = vec![0u32; w];
+            let mut drops = vec![0u32; w];
             let mut acc = vec![[0.0f64; 3]; set.terms.len()];
             let mut counters = [0u64; 3];
             for x in 0..w {
                 acc.iter_mut().for_each(|a| *a = [0.0; 3]);
                 let st = paths.pixel(x, y0 + r, &mut acc, &mut |_| {});
                 classes[x] = st.class;
+                drops[x] = st.dropped;
                 counters[0] += st.rays;
                 counters[1] += st.dropped as u64;
                 counters[2] += (st.dropped > 0) as u64;
@@ -108,40 +113,47 @@ pub fn precompute_rows(
                     }
                 }
             }
-            (out, classes, counters)
+            (out, classes, drops, counters)
         })
     })?;
     let mut counters = vec![0u64; 3];
-    for (r, (out, classes, cs)) in row_stats.into_iter().enumerate() {
+    for (r, (out, classes, drops, cs)) in row_stats.into_iter().enumerate() {
         data[r * w * stride..(r + 1) * w * stride].copy_from_slice(&out);
         class[r * w..(r + 1) * w].copy_from_slice(&classes);
+        dropped[r * w..(r + 1) * w].copy_from_slice(&drops);
         counters.iter_mut().zip(cs).for_each(|(a, b)| *a += b);
     }
-    Ok(TransferRows { first_row: rows.start as u64, rows: rows.len() as u64, class, data, counters })
+    Ok(TransferRows { first_row: rows.start as u64, rows: rows.len() as u64, class, data, dropped, counters })
 }
 
-/// Stacks bands into the whole transfer (bands in any order; they must cover the image once).
+/// Stacks bands into the whole transfer (bands in any order; they must cover the image once),
+/// with the image of the share of each pixel's camera samples dropped (grey) and the counters
+/// [rays, dropped samples, mixed pixels].
 pub fn gather_transfer(
     scene: &Scene,
     basis: &BrdfBasis,
     counts: PathCounts,
     parts: &[&TransferRows],
     budget: u64,
-) -> Result<(Transfer, [u64; 3]), NodeError> {
+) -> Result<(Transfer, Image, [u64; 3]), NodeError> {
     let set = terms_checked(scene, basis, budget)?;
     let (_, stride) = floats_and_stride(&set.terms);
     let (w, h) = (scene.camera.width, scene.camera.height);
     let mut data = vec![0.0f32; w * h * stride];
     let mut class = vec![0u32; w * h];
+    let mut dropped = Image::try_new(w, h)?;
     let mut covered = 0u64;
     let mut counters = [0u64; 3];
     for p in parts {
         let (a, n) = (p.first_row as usize, p.rows as usize);
-        if a + n > h || p.data.len() != n * w * stride || p.class.len() != n * w || p.counters.len() != 3 {
+        if a + n > h || p.data.len() != n * w * stride || p.class.len() != n * w || p.dropped.len() != n * w || p.counters.len() != 3 {
             return Err(NodeError::Failed(format!("a band of rows {a}..{} does not fit the {w} × {h} transfer", a + n)));
         }
         data[a * w * stride..(a + n) * w * stride].copy_from_slice(&p.data);
         class[a * w..(a + n) * w].copy_from_slice(&p.class);
+        for (px, &k) in dropped.pixels[a * w..(a + n) * w].iter_mut().zip(&p.dropped) {
+            *px = [k as f32 / counts.spp.max(1) as f32; 3];
+        }
         covered += n as u64;
         counters.iter_mut().zip(&p.counters).for_each(|(x, y)| *x += y);
     }
@@ -160,16 +172,17 @@ pub fn gather_transfer(
         class,
         data,
     };
-    Ok((transfer, counters))
+    Ok((transfer, dropped, counters))
 }
 
-#[node(category = "relight", version = 4, sharded, metrics = ["images", "images_grey", "images_rgb", "images_emitted", "dynamic_objects", "bytes", "rays", "hemisphere_rays_per_pixel", "dropped_samples", "mixed_pixels"])]
+#[node(category = "relight", version = 5, sharded, metrics = ["images", "images_grey", "images_rgb", "images_emitted", "dynamic_objects", "bytes", "rays", "hemisphere_rays_per_pixel", "dropped_samples", "mixed_pixels"])]
 impl TransferPrecompute {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The images' count depends on the scene's objects and lights: the node checks the
         // bytes itself before allocating; here, the per-pixel classes and row buffers.
         let px = inputs[0].and_then(|s| s.pixels()).unwrap_or(0);
-        relume_core::MemoryEstimate { outputs: vec![None, Some(relume_core::PortSize::bytes(32))], working: px * 8 }
+        let dropped = inputs[0].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));
+        relume_core::MemoryEstimate { outputs: vec![None, Some(relume_core::PortSize::bytes(32)), dropped], working: px * 12 }
     }
 
     fn shard(&self, i: &TransferPrecomputeIn) -> Result<ShardSpec, NodeError> {
@@ -182,7 +195,7 @@ impl TransferPrecompute {
     }
 
     fn gather(&self, i: &TransferPrecomputeIn, parts: &[&TransferRows], cx: &RunCtx) -> Result<TransferPrecomputeOut, NodeError> {
-        let (transfer, [rays, dropped, mixed]) = gather_transfer(i.scene, i.basis, self.paths, parts, cx.memory_budget())?;
+        let (transfer, dropped_share, [rays, dropped, mixed]) = gather_transfer(i.scene, i.basis, self.paths, parts, cx.memory_budget())?;
         let set = scene_terms(i.scene, i.basis.bases());
         cx.metric("images", set.terms.len() as f64);
         cx.metric("images_grey", set.count(Channels::Grey) as f64);
@@ -200,7 +213,7 @@ impl TransferPrecompute {
         if !i.scene.has_lights() {
             cx.note("the scene has no light: every image is black");
         }
-        Ok(TransferPrecomputeOut { transfer, paths: self.paths })
+        Ok(TransferPrecomputeOut { transfer, paths: self.paths, dropped: dropped_share })
     }
 }
 
@@ -235,6 +248,34 @@ mod tests {
             assert!(t.class.contains(&c), "class {c} in {:?}", t.class);
         }
         assert!(t.data.iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn the_dropped_image_holds_each_pixels_share_of_samples_on_other_objects() {
+        let (b, _) = basis(&space(6, 6, 12, 12, 1.0, 100.0), 4);
+        let spp = 8;
+        let (_, _, t, e) = precompute(&scene(16), &b, [spp, 1, 1, 1]);
+        let dropped = e.outputs[2].get::<Image>().unwrap();
+        assert_eq!((dropped.width, dropped.height), (t.width as usize, t.height as usize));
+        let shares: Vec<f32> = dropped.pixels.iter().map(|p| p[0]).collect();
+        // Every share is a whole number of samples over spp, under a half (the pixel's class
+        // holds the most samples), and the counts add up to the report's.
+        assert!(shares.iter().all(|&s| (s * spp as f32 - (s * spp as f32).round()).abs() < 1e-5 && s < 0.5 + 1e-6), "{shares:?}");
+        let mixed = shares.iter().filter(|&&s| s > 0.0).count();
+        assert_eq!(mixed as f64, metric(&e, "mixed_pixels"));
+        let samples: f32 = shares.iter().map(|s| s * spp as f32).sum();
+        assert_eq!(samples.round() as f64, metric(&e, "dropped_samples"));
+        assert!(mixed > 0 && mixed < shares.len() / 2, "{mixed} of {} pixels mixed", shares.len());
+        // A mixed pixel lies on an edge between classes: a neighbour took another class.
+        let w = t.width as usize;
+        for p in (0..shares.len()).filter(|&p| shares[p] > 0.0) {
+            let (x, y) = ((p % w) as i64, (p / w) as i64);
+            let other = (-1..=1i64).flat_map(|dy| (-1..=1i64).map(move |dx| (x + dx, y + dy))).any(|(a, b)| {
+                (0..w as i64).contains(&a) && (0..t.height as i64).contains(&b) && t.class[b as usize * w + a as usize] != t.class[p]
+            });
+            let border = x == 0 || y == 0 || x == w as i64 - 1 || y == t.height as i64 - 1;
+            assert!(other || border, "pixel ({x}, {y}) is mixed inside one class");
+        }
     }
 
     #[test]
@@ -292,9 +333,9 @@ mod tests {
         let c = PathCounts { spp: 2, light_samples: 1, bounce_rays: 2, bounce_light_samples: 1, seed: 9 };
         let whole = precompute_rows(&s, &accel, &b, c, 0..12, None).unwrap();
         let parts = [0..5, 5..6, 6..12].map(|r| precompute_rows(&s, &accel, &b, c, r, None).unwrap());
-        let (t1, c1) = gather_transfer(&s, &b, c, &[&whole], u64::MAX).unwrap();
-        let (t2, c2) = gather_transfer(&s, &b, c, &[&parts[2], &parts[0], &parts[1]], u64::MAX).unwrap();
-        assert_eq!((t1, c1), (t2, c2));
+        let (t1, d1, c1) = gather_transfer(&s, &b, c, &[&whole], u64::MAX).unwrap();
+        let (t2, d2, c2) = gather_transfer(&s, &b, c, &[&parts[2], &parts[0], &parts[1]], u64::MAX).unwrap();
+        assert_eq!((t1, d1, c1), (t2, d2, c2));
         assert!(gather_transfer(&s, &b, c, &[&parts[0]], u64::MAX).is_err(), "missing rows are an error");
     }
 

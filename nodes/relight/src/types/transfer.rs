@@ -132,6 +132,9 @@ pub struct TransferRows {
     pub class: Vec<u32>,
     #[serde(with = "pod_vec")]
     pub data: Vec<f32>,
+    /// Per pixel, the camera samples dropped because they hit another class.
+    #[serde(with = "pod_vec")]
+    pub dropped: Vec<u32>,
     pub counters: Vec<u64>,
 }
 
@@ -141,7 +144,7 @@ impl PortValue for TransferRows {
     const COLOR: [u8; 3] = [100, 170, 150];
     const DOC: &'static str = "a band of rows of a relighting transfer (the precompute's partial result)";
     fn byte_size(&self) -> usize {
-        self.data.len() * 4 + self.class.len() * 4 + 64
+        self.data.len() * 4 + (self.class.len() + self.dropped.len()) * 4 + 64
     }
     relume_core::serde_codec!();
 }
