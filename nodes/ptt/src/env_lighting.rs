@@ -9,10 +9,11 @@ use relume_core::{node, params, MemoryEstimate, NodeError, PortSize, RunCtx};
 
 params! {
     /// The scene's environment as the transfer-tensor renderer reads it ([S] 5.2.3, 5.3.3.3): a
-    /// cube map of 6 × `side` × `side` texels (each the solid-angle-weighted mean of
-    /// `supersample`² sub-texels of the lat-long map, so a sun smaller than a texel keeps its
-    /// energy; turn or scale the sky with `TurnEnvironment` upstream, so the reference sees it
-    /// too); its Haar
+    /// cube map of 6 × `side` × `side` texels (each the solid-angle-weighted mean of sub-texels
+    /// of the lat-long map, `supersample` or more a side: at most half a map texel wide, so a sun
+    /// a few map texels wide is averaged into the texel, never hit or missed by a sparse sample;
+    /// turn or scale the sky with `TurnEnvironment` upstream, so the reference sees it too); its
+    /// Haar
     /// coefficients C^L (`math::cube_haar`: non-standard Haar per face, then one orthonormal step
     /// over the faces' six scaling terms, so a constant environment is one coefficient); and, for
     /// the specular lobes of widths `lobe_step_deg` × 1 … `lobes` ([S] 5-13: 7°, 14°, 21°; the
@@ -27,7 +28,8 @@ params! {
     pub struct EnvLighting {
         /// texels along a cube face ([S]: 64)
         pub side: usize = 64, range = 4..=512, test = 8;
-        /// sub-texels per texel side averaged from the lat-long map
+        /// fewest sub-texels per texel side averaged from the lat-long map (more where the map is
+        /// finer than that, up to 2,048 sub-texels along a face)
         pub supersample: usize = 4, range = 1..=16, test = 2;
         /// angular standard deviation of the first specular lobe; lobe k has k times it
         pub lobe_step_deg: f64 = 7.0, range = 0.1..=60.0, unit = "°";
@@ -36,27 +38,43 @@ params! {
     }
 }
 
+/// The most sub-texels along a cube face (their solid angles, 8 bytes each, are held: 32 MiB).
+const MAX_SUB: usize = 2048;
+
 impl EnvLighting {
     fn bytes(&self) -> u64 {
         let lobes: u64 = (1..=self.lobes).map(|k| 2 * CubeMap::bytes_for(lobe_side(k as f64 * self.lobe_step_deg, self.side))).sum();
         3 * CubeMap::bytes_for(self.side) + lobes
     }
 
+    /// Sub-texels per texel side: `supersample`, or as many as make a sub-texel at most half a
+    /// map texel wide at a face's centre (a texel spans 2 / side radians there, a texel of a
+    /// map `width` wide 2π / width; the bilinear lookup's tent, two texels wide, is then
+    /// sampled four times across), with at most `MAX_SUB` along a face.
+    fn sub_texels(&self, scene: &Scene) -> usize {
+        let width = match &scene.environment {
+            Some(Environment::Map(m)) => m.width,
+            _ => 0,
+        };
+        let fine = (2.0 * width as f64 / (std::f64::consts::PI * self.side as f64)).ceil() as usize;
+        self.supersample.max(fine).min((MAX_SUB / self.side).max(1))
+    }
+
     /// The cube map of the scene's environment.
     pub fn cube(&self, scene: &Scene) -> CubeMap {
         match &scene.environment {
             Some(Environment::Constant(c)) => CubeMap::constant(self.side, *c),
-            _ => CubeMap::from_fn(self.side, self.supersample, |d| scene.environment_radiance(d)),
+            _ => CubeMap::from_fn(self.side, self.sub_texels(scene), |d| scene.environment_radiance(d)),
         }
     }
 }
 
-#[node(category = "ptt", metrics = ["radiance_max", "luminance_integral", "haar_nonzero", "energy_share_top96", "bytes"], outputs = [light, metrics])]
+#[node(category = "ptt", version = 2, metrics = ["radiance_max", "luminance_integral", "haar_nonzero", "energy_share_top96", "bytes"], outputs = [light, metrics])]
 impl EnvLighting {
     fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
         MemoryEstimate {
             outputs: vec![Some(PortSize::bytes(self.bytes())), Some(PortSize::bytes(1024))],
-            working: CubeMap::bytes_for(self.side),
+            working: CubeMap::bytes_for(self.side) + (MAX_SUB * MAX_SUB * 8) as u64,
         }
     }
 
@@ -165,6 +183,12 @@ mod tests {
         let l = light(&s, &[("side", i(32)), ("supersample", i(8))]);
         let total = l.cube().integral().x as f64;
         assert!((total / brute - 1.0).abs() < 0.02, "cube {total} against {brute}");
+        // Coarse cube maps with one sub-texel asked: as many are taken as the map's texels
+        // need, so the sun is averaged in, not hit (far too bright) or missed (gone).
+        for side in [4, 8, 16] {
+            let total = light(&s, &[("side", i(side)), ("supersample", i(1))]).cube().integral().x as f64;
+            assert!((total / brute - 1.0).abs() < 0.02, "side {side}: cube {total} against {brute}");
+        }
         // The brightest texel points at the sun.
         let brightest = |l: &EnvLight| (0..l.map.len()).max_by(|&a, &b| l.map[a].x.total_cmp(&l.map[b].x)).unwrap_or(0);
         assert!(l.cube().direction(brightest(&l)).dot(sun) > 0.99);
