@@ -86,6 +86,7 @@ pub fn graph_edits() -> Vec<GraphEdit> {
         ("relight_basis_ring.ron", "project_plane.s", |k| format!("{}", 5.0 + k as f64 * 1e-6)),
         ("relight_basis_cornell_bunny.ron", "project_bunny.s", |k| format!("{}", 180.0 - k as f64 * 1e-6)),
         ("relight_vs_reference.ron", "transfer.spp", |k| format!("{}", 16 + k)),
+        ("relight_sv_vs_reference.ron", "transfer.spp", |k| format!("{}", 16 + k)),
         ("voxelize_glass.ron", "voxelize.index", |k| format!("{}", 1.5 + k as f64 * 1e-6)),
         ("refract_glass.ron", "light.translation", |k| format!("({}, 0, 0)", k as f64 * 1e-6)),
         ("refract_glass_medium.ron", "light.translation", |k| format!("({}, 0, 0)", k as f64 * 1e-6)),
