@@ -55,7 +55,7 @@ fn pool() -> rayon::ThreadPool {
 }
 
 fn bidir(s: &Scene, accel: &Accel) -> (Image, Image) {
-    let settings = BidirSettings { max_depth: -1, min_depth: 1, rr_depth: 5, seed: 0, only: None };
+    let settings = BidirSettings { max_depth: -1, min_depth: 1, rr_depth: 5, seed: 0, only: None, fresnel_reflection: true };
     let (m, v, _) = bidir_path_trace::render(s, accel, settings, SPP, None).unwrap();
     (m, v)
 }

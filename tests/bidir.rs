@@ -31,7 +31,7 @@ fn it_renders_the_path_tracers_image_on_cornell_ring_glass_glass_medium_and_envl
     for name in ["cornell", "ring", "glass", "glass-medium", "envlit"] {
         let scene = scene(name, 32);
         let accel = Accel::build(&scene, BuildQuality::Medium);
-        let settings = BidirSettings { max_depth: -1, min_depth: 1, rr_depth: 5, seed: 1, only: None };
+        let settings = BidirSettings { max_depth: -1, min_depth: 1, rr_depth: 5, seed: 1, only: None, fresnel_reflection: true };
         let (bm, bv, c) = bidir_path_trace::render(&scene, &accel, settings, 256, None).unwrap();
         assert_eq!((c[1], c[2]), (0, 0), "{name}: no NaN or infinite samples");
         let (pm, pv, _, _) = path_trace::render(

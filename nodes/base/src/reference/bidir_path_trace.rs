@@ -35,6 +35,10 @@ params! {
         pub rr_depth: u32 = 5, range = 1..=1024;
         /// random seed
         pub seed: u64 = 0, range = 0..=u32::MAX;
+        /// reflect at smooth dielectrics by Fresnel; false: every subpath refracts (total
+        /// internal reflection still reflects), `PathTrace`'s switch: the refraction pipeline's
+        /// light model, whose caustics this tracer finds sooner than the path tracer
+        pub fresnel_reflection: bool = true;
     }
 }
 
@@ -46,7 +50,14 @@ const MAX_PASS: u32 = 16;
 
 impl BidirPathTrace {
     fn settings(&self) -> BidirSettings {
-        BidirSettings { max_depth: self.max_depth, min_depth: self.min_depth, rr_depth: self.rr_depth, seed: self.seed, only: None }
+        BidirSettings {
+            max_depth: self.max_depth,
+            min_depth: self.min_depth,
+            rr_depth: self.rr_depth,
+            seed: self.seed,
+            only: None,
+            fresnel_reflection: self.fresnel_reflection,
+        }
     }
 }
 
@@ -214,7 +225,14 @@ mod tests {
 
     fn bidir(scene: &Scene, spp: u32, max_depth: i32, only: Option<(usize, usize)>) -> (Image, Image) {
         let accel = Accel::build(scene, BuildQuality::Fast);
-        let (m, v, c) = render(scene, &accel, BidirSettings { max_depth, min_depth: 1, rr_depth: 5, seed: 7, only }, spp, None).unwrap();
+        let (m, v, c) = render(
+            scene,
+            &accel,
+            BidirSettings { max_depth, min_depth: 1, rr_depth: 5, seed: 7, only, fresnel_reflection: true },
+            spp,
+            None,
+        )
+        .unwrap();
         assert_eq!((c[1], c[2]), (0, 0), "no NaN or infinite samples");
         (m, v)
     }
@@ -335,7 +353,7 @@ mod tests {
         }
         // All strategies, weighted, with `min_depth` 3: the same one-bounce image.
         let accel = Accel::build(&scene, BuildQuality::Fast);
-        let settings = BidirSettings { max_depth: 3, min_depth: 3, rr_depth: 5, seed: 7, only: None };
+        let settings = BidirSettings { max_depth: 3, min_depth: 3, rr_depth: 5, seed: 7, only: None, fresnel_reflection: true };
         let (m, v, _) = render(&scene, &accel, settings, 128, None).unwrap();
         let (m, s) = mean(&(m, v));
         assert!((m - bounce).abs() < 4.0 * (s * s + sigma * sigma).sqrt(), "min_depth 3: {m} ± {s} against {bounce} ± {sigma}");
@@ -405,7 +423,7 @@ mod tests {
     fn one_and_two_threads_and_any_split_of_the_rows_give_the_same_bytes() {
         let scene = glass_ball();
         let accel = Accel::build(&scene, BuildQuality::Fast);
-        let settings = BidirSettings { max_depth: -1, min_depth: 1, rr_depth: 5, seed: 3, only: None };
+        let settings = BidirSettings { max_depth: -1, min_depth: 1, rr_depth: 5, seed: 3, only: None, fresnel_reflection: true };
         let run = |threads| {
             rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
@@ -448,6 +466,24 @@ mod tests {
             let scene = fog(sigma_s);
             agree(&bidir(&scene, spp, -1, None), &path(&scene, spp, -1), 0.9, &format!("σs {sigma_s}"));
         }
+    }
+
+    #[test]
+    fn without_fresnel_reflection_it_agrees_with_the_path_tracer_without_it() {
+        // The glass ball lets all its light through (the refraction pipeline's light model):
+        // both tracers switch it the same way, and the light through the ball changes.
+        let scene = glass_ball();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let settings = BidirSettings { max_depth: -1, min_depth: 1, rr_depth: 5, seed: 7, only: None, fresnel_reflection: false };
+        let (m, v, c) = render(&scene, &accel, settings, 1024, None).unwrap();
+        assert_eq!((c[1], c[2]), (0, 0), "no NaN or infinite samples");
+        let p = PathTrace { spp: 1024, max_depth: -1, min_depth: 1, rr_depth: 5, seed: 11, fresnel_reflection: false };
+        let (pm, pv, _, _) = path_trace::render(&scene, &accel, &p, None).unwrap();
+        let without = (m, v);
+        agree(&without, &(pm, pv), 0.9, "no Fresnel reflection");
+        let with = bidir(&scene, 1024, -1, None);
+        let ((a, sa), (b, sb)) = (mean(&without), mean(&with));
+        assert!((a - b).abs() > 4.0 * (sa * sa + sb * sb).sqrt(), "the switch changes the image: {a} ± {sa} against {b} ± {sb}");
     }
 
     #[test]

@@ -46,6 +46,9 @@ pub struct BidirSettings {
     /// Only this strategy (s light vertices, t camera vertices), unweighted: each strategy
     /// alone is an unbiased estimate of the paths it can make (for tests).
     pub only: Option<(usize, usize)>,
+    /// Whether smooth dielectrics reflect (Fresnel); without, both subpaths refract at every
+    /// dielectric except under total internal reflection (`PathTrace`'s switch, the same model).
+    pub fresnel_reflection: bool,
 }
 
 /// Everything shared by the samples of one render.
@@ -66,6 +69,7 @@ pub struct Bidir<'a> {
     rr_depth: u32,
     seed: u64,
     only: Option<(usize, usize)>,
+    fresnel_reflection: bool,
 }
 
 /// Stream of a sample's light subpath (its camera subpath uses the sample's own).
@@ -97,6 +101,7 @@ impl<'a> Bidir<'a> {
             rr_depth: s.rr_depth,
             seed: s.seed,
             only: s.only,
+            fresnel_reflection: s.fresnel_reflection,
         }
     }
 

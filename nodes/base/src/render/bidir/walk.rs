@@ -211,7 +211,11 @@ impl Bidir<'_> {
         }
         let (surf, material) = (&v.surf, v.material);
         let wo = v.frame.to_local(v.wo);
-        let bs = brdf::sample(&material, wo, rng.draw2(), rng.draw())?;
+        let (u2, uc) = (rng.draw2(), rng.draw());
+        // Without Fresnel reflection a dielectric always draws refraction (uc ≥ F), which total
+        // internal reflection (F = 1) still overrules; the numbers drawn stay the same.
+        let uc = if self.fresnel_reflection || !matches!(material, Material::Dielectric { .. }) { uc } else { 1.0 };
+        let bs = brdf::sample(&material, wo, u2, uc)?;
         if !(bs.pdf > 0.0 && bs.pdf.is_finite()) {
             return None;
         }
