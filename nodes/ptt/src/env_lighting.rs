@@ -29,7 +29,7 @@ params! {
         /// texels along a cube face ([S]: 64)
         pub side: usize = 64, range = 4..=512, test = 8;
         /// fewest sub-texels per texel side averaged from the lat-long map (more where the map is
-        /// finer than that, up to 2,048 sub-texels along a face)
+        /// finer, as long as a face holds at most 2,048 sub-texels along it)
         pub supersample: usize = 4, range = 1..=16, test = 2;
         /// angular standard deviation of the first specular lobe; lobe k has k times it
         pub lobe_step_deg: f64 = 7.0, range = 0.1..=60.0, unit = "°";
@@ -38,7 +38,8 @@ params! {
     }
 }
 
-/// The most sub-texels along a cube face (their solid angles, 8 bytes each, are held: 32 MiB).
+/// The most sub-texels along a cube face that the map's resolution adds beyond `supersample`
+/// (their solid angles, 8 bytes each, are held: 32 MiB).
 const MAX_SUB: usize = 2048;
 
 impl EnvLighting {
@@ -50,14 +51,14 @@ impl EnvLighting {
     /// Sub-texels per texel side: `supersample`, or as many as make a sub-texel at most half a
     /// map texel wide at a face's centre (a texel spans 2 / side radians there, a texel of a
     /// map `width` wide 2π / width; the bilinear lookup's tent, two texels wide, is then
-    /// sampled four times across), with at most `MAX_SUB` along a face.
+    /// sampled four times across); what the map adds stops at `MAX_SUB` along a face.
     fn sub_texels(&self, scene: &Scene) -> usize {
         let width = match &scene.environment {
             Some(Environment::Map(m)) => m.width,
             _ => 0,
         };
         let fine = (2.0 * width as f64 / (std::f64::consts::PI * self.side as f64)).ceil() as usize;
-        self.supersample.max(fine).min((MAX_SUB / self.side).max(1))
+        self.supersample.max(fine.min(MAX_SUB / self.side))
     }
 
     /// The cube map of the scene's environment.
@@ -74,7 +75,8 @@ impl EnvLighting {
     fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
         MemoryEstimate {
             outputs: vec![Some(PortSize::bytes(self.bytes())), Some(PortSize::bytes(1024))],
-            working: CubeMap::bytes_for(self.side) + (MAX_SUB * MAX_SUB * 8) as u64,
+            // The sub-texels' solid angles: a face's worth at the finest the map may ask for.
+            working: CubeMap::bytes_for(self.side) + ((self.side * self.supersample).max(MAX_SUB).pow(2) * 8) as u64,
         }
     }
 
