@@ -23,7 +23,7 @@
 //! of mixed levels. With every pixel at one level and no split during the traversal, the
 //! result is that level's uniform buffer, write for write.
 
-use super::microbuffer::{layer_write, DiskBounds, Microbuffer};
+use super::microbuffer::{DiskBounds, Microbuffer, OCCLUDE_REACH};
 use super::traversal::Raster;
 use glam::Vec3;
 use relume_base::brdf;
@@ -220,7 +220,7 @@ impl AdaptiveMicrobuffer {
     /// box, so a level costs only its own pixels (a pixel outside its level's box has no
     /// children inside theirs: the boxes shrink with the level).
     fn raster_disk(&mut self, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
-        let bounds: Vec<DiskBounds> = self.buffers.iter().map(|b| b.disk_bounds(c, r)).collect();
+        let bounds: Vec<DiskBounds> = self.buffers.iter().map(|b| b.disk_bounds(c, OCCLUDE_REACH * r)).collect();
         let fine = self.fine();
         let mut stack: Vec<Pixel> = vec![];
         let b0 = bounds[0];
@@ -263,8 +263,7 @@ impl AdaptiveMicrobuffer {
             let k = (y << shift) * fine + (x << shift);
             let q = self.pixel_of_fine(k);
             if q.level == level {
-                let b = &mut self.buffers[level as usize];
-                layer_write(&mut b.depth[i], &mut b.radiance[i], &mut b.coverage[i], dist, l, cov);
+                self.buffers[level as usize].write(i, dist, l, cov, cov);
             } else {
                 // The tap's solid angle at this level, as a share of pixel q's.
                 let from = &self.buffers[level as usize];
@@ -272,8 +271,7 @@ impl AdaptiveMicrobuffer {
                 let qi = q.y * (self.n << q.level) + q.x;
                 let (Some(dp), Some(dq)) = (from.dir(i), to.dir(qi)) else { continue };
                 let scale = (from.pixel_weight() / dp.z.max(1e-3)) / (to.pixel_weight() / dq.z.max(1e-3));
-                let b = &mut self.buffers[q.level as usize];
-                layer_write(&mut b.depth[qi], &mut b.radiance[qi], &mut b.coverage[qi], dist, l, cov * scale);
+                self.buffers[q.level as usize].write(qi, dist, l, cov * scale, cov * scale);
             }
         }
         self.writes = writes;

@@ -24,10 +24,14 @@ pub struct Microbuffer {
     n: usize,
     /// Local direction of each pixel centre (None outside the disk).
     dirs: Vec<Option<Vec3>>,
-    pub depth: Vec<f32>,
+    /// Depth of each pixel's front layer (infinite where nothing was written).
+    depth: Vec<f32>,
+    /// Each pixel's Σ coverage · L as read: its front layer's, and what lies behind it seen
+    /// through the part the front layer leaves open (`layer_write`).
     pub radiance: Vec<Vec3>,
-    /// Covered fraction of each pixel (splats smaller than a pixel add up).
+    /// Covered fraction of each pixel as read (splats smaller than a pixel add up).
     pub coverage: Vec<f32>,
+    layers: Vec<Layers>,
 }
 
 /// The pixels a disk can cover (`Microbuffer::disk_bounds`): a box of the grid, inclusive,
@@ -55,12 +59,22 @@ const READ_COVERAGE: f32 = 0.25;
 /// Splats closer than this factor in depth count as the same layer.
 const LAYER: f32 = 1.25;
 
+/// How far out, in disk radii, a near disk hides what lies behind it (`disk_pixel`).
+pub const OCCLUDE_REACH: f32 = 2.0;
+
 impl Microbuffer {
     /// An N × N buffer (N ≥ 1; N = 1 is one pixel for the whole hemisphere).
     pub fn new(n: usize) -> Self {
         let n = n.max(1);
         let dirs = (0..n * n).map(|i| nusselt_dir(n, i)).collect();
-        Microbuffer { n, dirs, depth: vec![f32::INFINITY; n * n], radiance: vec![Vec3::ZERO; n * n], coverage: vec![0.0; n * n] }
+        Microbuffer {
+            n,
+            dirs,
+            depth: vec![f32::INFINITY; n * n],
+            radiance: vec![Vec3::ZERO; n * n],
+            coverage: vec![0.0; n * n],
+            layers: vec![Layers::default(); n * n],
+        }
     }
 
     pub fn resolution(&self) -> usize {
@@ -71,6 +85,7 @@ impl Microbuffer {
         self.depth.fill(f32::INFINITY);
         self.radiance.fill(Vec3::ZERO);
         self.coverage.fill(0.0);
+        self.layers.fill(Layers::default());
     }
 
     /// Clears the pixels of columns `x0..=x1` in rows `y0..=y1` only (a buffer written there
@@ -80,7 +95,8 @@ impl Microbuffer {
             let row = y * self.n + x0..=y * self.n + x1;
             self.depth[row.clone()].fill(f32::INFINITY);
             self.radiance[row.clone()].fill(Vec3::ZERO);
-            self.coverage[row].fill(0.0);
+            self.coverage[row.clone()].fill(0.0);
+            self.layers[row].fill(Layers::default());
         }
     }
 
@@ -89,6 +105,7 @@ impl Microbuffer {
         self.depth.copy_from_slice(&other.depth);
         self.radiance.copy_from_slice(&other.radiance);
         self.coverage.copy_from_slice(&other.coverage);
+        self.layers.copy_from_slice(&other.layers);
     }
 
     /// Projected solid angle of one pixel: (2/N)², or π for the single-pixel buffer.
@@ -182,8 +199,16 @@ impl Microbuffer {
         self.dirs[i]
     }
 
-    fn write(&mut self, i: usize, depth: f32, l: Vec3, cov: f32) {
-        layer_write(&mut self.depth[i], &mut self.radiance[i], &mut self.coverage[i], depth, l, cov);
+    /// Adds to pixel `i` a write at `depth` of radiance `l` covering `cov` of it and hiding
+    /// `opacity` of what lies behind (`layer_write`).
+    pub fn write(&mut self, i: usize, depth: f32, l: Vec3, cov: f32, opacity: f32) {
+        let px = Pixel {
+            depth: &mut self.depth[i],
+            radiance: &mut self.radiance[i],
+            coverage: &mut self.coverage[i],
+            layers: &mut self.layers[i],
+        };
+        layer_write(px, depth, l, cov, opacity);
     }
 
     /// Rasterises a node seen in local direction `d` (unit, z > 0 part is visible) at distance
@@ -191,8 +216,11 @@ impl Microbuffer {
     /// writes one pixel with radiance scaled by its share of the pixel (coverage); a larger
     /// one covers the pixels within its angular radius.
     pub fn splat(&mut self, d: Vec3, dist: f32, omega: f32, l: Vec3) {
-        let Microbuffer { n, dirs, depth, radiance, coverage } = self;
-        splat_taps(*n, dirs, d, omega, &mut |i, cov| layer_write(&mut depth[i], &mut radiance[i], &mut coverage[i], dist, l, cov));
+        let Microbuffer { n, dirs, depth, radiance, coverage, layers } = self;
+        splat_taps(*n, dirs, d, omega, &mut |i, cov| {
+            let px = Pixel { depth: &mut depth[i], radiance: &mut radiance[i], coverage: &mut coverage[i], layers: &mut layers[i] };
+            layer_write(px, dist, l, cov, cov)
+        });
     }
 
     /// The writes `splat` makes (pixel, coverage), in its order, without making them.
@@ -202,9 +230,10 @@ impl Microbuffer {
 
     /// Exact raster of a disk (centre `c` relative to the receiver, normal `nrm`, radius `r`,
     /// all local): each pixel's centre ray is intersected with the disk. The front side shows
-    /// `l`, the back side occludes in black.
+    /// `l`, the back side occludes in black; out to `OCCLUDE_REACH` radii the disk hides what
+    /// lies behind it without adding light (`disk_pixel`).
     pub fn disk_exact(&mut self, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
-        let b = self.disk_bounds(c, r);
+        let b = self.disk_bounds(c, OCCLUDE_REACH * r);
         for y in b.lo.1..=b.hi.1 {
             for x in b.lo.0..=b.hi.0 {
                 self.disk_pixel(y * self.n + x, &b, c, nrm, r, l, eps);
@@ -227,7 +256,15 @@ impl Microbuffer {
         }
     }
 
-    /// `disk_exact` at pixel `i` alone (`b` from `disk_bounds`; the caller keeps `i` in its box).
+    /// `disk_exact` at pixel `i` alone (`b` from `disk_bounds` at `OCCLUDE_REACH` × `r`; the
+    /// caller keeps `i` in its box). A pixel whose centre ray meets the disk gets its light at
+    /// coverage 1. One that meets only its rim, out to `OCCLUDE_REACH` radii, is marked opaque
+    /// at that depth and gets no light: disks of area A/n placed at random leave about a third
+    /// of their surface uncovered, and there the surface behind showed through a near one
+    /// (the Cornell box's floor around the boxes: hiding out to the rim alone took its
+    /// indirect light from 18 % over the path tracer's to 14 %, at a 64² buffer from 29 %).
+    /// The light stays what the disks carry (their coverage adds up within a layer); what
+    /// they hide reaches about as far as the surface they stand for.
     #[allow(clippy::too_many_arguments)]
     pub fn disk_pixel(&mut self, i: usize, b: &DiskBounds, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
         let Some(w) = self.dirs[i] else { return };
@@ -239,10 +276,15 @@ impl Microbuffer {
             return;
         }
         let t = c.dot(nrm) / denom;
-        if t <= eps || (w * t - c).length_squared() > r * r {
+        let off = (w * t - c).length_squared();
+        if t <= eps || off > (OCCLUDE_REACH * r).powi(2) {
             return;
         }
-        self.write(i, t, if denom < 0.0 { l } else { Vec3::ZERO }, 1.0);
+        if off <= r * r {
+            self.write(i, t, if denom < 0.0 { l } else { Vec3::ZERO }, 1.0, 1.0);
+        } else {
+            self.write(i, t, Vec3::ZERO, 0.0, 1.0);
+        }
     }
 
     /// Outgoing radiance of a receiver whose own frame differs from the buffer's (the
@@ -287,33 +329,98 @@ impl Microbuffer {
     }
 }
 
-/// Adds a splat covering fraction `cov` of a pixel (its depth, Σ coverage · L and coverage)
-/// at `depth` with radiance `l`, by depth layers. Within one layer (depths within a factor
-/// 1.25) coverage adds up uncapped: the splats of one surface tile it without true overlap,
-/// and capping each pixel at 1 would lose the excess of over-covered pixels while
-/// under-covered ones keep their gap (a bias measured at −16 % on two parallel planes). A
-/// splat clearly in front hides what is there by its coverage; one clearly behind shows
-/// through the uncovered rest only.
-pub fn layer_write(d0: &mut f32, rad: &mut Vec3, c0: &mut f32, depth: f32, l: Vec3, cov: f32) {
-    let cov = cov.max(0.0);
-    if *c0 <= 0.0 {
+/// What one pixel holds besides its front depth: its front layer (Σ coverage · L, Σ
+/// coverage, opacity) and, merged into one, everything behind it.
+#[derive(Clone, Copy, Debug)]
+pub struct Layers {
+    front: Layer,
+    back: Layer,
+    back_depth: f32,
+}
+
+impl Default for Layers {
+    fn default() -> Self {
+        Layers { front: Layer::default(), back: Layer::default(), back_depth: f32::INFINITY }
+    }
+}
+
+/// Σ coverage · L, Σ coverage and opacity of the writes of one depth layer.
+#[derive(Clone, Copy, Debug, Default)]
+struct Layer {
+    radiance: Vec3,
+    coverage: f32,
+    opacity: f32,
+}
+
+impl Layer {
+    fn new(l: Vec3, cov: f32, opacity: f32) -> Self {
+        Layer { radiance: l * cov, coverage: cov, opacity }
+    }
+
+    fn add(&mut self, o: Layer) {
+        self.radiance += o.radiance;
+        self.coverage += o.coverage;
+        self.opacity += o.opacity;
+    }
+
+    /// `self` seen in front of `behind`: behind shows through what self leaves open.
+    fn over(self, behind: Layer) -> Layer {
+        let vis = (1.0 - self.opacity).max(0.0);
+        Layer {
+            radiance: self.radiance + behind.radiance * vis,
+            coverage: self.coverage + behind.coverage * vis,
+            opacity: self.opacity + behind.opacity * vis,
+        }
+    }
+}
+
+/// One pixel's state, borrowed from a buffer's arrays: its front depth, the radiance and
+/// coverage it reads as, and its layers.
+pub struct Pixel<'a> {
+    pub depth: &'a mut f32,
+    pub radiance: &'a mut Vec3,
+    pub coverage: &'a mut f32,
+    pub layers: &'a mut Layers,
+}
+
+/// Adds a write covering fraction `cov` of a pixel at `depth` with radiance `l` and hiding
+/// `opacity` of what lies behind it (a splat's opacity is its coverage), by depth layers.
+/// Within one layer (depths within a factor 1.25) coverage adds up uncapped: the splats of one
+/// surface tile it without true overlap, and capping each pixel at 1 would lose the excess of
+/// over-covered pixels while under-covered ones keep their gap (a bias measured at −16 % on
+/// two parallel planes). The front layer hides what lies behind it by its whole opacity, as
+/// it stands when read, whatever the order of the writes: hiding by each splat as it came
+/// (what lay behind kept Π(1 − coverage) of itself, about e⁻¹ under a layer of coverage 1)
+/// let the surface behind a near one through by a third, light measured at +18 % on the
+/// Cornell box's floor around the boxes, +26 % with finer nodes. Behind the front layer,
+/// writes merge as they come: one clearly in front of what is there hides it by its
+/// opacity, one clearly behind shows through what is left open.
+pub fn layer_write(px: Pixel, depth: f32, l: Vec3, cov: f32, opacity: f32) {
+    let Pixel { depth: d0, radiance, coverage, layers: s } = px;
+    let w = Layer::new(l, cov.max(0.0), opacity.max(0.0));
+    if *d0 == f32::INFINITY {
         *d0 = depth;
-        *rad = l * cov;
-        *c0 = cov;
+        s.front = w;
     } else if depth * LAYER < *d0 {
-        let hide = cov.min(1.0);
-        *rad = l * cov + *rad * (1.0 - hide);
-        *c0 = cov + *c0 * (1.0 - hide);
-        *d0 = depth;
+        (s.back, s.back_depth) = (s.front.over(s.back), *d0);
+        (s.front, *d0) = (w, depth);
     } else if depth > *d0 * LAYER {
-        let vis = (1.0 - *c0).max(0.0);
-        *rad += l * (cov * vis);
-        *c0 += cov * vis;
+        if s.back_depth == f32::INFINITY {
+            (s.back, s.back_depth) = (w, depth);
+        } else if depth * LAYER < s.back_depth {
+            (s.back, s.back_depth) = (w.over(s.back), depth);
+        } else if depth > s.back_depth * LAYER {
+            s.back = s.back.over(w);
+        } else {
+            s.back.add(w);
+            s.back_depth = s.back_depth.min(depth);
+        }
     } else {
-        *rad += l * cov;
-        *c0 += cov;
+        s.front.add(w);
         *d0 = d0.min(depth);
     }
+    let seen = s.front.over(s.back);
+    (*radiance, *coverage) = (seen.radiance, seen.coverage);
 }
 
 /// The box of pixels (lowest and highest x and y, inclusive) of an `n`-wide buffer that holds
@@ -475,6 +582,53 @@ mod tests {
     }
 
     #[test]
+    fn a_near_layer_hides_what_lies_behind_by_its_whole_coverage_whatever_the_order() {
+        // Four splats of a quarter pixel each at depth 1 (radiance 1) and a covering one at
+        // depth 5 (radiance 9), in either order: the near layer covers the pixel, so it reads
+        // 1. Hiding by each splat as it came would have kept 0.75⁴ of the far one (3.8).
+        let near = [(1.0, Vec3::ONE, 0.25); 4];
+        let far = [(5.0, Vec3::splat(9.0), 1.0)];
+        for order in [[&far[..], &near[..]], [&near[..], &far[..]]] {
+            let mut mb = Microbuffer::new(4);
+            for &(depth, l, cov) in order.concat().iter() {
+                mb.write(5, depth, l, cov, cov);
+            }
+            assert!((mb.radiance[5] - Vec3::ONE).abs().max_element() < 1e-6, "{}", mb.radiance[5]);
+            assert!((mb.coverage[5] - 1.0).abs() < 1e-6);
+        }
+        // Half covered in front, the far one shows through the other half.
+        let mut mb = Microbuffer::new(4);
+        for &(depth, l, cov) in near[..2].iter().chain(&far) {
+            mb.write(5, depth, l, cov, cov);
+        }
+        assert!((mb.radiance[5] - Vec3::splat(0.5 + 4.5)).abs().max_element() < 1e-5, "{}", mb.radiance[5]);
+    }
+
+    #[test]
+    fn a_near_disk_hides_the_background_out_to_its_rim_but_adds_light_only_within_its_radius() {
+        // A far surface of radiance 5 over the whole buffer, then a disk straight above at
+        // distance 1, radius 0.2, radiance 1, facing the receiver.
+        let n = 64;
+        let mut mb = Microbuffer::new(n);
+        for i in 0..n * n {
+            if mb.dirs[i].is_some() {
+                mb.write(i, 10.0, Vec3::splat(5.0), 1.0, 1.0);
+            }
+        }
+        mb.disk_exact(Vec3::Z, -Vec3::Z, 0.2, Vec3::ONE, 1e-6);
+        let count = |v: f32| mb.radiance.iter().zip(&mb.dirs).filter(|(l, d)| d.is_some() && l.x == v).count();
+        let (lit, rim) = (count(1.0), count(0.0));
+        // In the Nusselt map the disk covers a circle of radius sin(atan 0.2) · n/2 pixels and
+        // its rim the ring out to sin(atan 0.4) · n/2.
+        let px = |r: f32| std::f32::consts::PI * (r.atan().sin() * n as f32 / 2.0).powi(2);
+        assert!((lit as f32 - px(0.2)).abs() < 0.1 * px(0.2), "{lit} pixels lit, {} expected", px(0.2));
+        assert!((rim as f32 - (px(0.4) - px(0.2))).abs() < 0.1 * px(0.4), "{rim} pixels hidden, {} expected", px(0.4) - px(0.2));
+        assert_eq!(lit + rim + count(5.0), mb.dirs.iter().filter(|d| d.is_some()).count(), "every other pixel shows the background");
+        let rim_coverage: f32 = mb.coverage.iter().zip(&mb.radiance).filter(|(_, l)| l.x == 0.0).map(|(c, _)| c).sum();
+        assert_eq!(rim_coverage, 0.0, "the rim adds no coverage");
+    }
+
+    #[test]
     fn a_dirac_read_fills_a_gap_between_covered_pixels_but_not_an_edge() {
         // Row 4 of an 8 × 8 buffer covered at x = 2, 3, 5, 6 (radiance 2 and 4 at coverage
         // 1, 2 at x = 3 and 5): x = 4 is a gap, x = 1 lies beyond the edge.
@@ -519,7 +673,7 @@ mod tests {
                 let mut fast = Microbuffer::new(n);
                 fast.disk_exact(c, nrm, 1.0, Vec3::ONE, 1e-6);
                 let mut all = Microbuffer::new(n);
-                let b = all.disk_bounds(c, 1.0);
+                let b = all.disk_bounds(c, OCCLUDE_REACH);
                 let every = DiskBounds { lo: (0, 0), hi: (n - 1, n - 1), ..b };
                 for i in 0..n * n {
                     all.disk_pixel(i, &every, c, nrm, 1.0, Vec3::ONE, 1e-6);
