@@ -189,12 +189,12 @@ fn object_means(img: &Image, r: &relume_pbgi::types::Receivers) -> std::collecti
 fn on_the_cornell_box_each_surfaces_indirect_light_keeps_to_the_path_tracers() {
     // `pbgi_vs_reference.ron` at 48², 20,000 points, the 16² buffer and its threshold of 4
     // pixels; the reference's indirect term is its depth-3 minus depth-2 render at 1,024 spp
-    // (about 1 % noise on an object's mean). Measured (plain / factorised): floor 1.033 /
-    // 1.039, ceiling 0.976 / 0.977, back 0.947 / 0.951, green wall 0.922 / 0.931, red wall
-    // 0.996 / 1.006, small box 0.887 / 0.869, large box 0.986 / 0.978; the whole image 0.961 /
-    // 0.963. What is short is a surface seen at a grazing angle splitting into depth layers
-    // within a pixel (`microbuffer::layer_write`); the floor was 15 % over while a near
-    // surface let the one behind it through.
+    // (about 1 % noise on an object's mean). Measured (plain / factorised): floor 1.071 /
+    // 1.078, ceiling 0.989 / 0.990, back 0.963 / 0.965, green wall 0.938 / 0.950, red wall
+    // 1.012 / 1.025, small box 0.918 / 0.902, large box 1.008 / 1.003; the whole image 0.977 /
+    // 0.981. The floor was 15 % over while a near surface let the one behind it through, and
+    // the walls further under while a surface seen at a grazing angle hid its own far part
+    // (`microbuffer::layer_write`).
     let e = engine();
     let sets = [
         ("scene.width", "48"),
@@ -213,11 +213,11 @@ fn on_the_cornell_box_each_surfaces_indirect_light_keeps_to_the_path_tracers() {
     let reference = object_means(&img("reference_indirect"), &receivers);
     for gather in ["pbgi_indirect", "fpbgi_indirect"] {
         let ratio = mean(&img(gather)) / mean(&img("reference_indirect"));
-        assert!((0.93..1.05).contains(&ratio), "{gather}: the whole image at {ratio} × the path tracer's");
+        assert!((0.95..1.05).contains(&ratio), "{gather}: the whole image at {ratio} × the path tracer's");
         for (object, (n, m)) in object_means(&img(gather), &receivers) {
             let ratio = m / reference[&object].1;
             if n >= 100 {
-                assert!((0.85..1.10).contains(&ratio), "{gather}: object {object} ({n} pixels) at {ratio} × the path tracer's");
+                assert!((0.88..1.10).contains(&ratio), "{gather}: object {object} ({n} pixels) at {ratio} × the path tracer's");
             }
         }
     }

@@ -186,7 +186,9 @@ fn on_the_glossy_cornell_bunny_the_lobes_bring_the_image_closer_than_classic_pbg
 fn on_the_glossy_cornell_bunny_the_adaptive_buffer_lowers_the_error_over_the_same_traversal() {
     // The coarse cut opens the tree as the 8² buffer does, so the same nodes are rasterised
     // per receiver; the finer pixels around the BRDF's lobe (the s = 180 bunny's) and the
-    // bright nodes bring the image closer (at 256²: 8.73e-4 against 9.69e-4, docs/pipelines/pbgi.md).
+    // bright nodes bring the image closer (at 256²: 8.73e-4 against 9.69e-4, docs/pipelines/pbgi.md,
+    // recorded before writes on one plane joined one depth layer). Measured here since then:
+    // 1.129e-3 against 1.146e-3, the uniform buffer's grazing surfaces no longer darker.
     let sets = [("scene.width", "64"), ("scene.height", "64"), ("points.count", "8000"), ("reference.spp", "1024")];
     let e = engine();
     let measure = |max_level: &str| {
@@ -197,7 +199,7 @@ fn on_the_glossy_cornell_bunny_the_adaptive_buffer_lowers_the_error_over_the_sam
         (m("wpbgi_error", "rel_mse"), m("stats", "nodes_rasterised_per_receiver"))
     };
     let (uniform, adaptive) = (measure("0"), measure("1"));
-    assert!(adaptive.0 < 0.97 * uniform.0, "adaptive {adaptive:?}, uniform {uniform:?} (rel. MSE, nodes per receiver)");
+    assert!(adaptive.0 < 0.995 * uniform.0, "adaptive {adaptive:?}, uniform {uniform:?} (rel. MSE, nodes per receiver)");
     assert!((adaptive.1 / uniform.1 - 1.0).abs() < 1e-3, "adaptive {adaptive:?}, uniform {uniform:?}");
 }
 

@@ -23,7 +23,7 @@
 //! of mixed levels. With every pixel at one level and no split during the traversal, the
 //! result is that level's uniform buffer, write for write.
 
-use super::microbuffer::{DiskBounds, Microbuffer, OCCLUDE_REACH};
+use super::microbuffer::{DiskBounds, Flat, Microbuffer, OCCLUDE_REACH};
 use super::traversal::Raster;
 use glam::Vec3;
 use relume_base::brdf;
@@ -32,7 +32,7 @@ use relume_base::types::Material;
 /// One rasterisation to replay: a splat or a near leaf's exact disk.
 #[derive(Clone, Copy, Debug)]
 enum Record {
-    Splat { node: u32, d: Vec3, dist: f32, omega: f32, l: Vec3 },
+    Splat { node: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, flat: Option<Flat> },
     Disk { c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32 },
 }
 
@@ -208,7 +208,7 @@ impl AdaptiveMicrobuffer {
                 continue;
             }
             match *r {
-                Record::Splat { d, dist, omega, l, .. } => self.raster_splat(d, dist, omega, l),
+                Record::Splat { d, dist, omega, l, flat, .. } => self.raster_splat(d, dist, omega, l, flat),
                 Record::Disk { c, nrm, r, l, eps } => self.raster_disk(c, nrm, r, l, eps),
             }
         }
@@ -249,7 +249,7 @@ impl AdaptiveMicrobuffer {
     /// The uniform splat at the level of the pixel `d` lands in, its writes sent to the
     /// pixels that hold them (a tap on a pixel of another level goes to that pixel, with its
     /// coverage measured against that pixel's own solid angle).
-    fn raster_splat(&mut self, d: Vec3, dist: f32, omega: f32, l: Vec3) {
+    fn raster_splat(&mut self, d: Vec3, dist: f32, omega: f32, l: Vec3, flat: Option<Flat>) {
         let p = self.pixel_of_fine(self.fine_index(d));
         let level = p.level;
         let mut writes = std::mem::take(&mut self.writes);
@@ -263,7 +263,7 @@ impl AdaptiveMicrobuffer {
             let k = (y << shift) * fine + (x << shift);
             let q = self.pixel_of_fine(k);
             if q.level == level {
-                self.buffers[level as usize].write(i, dist, l, cov, cov);
+                self.buffers[level as usize].write(i, dist, l, cov, cov, flat);
             } else {
                 // The tap's solid angle at this level, as a share of pixel q's.
                 let from = &self.buffers[level as usize];
@@ -271,7 +271,7 @@ impl AdaptiveMicrobuffer {
                 let qi = q.y * (self.n << q.level) + q.x;
                 let (Some(dp), Some(dq)) = (from.dir(i), to.dir(qi)) else { continue };
                 let scale = (from.pixel_weight() / dp.z.max(1e-3)) / (to.pixel_weight() / dq.z.max(1e-3));
-                self.buffers[q.level as usize].write(qi, dist, l, cov * scale, cov * scale);
+                self.buffers[q.level as usize].write(qi, dist, l, cov * scale, cov * scale, flat);
             }
         }
         self.writes = writes;
@@ -337,7 +337,7 @@ impl Raster for AdaptiveMicrobuffer {
         self.buffers[p.level as usize].mean_pixel_solid_angle()
     }
 
-    fn splat(&mut self, node: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, stack: &mut Vec<u32>) {
+    fn splat(&mut self, node: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, flat: Option<Flat>, stack: &mut Vec<u32>) {
         if d.z <= 0.0 || omega <= 0.0 {
             return;
         }
@@ -349,9 +349,9 @@ impl Raster for AdaptiveMicrobuffer {
             return;
         }
         if self.direct {
-            self.buffers[0].splat(d, dist, omega, l);
+            self.buffers[0].splat(d, dist, omega, l, flat);
         }
-        self.records.push((Some(p), Record::Splat { node, d, dist, omega, l }));
+        self.records.push((Some(p), Record::Splat { node, d, dist, omega, l, flat }));
     }
 
     fn disk(&mut self, _: u32, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {

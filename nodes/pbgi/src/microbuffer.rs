@@ -62,6 +62,33 @@ const LAYER: f32 = 1.25;
 /// How far out, in disk radii, a near disk hides what lies behind it (`disk_pixel`).
 pub const OCCLUDE_REACH: f32 = 2.0;
 
+/// The plane a write's disks lie on, in the receiver's local frame: its unit normal, the
+/// centre of the node written, and how far the disks stray from the plane through that
+/// centre. Two writes on one plane cannot hide each other from a receiver off it, so they
+/// belong to one depth layer however far apart their depths are (`layer_write`).
+#[derive(Clone, Copy, Debug)]
+pub struct Flat {
+    pub normal: Vec3,
+    pub centre: Vec3,
+    pub slack: f32,
+}
+
+impl Flat {
+    /// Whether `other` lies on this plane: normals within about 25° and its centre within
+    /// both slacks of the plane (and a relative 10⁻⁴ for rounding).
+    fn holds(&self, other: &Flat) -> bool {
+        let off = self.normal.dot(other.centre - self.centre).abs();
+        let tol = self.slack + other.slack + 1e-4 * (self.centre.length() + other.centre.length());
+        self.normal.dot(other.normal) >= 0.9 && off <= tol
+    }
+
+    /// The plane seen in the mirrored buffer (z negated).
+    pub fn mirrored(self) -> Flat {
+        let m = |v: Vec3| Vec3::new(v.x, v.y, -v.z);
+        Flat { normal: m(self.normal), centre: m(self.centre), slack: self.slack }
+    }
+}
+
 impl Microbuffer {
     /// An N × N buffer (N ≥ 1; N = 1 is one pixel for the whole hemisphere).
     pub fn new(n: usize) -> Self {
@@ -200,26 +227,27 @@ impl Microbuffer {
     }
 
     /// Adds to pixel `i` a write at `depth` of radiance `l` covering `cov` of it and hiding
-    /// `opacity` of what lies behind (`layer_write`).
-    pub fn write(&mut self, i: usize, depth: f32, l: Vec3, cov: f32, opacity: f32) {
+    /// `opacity` of what lies behind, its disks on plane `flat` if known (`layer_write`).
+    pub fn write(&mut self, i: usize, depth: f32, l: Vec3, cov: f32, opacity: f32, flat: Option<Flat>) {
         let px = Pixel {
             depth: &mut self.depth[i],
             radiance: &mut self.radiance[i],
             coverage: &mut self.coverage[i],
             layers: &mut self.layers[i],
         };
-        layer_write(px, depth, l, cov, opacity);
+        layer_write(px, depth, l, cov, opacity, flat);
     }
 
     /// Rasterises a node seen in local direction `d` (unit, z > 0 part is visible) at distance
     /// `dist`, subtending solid angle `omega`, with radiance `l`. A node smaller than its pixel
     /// writes one pixel with radiance scaled by its share of the pixel (coverage); a larger
-    /// one covers the pixels within its angular radius.
-    pub fn splat(&mut self, d: Vec3, dist: f32, omega: f32, l: Vec3) {
+    /// one covers the pixels within its angular radius. `flat`: the plane of its disks, if
+    /// they lie near one.
+    pub fn splat(&mut self, d: Vec3, dist: f32, omega: f32, l: Vec3, flat: Option<Flat>) {
         let Microbuffer { n, dirs, depth, radiance, coverage, layers } = self;
         splat_taps(*n, dirs, d, omega, &mut |i, cov| {
             let px = Pixel { depth: &mut depth[i], radiance: &mut radiance[i], coverage: &mut coverage[i], layers: &mut layers[i] };
-            layer_write(px, dist, l, cov, cov)
+            layer_write(px, dist, l, cov, cov, flat)
         });
     }
 
@@ -280,10 +308,11 @@ impl Microbuffer {
         if t <= eps || off > (OCCLUDE_REACH * r).powi(2) {
             return;
         }
+        let flat = Some(Flat { normal: nrm, centre: c, slack: 0.25 * r });
         if off <= r * r {
-            self.write(i, t, if denom < 0.0 { l } else { Vec3::ZERO }, 1.0, 1.0);
+            self.write(i, t, if denom < 0.0 { l } else { Vec3::ZERO }, 1.0, 1.0, flat);
         } else {
-            self.write(i, t, Vec3::ZERO, 0.0, 1.0);
+            self.write(i, t, Vec3::ZERO, 0.0, 1.0, flat);
         }
     }
 
@@ -334,13 +363,15 @@ impl Microbuffer {
 #[derive(Clone, Copy, Debug)]
 pub struct Layers {
     front: Layer,
+    /// The plane of the front layer's nearest write, when its disks lie near one.
+    plane: Option<Flat>,
     back: Layer,
     back_depth: f32,
 }
 
 impl Default for Layers {
     fn default() -> Self {
-        Layers { front: Layer::default(), back: Layer::default(), back_depth: f32::INFINITY }
+        Layers { front: Layer::default(), plane: None, back: Layer::default(), back_depth: f32::INFINITY }
     }
 }
 
@@ -394,16 +425,24 @@ pub struct Pixel<'a> {
 /// let the surface behind a near one through by a third, light measured at +18 % on the
 /// Cornell box's floor around the boxes, +26 % with finer nodes. Behind the front layer,
 /// writes merge as they come: one clearly in front of what is there hides it by its
-/// opacity, one clearly behind shows through what is left open.
-pub fn layer_write(px: Pixel, depth: f32, l: Vec3, cov: f32, opacity: f32) {
+/// opacity, one clearly behind shows through what is left open. A write on the front layer's
+/// plane (`Flat`) joins that layer whatever its depth: a surface seen at a grazing angle
+/// spans depths several times apart within one pixel, and its far part hid behind its near
+/// part though they lie side by side.
+pub fn layer_write(px: Pixel, depth: f32, l: Vec3, cov: f32, opacity: f32, flat: Option<Flat>) {
     let Pixel { depth: d0, radiance, coverage, layers: s } = px;
     let w = Layer::new(l, cov.max(0.0), opacity.max(0.0));
+    let on_front = matches!((&s.plane, &flat), (Some(p), Some(f)) if p.holds(f));
     if *d0 == f32::INFINITY {
         *d0 = depth;
         s.front = w;
+        s.plane = flat;
+    } else if on_front {
+        s.front.add(w);
+        *d0 = d0.min(depth);
     } else if depth * LAYER < *d0 {
         (s.back, s.back_depth) = (s.front.over(s.back), *d0);
-        (s.front, *d0) = (w, depth);
+        (s.front, *d0, s.plane) = (w, depth, flat);
     } else if depth > *d0 * LAYER {
         if s.back_depth == f32::INFINITY {
             (s.back, s.back_depth) = (w, depth);
@@ -418,6 +457,7 @@ pub fn layer_write(px: Pixel, depth: f32, l: Vec3, cov: f32, opacity: f32) {
     } else {
         s.front.add(w);
         *d0 = d0.min(depth);
+        s.plane = s.plane.or(flat);
     }
     let seen = s.front.over(s.back);
     (*radiance, *coverage) = (seen.radiance, seen.coverage);
@@ -558,16 +598,16 @@ mod tests {
     fn nearer_splats_win_and_small_ones_count_their_coverage() {
         let mut mb = Microbuffer::new(16);
         let d = Vec3::new(0.1, 0.2, 1.0).normalize();
-        mb.splat(d, 2.0, 1e-4, Vec3::ONE);
+        mb.splat(d, 2.0, 1e-4, Vec3::ONE, None);
         let i = mb.pixel_of(d);
         let total: f32 = mb.coverage.iter().sum();
         assert!(total > 0.0 && total < 0.05, "a tiny node covers a small share: {total}");
         // Its coverage, weighted by the pixels' projected solid angle, is its own.
         let energy: f32 = mb.coverage.iter().zip(&mb.dirs).map(|(c, d)| c * mb.pixel_weight() / d.map_or(1.0, |d| d.z)).sum();
         assert!((energy - 1e-4).abs() < 2e-6, "{energy}");
-        mb.splat(d, 1.0, 0.5, Vec3::splat(3.0));
+        mb.splat(d, 1.0, 0.5, Vec3::splat(3.0), None);
         assert_eq!(mb.radiance[i], Vec3::splat(3.0), "a large node in front covers the pixel");
-        mb.splat(d, 5.0, 0.5, Vec3::splat(9.0));
+        mb.splat(d, 5.0, 0.5, Vec3::splat(9.0), None);
         assert_eq!(mb.radiance[i], Vec3::splat(3.0), "farther does not show through a covered pixel");
         let covered = mb.radiance.iter().filter(|l| l.x == 3.0).count();
         assert!(covered > 5, "a large node covers many pixels: {covered}");
@@ -575,7 +615,7 @@ mod tests {
         let mut mb = Microbuffer::new(16);
         let pix = mb.pixel_weight() / d.z;
         for k in 0..8 {
-            mb.splat(d, 2.0 + 0.01 * k as f32, pix * 0.3, Vec3::ONE);
+            mb.splat(d, 2.0 + 0.01 * k as f32, pix * 0.3, Vec3::ONE, None);
         }
         let total: f32 = mb.coverage.iter().sum();
         assert!((total - 2.4).abs() < 0.05, "eight splats of 0.3 pixel of one layer add up to 2.4: {total}");
@@ -591,7 +631,7 @@ mod tests {
         for order in [[&far[..], &near[..]], [&near[..], &far[..]]] {
             let mut mb = Microbuffer::new(4);
             for &(depth, l, cov) in order.concat().iter() {
-                mb.write(5, depth, l, cov, cov);
+                mb.write(5, depth, l, cov, cov, None);
             }
             assert!((mb.radiance[5] - Vec3::ONE).abs().max_element() < 1e-6, "{}", mb.radiance[5]);
             assert!((mb.coverage[5] - 1.0).abs() < 1e-6);
@@ -599,9 +639,24 @@ mod tests {
         // Half covered in front, the far one shows through the other half.
         let mut mb = Microbuffer::new(4);
         for &(depth, l, cov) in near[..2].iter().chain(&far) {
-            mb.write(5, depth, l, cov, cov);
+            mb.write(5, depth, l, cov, cov, None);
         }
         assert!((mb.radiance[5] - Vec3::splat(0.5 + 4.5)).abs().max_element() < 1e-5, "{}", mb.radiance[5]);
+    }
+
+    #[test]
+    fn writes_on_one_plane_join_one_layer_however_far_apart_their_depths() {
+        // Two half-pixel writes on the wall x = 0.5 (facing the receiver), at depths 0.94 and
+        // 3.04, seen in one pixel as a grazing wall is: side by side, both count. A write at
+        // depth 3 on another plane is hidden behind the near one by its coverage.
+        let wall = |z: f32| Some(Flat { normal: -Vec3::X, centre: Vec3::new(0.5, 0.0, z), slack: 0.01 });
+        let other = Some(Flat { normal: Vec3::Z, centre: Vec3::new(0.0, 0.0, 3.0), slack: 0.01 });
+        for (far, want) in [(wall(3.0), 1.0), (other, 0.75), (None, 0.75)] {
+            let mut mb = Microbuffer::new(4);
+            mb.write(5, 0.94, Vec3::ONE, 0.5, 0.5, wall(0.8));
+            mb.write(5, 3.04, Vec3::ONE, 0.5, 0.5, far);
+            assert!((mb.coverage[5] - want).abs() < 1e-6, "{far:?}: coverage {}", mb.coverage[5]);
+        }
     }
 
     #[test]
@@ -612,7 +667,7 @@ mod tests {
         let mut mb = Microbuffer::new(n);
         for i in 0..n * n {
             if mb.dirs[i].is_some() {
-                mb.write(i, 10.0, Vec3::splat(5.0), 1.0, 1.0);
+                mb.write(i, 10.0, Vec3::splat(5.0), 1.0, 1.0, None);
             }
         }
         mb.disk_exact(Vec3::Z, -Vec3::Z, 0.2, Vec3::ONE, 1e-6);

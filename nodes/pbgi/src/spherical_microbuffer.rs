@@ -18,7 +18,7 @@
 //! (1 − F)/η² · L(refracted) from the back (nearest pixel). With ior = 1 this is exactly the
 //! back pixel straight behind: light goes through unchanged (docs/QUALITY.md §2 "refraction").
 
-use super::microbuffer::Microbuffer;
+use super::microbuffer::{Flat, Microbuffer};
 use super::traversal::{GatherBuffer, GatherCounts, NodeRadiance, Raster, Traversal};
 use crate::types::faces_inside;
 use glam::Vec3;
@@ -98,13 +98,13 @@ impl Raster for SphericalMicrobuffer {
         !self.whole
     }
 
-    fn splat(&mut self, node: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, stack: &mut Vec<u32>) {
+    fn splat(&mut self, node: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, flat: Option<Flat>, stack: &mut Vec<u32>) {
         if d.z >= 0.0 {
             if self.only_front != Some(false) {
-                Raster::splat(&mut self.front, node, d, dist, omega, l, stack)
+                Raster::splat(&mut self.front, node, d, dist, omega, l, flat, stack)
             }
         } else if self.whole && self.only_front != Some(true) {
-            Raster::splat(&mut self.back, node, mirror(d), dist, omega, l, stack)
+            Raster::splat(&mut self.back, node, mirror(d), dist, omega, l, flat.map(Flat::mirrored), stack)
         }
     }
 

@@ -1,7 +1,7 @@
 //! What the two gathers (PbgiGather, FactorizedGather) share: their microbuffer parameters,
 //! the traversal of the point tree for one receiver, and its counts.
 
-use super::microbuffer::Microbuffer;
+use super::microbuffer::{Flat, Microbuffer};
 use crate::types::PointTree;
 use glam::Vec3;
 use relume_base::math::frame::Frame;
@@ -104,9 +104,10 @@ pub trait Raster {
         true
     }
     /// Rasterises node `node` seen in local direction `d` at distance `dist`, of solid angle
-    /// `omega` and radiance `l`. A raster that refines may hand nodes back for another visit
-    /// by pushing them on `stack`.
-    fn splat(&mut self, node: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, stack: &mut Vec<u32>);
+    /// `omega` and radiance `l`, its disks on plane `flat` if they lie near one. A raster
+    /// that refines may hand nodes back for another visit by pushing them on `stack`.
+    #[allow(clippy::too_many_arguments)]
+    fn splat(&mut self, node: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, flat: Option<Flat>, stack: &mut Vec<u32>);
     /// Ray-casts a near leaf exactly as a disk (centre `c`, normal `nrm`, radius `r`, local).
     fn disk(&mut self, node: u32, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32);
 }
@@ -115,8 +116,8 @@ impl Raster for Microbuffer {
     fn pixel_solid_angle(&self, _: Vec3) -> f32 {
         self.mean_pixel_solid_angle()
     }
-    fn splat(&mut self, _: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, _: &mut Vec<u32>) {
-        Microbuffer::splat(self, d, dist, omega, l)
+    fn splat(&mut self, _: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, flat: Option<Flat>, _: &mut Vec<u32>) {
+        Microbuffer::splat(self, d, dist, omega, l, flat)
     }
     fn disk(&mut self, _: u32, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
         self.disk_exact(c, nrm, r, l, eps)
@@ -260,8 +261,19 @@ impl<'a, R: NodeRadiance> Traversal<'a, R> {
             return;
         }
         counts.rasterised += 1;
-        Raster::splat(mb, i, frame.to_local(v / d), d, a / (d * d), l, stack);
+        let flat = flat_of(node.axis, node.slab, node.bound, node.right == u32::MAX, frame, v);
+        Raster::splat(mb, i, frame.to_local(v / d), d, a / (d * d), l, flat, stack);
     }
+}
+
+/// The plane a node's disks lie near, in the receiver's frame (`v`: node centre − receiver),
+/// or `None` when its slab along the cone axis is thicker than a tenth of its bound. A leaf's
+/// disk is its plane, with a quarter of its radius for the tilt between neighbouring disks on
+/// a curved surface (as `on_own_surface`).
+pub fn flat_of(axis: Vec3, slab: [f32; 2], bound: f32, leaf: bool, frame: &Frame, v: Vec3) -> Option<Flat> {
+    let half = slab[0].abs().max(slab[1].abs());
+    let slack = if leaf { 0.25 * bound } else { half };
+    (leaf || slab[1] - slab[0] <= 0.1 * bound).then(|| Flat { normal: frame.to_local(axis), centre: frame.to_local(v), slack })
 }
 
 /// Whether a leaf's disk stands for the surface a receiver sits on (`v`: disk centre −

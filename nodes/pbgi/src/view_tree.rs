@@ -185,7 +185,7 @@ impl ViewTree {
     }
 }
 
-#[node(category = "pbgi", version = 7, metrics = ["bounces", "pairs_per_point", "nodes_rasterised_per_point", "near_leaves_per_point", "group_buffers", "points_reusing_a_group_buffer", "coded_bytes", "terms_per_point", "walk_seconds"], outputs = [coded, stats])]
+#[node(category = "pbgi", version = 8, metrics = ["bounces", "pairs_per_point", "nodes_rasterised_per_point", "near_leaves_per_point", "group_buffers", "points_reusing_a_group_buffer", "coded_bytes", "terms_per_point", "walk_seconds"], outputs = [coded, stats])]
 impl ViewTree {
     fn run(
         &self,
@@ -377,7 +377,7 @@ mod tests {
             };
             let a = pick(&|k| pbgi.pixels[k][0] as f64);
             let b = pick(&|k| view[k]);
-            // Measured: floor 0.015356 against 0.015296, wall 0.021786 against 0.021674. Each
+            // Measured: floor 0.015776 against 0.015676, wall 0.022402 against 0.022107. Each
             // point rasterises its nodes in the order its own traversal would (descending
             // index); without group buffers the view tree gives the per-receiver walk's
             // bytes (`view_walk`'s tests), and the microbuffer's depth layers depend on
@@ -385,19 +385,15 @@ mod tests {
             // far 10 %).
             assert!(a > 0.0 && ((b - a) / a).abs() < 0.015, "object {object}: PbgiGather {a}, view tree {b}");
             // Against the path tracer's expectation (`exact_one_bounce`, on every fourth point
-            // of the surface). Measured: the floor 1.5 % under it, the wall 5.6 %. The
-            // microbuffer resolves each pixel's front layer over what lies behind it whatever
-            // the order of the splats (`microbuffer::layer_write`); hiding by each splat as it
-            // came gave 0.7 % and 4.5 % here but let the surface behind a near one through on
-            // the Cornell box (its floor 18 % over the path tracer, now 7 %). What darkens
-            // this wall is a surface seen at a grazing angle splitting into depth layers
-            // within one pixel, its far part then hidden behind its near one: the layers'
-            // depth factor at 1.5 instead of 1.25 gives 0.4 % over and 3.3 % under here, but
-            // merges true occluders on the Cornell box (its floor 16 % over again).
+            // of the surface). Measured: the floor 0.34 % over it, the wall 3.9 % under. The
+            // wall sees the floor edge-on, so one pixel holds floor splats at depths several
+            // times apart; they join one depth layer because they lie on one plane
+            // (`microbuffer::Flat`). Split by depth alone, the far ones hid behind the near
+            // ones: 1.5 % and 5.6 % under. What is left shrinks with the buffer's resolution.
             let ks: Vec<usize> = (0..n).filter(|&k| p.object[k] == object).step_by(4).collect();
             let mean = |v: &dyn Fn(usize) -> f64| ks.iter().map(|&k| v(k)).sum::<f64>() / ks.len() as f64;
             let exact = mean(&|k| exact_one_bounce(p.position[k], p.normal[k], 200));
-            let (view_mean, bound) = (mean(&|k| view[k]), if object == 0 { 0.02 } else { 0.06 });
+            let (view_mean, bound) = (mean(&|k| view[k]), if object == 0 { 0.01 } else { 0.05 });
             assert!(((view_mean - exact) / exact).abs() < bound, "object {object}: view tree {view_mean}, exact {exact}");
         }
         let rms = |v: &dyn Fn(usize) -> f64| ((0..n).map(|k| v(k).powi(2)).sum::<f64>() / n as f64).sqrt();

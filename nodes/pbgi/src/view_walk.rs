@@ -25,7 +25,7 @@
 //! threads changes no byte.
 
 use super::microbuffer::Microbuffer;
-use super::traversal::{GatherCounts, NodeRadiance, Traversal};
+use super::traversal::{flat_of, GatherCounts, NodeRadiance, Traversal};
 use super::view_pairs::{classify, Pair, PairTest};
 use crate::types::PointTree;
 use glam::Vec3;
@@ -235,7 +235,9 @@ impl<R: NodeRadiance> ViewWalk<'_, R> {
             let (a, l) = self.source.area_and_radiance(s, -v / d);
             if a > 0.0 {
                 counts.rasterised += 1;
-                mb.splat(frame.to_local(v / d), d, a / (d * d), l);
+                let n = &self.tree.nodes[s as usize];
+                let flat = flat_of(n.cone_axis, n.slab, n.bound, n.is_leaf(), frame, v);
+                mb.splat(frame.to_local(v / d), d, a / (d * d), l, flat);
             }
         }
     }
