@@ -343,4 +343,75 @@ mod tests {
         assert!(c.rasterised + c.near_leaves > 0 && c.visited < 2 * 400, "{c:?}");
         assert!(mb.radiance.iter().any(|l| *l != Vec3::ZERO));
     }
+
+    /// What a traversal hands its raster, kept in order to be replayed in another.
+    enum Write {
+        Splat { d: Vec3, dist: f32, omega: f32, l: Vec3, flat: Option<Flat> },
+        Disk { c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32 },
+    }
+
+    impl Write {
+        fn distance(&self) -> f32 {
+            match self {
+                Write::Splat { dist, .. } => *dist,
+                Write::Disk { c, .. } => c.length(),
+            }
+        }
+        fn replay(&self, mb: &mut Microbuffer) {
+            match *self {
+                Write::Splat { d, dist, omega, l, flat } => mb.splat(d, dist, omega, l, flat),
+                Write::Disk { c, nrm, r, l, eps } => mb.disk_exact(c, nrm, r, l, eps),
+            }
+        }
+    }
+
+    struct Recorder(f32, Vec<Write>);
+
+    impl Raster for Recorder {
+        fn pixel_solid_angle(&self, _: Vec3) -> f32 {
+            self.0
+        }
+        fn splat(&mut self, _: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, flat: Option<Flat>, _: &mut Vec<u32>) {
+            self.1.push(Write::Splat { d, dist, omega, l, flat });
+        }
+        fn disk(&mut self, _: u32, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
+            self.1.push(Write::Disk { c, nrm, r, l, eps });
+        }
+    }
+
+    #[test]
+    fn the_order_the_nodes_come_in_barely_moves_what_a_receiver_gathers() {
+        // `fpbgi_cornell` at 16² with 3,000 points, a 16² buffer at threshold 1: each
+        // receiver's writes replayed as the traversal made them, reversed, and sorted near to
+        // far. The front layer is resolved whatever the order and writes on one plane join
+        // it, so only what lies behind it depends on the order. Measured: the mean over the
+        // receivers moves +1.0 % reversed and −1.9 % near to far (the view tree, rasterising
+        // in other orders before these rules, measured a floor 3.6 % and 10 % darker).
+        let (tree, r) = crate::test_support::pbgi_setup::tree_and_receivers();
+        let t = Traversal::new(&tree, 1.0, 1e-5 * tree_extent(&tree));
+        let blank = Microbuffer::new(16);
+        let mut sums = [0.0f64; 3];
+        let mut stack = Vec::new();
+        for i in 0..r.len() {
+            let frame = Frame::from_normal(r.normal[i]);
+            let mut rec = Recorder(blank.mean_pixel_solid_angle(), Vec::new());
+            t.run(&[tree.outer_root()], r.position[i], &frame, &mut rec, &mut stack, &mut GatherCounts::default(), |_, _| false);
+            let mut writes = rec.1;
+            let wo = frame.to_local(r.wo[i]);
+            let mut gather = |writes: &[Write]| {
+                let mut mb = blank.clone();
+                writes.iter().for_each(|w| w.replay(&mut mb));
+                mb.convolve(&r.material[i], wo).x as f64
+            };
+            sums[0] += gather(&writes);
+            writes.reverse();
+            sums[1] += gather(&writes);
+            writes.sort_by(|a, b| a.distance().total_cmp(&b.distance()));
+            sums[2] += gather(&writes);
+        }
+        for (name, s, bound) in [("reversed", sums[1], 0.015), ("near to far", sums[2], 0.025)] {
+            let change = s / sums[0] - 1.0;
+            assert!(change.abs() < bound, "{name}: the mean moves by {change}");
+        }
+    }
 }
