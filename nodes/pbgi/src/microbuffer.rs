@@ -81,12 +81,6 @@ impl Flat {
         let tol = self.slack + other.slack + 1e-4 * (self.centre.length() + other.centre.length());
         self.normal.dot(other.normal) >= 0.9 && off <= tol
     }
-
-    /// The plane seen in the mirrored buffer (z negated).
-    pub fn mirrored(self) -> Flat {
-        let m = |v: Vec3| Vec3::new(v.x, v.y, -v.z);
-        Flat { normal: m(self.normal), centre: m(self.centre), slack: self.slack }
-    }
 }
 
 impl Microbuffer {
@@ -361,7 +355,7 @@ impl Microbuffer {
 /// What one pixel holds besides its front depth: its front layer (Σ coverage · L, Σ
 /// coverage, opacity) and, merged into one, everything behind it.
 #[derive(Clone, Copy, Debug)]
-pub struct Layers {
+struct Layers {
     front: Layer,
     /// The plane of the front layer's nearest write, when its disks lie near one.
     plane: Option<Flat>,
@@ -407,11 +401,11 @@ impl Layer {
 
 /// One pixel's state, borrowed from a buffer's arrays: its front depth, the radiance and
 /// coverage it reads as, and its layers.
-pub struct Pixel<'a> {
-    pub depth: &'a mut f32,
-    pub radiance: &'a mut Vec3,
-    pub coverage: &'a mut f32,
-    pub layers: &'a mut Layers,
+struct Pixel<'a> {
+    depth: &'a mut f32,
+    radiance: &'a mut Vec3,
+    coverage: &'a mut f32,
+    layers: &'a mut Layers,
 }
 
 /// Adds a write covering fraction `cov` of a pixel at `depth` with radiance `l` and hiding
@@ -429,7 +423,7 @@ pub struct Pixel<'a> {
 /// plane (`Flat`) joins that layer whatever its depth: a surface seen at a grazing angle
 /// spans depths several times apart within one pixel, and its far part hid behind its near
 /// part though they lie side by side.
-pub fn layer_write(px: Pixel, depth: f32, l: Vec3, cov: f32, opacity: f32, flat: Option<Flat>) {
+fn layer_write(px: Pixel, depth: f32, l: Vec3, cov: f32, opacity: f32, flat: Option<Flat>) {
     let Pixel { depth: d0, radiance, coverage, layers: s } = px;
     let w = Layer::new(l, cov.max(0.0), opacity.max(0.0));
     let on_front = matches!((&s.plane, &flat), (Some(p), Some(f)) if p.holds(f));

@@ -104,7 +104,16 @@ impl Raster for SphericalMicrobuffer {
                 Raster::splat(&mut self.front, node, d, dist, omega, l, flat, stack)
             }
         } else if self.whole && self.only_front != Some(true) {
-            Raster::splat(&mut self.back, node, mirror(d), dist, omega, l, flat.map(Flat::mirrored), stack)
+            Raster::splat(
+                &mut self.back,
+                node,
+                mirror(d),
+                dist,
+                omega,
+                l,
+                flat.map(|f| Flat { normal: mirror(f.normal), centre: mirror(f.centre), ..f }),
+                stack,
+            )
         }
     }
 
