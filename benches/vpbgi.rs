@@ -69,7 +69,7 @@ fn walk(s: &Setup, per_receiver: bool) -> (f64, WalkCounts) {
     };
     let cancel = CancelToken::new();
     let cx = RunCtx::new("bench", &cancel, None);
-    let irradiance = |_: u32, mb: &Microbuffer, _: &Frame| mb.radiance.iter().map(|l| l.x as f64).sum::<f64>();
+    let irradiance = |_: u32, mb: &Microbuffer, _: &Frame| mb.radiance().iter().map(|l| l.x as f64).sum::<f64>();
     let (out, counts) = if per_receiver { w.run_per_receiver(&cx, &irradiance) } else { w.run(&cx, &irradiance) }.unwrap();
     (out.iter().map(|(_, e)| e).sum(), counts)
 }

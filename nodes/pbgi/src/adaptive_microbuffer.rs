@@ -199,20 +199,24 @@ impl AdaptiveMicrobuffer {
     /// Rasterises the records into the pixels of their final levels (nothing to do where
     /// nothing refined: they went into the base buffer as they were made).
     pub fn finish(&mut self) {
-        if self.direct {
-            return;
-        }
-        let records = std::mem::take(&mut self.records);
-        for (at, r) in &records {
-            if at.is_none() {
-                continue;
+        if !self.direct {
+            let records = std::mem::take(&mut self.records);
+            for (at, r) in &records {
+                if at.is_none() {
+                    continue;
+                }
+                match *r {
+                    Record::Splat { d, dist, omega, l, flat, .. } => self.raster_splat(d, dist, omega, l, flat),
+                    Record::Disk { c, nrm, r, l, eps } => self.raster_disk(c, nrm, r, l, eps),
+                }
             }
-            match *r {
-                Record::Splat { d, dist, omega, l, flat, .. } => self.raster_splat(d, dist, omega, l, flat),
-                Record::Disk { c, nrm, r, l, eps } => self.raster_disk(c, nrm, r, l, eps),
+            self.records = records;
+        }
+        for (b, e) in self.buffers.iter_mut().zip(&self.extent) {
+            if let Some(e) = *e {
+                b.resolve_rect(e);
             }
         }
-        self.records = records;
     }
 
     /// A near leaf's exact disk: each pixel, at its own level, shows the disk where its centre
@@ -286,15 +290,15 @@ impl AdaptiveMicrobuffer {
             let Some((x0, y0, x1, y1)) = *e else { continue };
             let side = self.n << level;
             let shift = self.max_level as usize - level;
-            let mut part = Vec3::ZERO;
+            let (mut part, radiance) = (Vec3::ZERO, b.radiance());
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     let i = y * side + x;
-                    if self.level[(y << shift) * fine + (x << shift)] as usize != level || b.radiance[i] == Vec3::ZERO {
+                    if self.level[(y << shift) * fine + (x << shift)] as usize != level || radiance[i] == Vec3::ZERO {
                         continue;
                     }
                     if let Some(d) = b.dir(i) {
-                        part += brdf::eval(m, wo, d) * b.radiance[i];
+                        part += brdf::eval(m, wo, d) * radiance[i];
                     }
                 }
             }
@@ -396,11 +400,12 @@ mod tests {
                 uniform.clear();
                 let (mut stack, mut counts) = (vec![], GatherCounts::default());
                 t.run(&[tree.root], r.position[i], &frame, &mut uniform, &mut stack, &mut counts, |_, _| false);
+                uniform.resolve();
                 let want = uniform.convolve(&r.material[i], wo);
                 let (got, c) = gather_adaptive(i, &mut adaptive, Some(level));
                 assert_eq!(got, want, "receiver {i}, level {level}");
                 assert_eq!((c.visited, c.rasterised, c.near_leaves), (counts.visited, counts.rasterised, counts.near_leaves));
-                assert_eq!(adaptive.buffers[level as usize].radiance, uniform.radiance, "receiver {i}, level {level}");
+                assert_eq!(adaptive.buffers[level as usize].radiance(), uniform.radiance(), "receiver {i}, level {level}");
             }
         }
     }
@@ -420,6 +425,7 @@ mod tests {
                 let mut mb = Microbuffer::new(n);
                 let (mut stack, mut counts) = (vec![], GatherCounts::default());
                 t.run(&[tree.root], r.position[i], &frame, &mut mb, &mut stack, &mut counts, |_, _| false);
+                mb.resolve();
                 (mb.convolve(&r.material[i], wo), counts)
             };
             let ((base, want), (fine, _)) = (uniform(8), uniform(32));

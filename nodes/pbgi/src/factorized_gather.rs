@@ -70,6 +70,7 @@ pub fn factorized_gather(
                 }
                 own.copy_from(&shared);
                 t.run(&near, r.position[x], &frame, &mut own, &mut stack, &mut counts, |_, _| false);
+                own.resolve();
                 let l = own.convolve_in(&r.material[x], r.wo[x], &frame, &Frame::from_normal(r.normal[x]));
                 (x as u32, l, counts)
             })

@@ -24,14 +24,16 @@ pub struct Microbuffer {
     n: usize,
     /// Local direction of each pixel centre (None outside the disk).
     dirs: Vec<Option<Vec3>>,
-    /// Depth of each pixel's front layer (infinite where nothing was written).
-    depth: Vec<f32>,
-    /// Each pixel's Σ coverage · L as read: its front layer's, and what lies behind it seen
-    /// through the part the front layer leaves open (`layer_write`).
-    pub radiance: Vec<Vec3>,
-    /// Covered fraction of each pixel as read (splats smaller than a pixel add up).
-    pub coverage: Vec<f32>,
+    /// Each pixel's depth layers as written (`layer_write`).
     layers: Vec<Layers>,
+    /// Each pixel's Σ coverage · L as read: its front layer's, and what lies behind it seen
+    /// through the part the front layer leaves open (`resolve`).
+    radiance: Vec<Vec3>,
+    /// Covered fraction of each pixel as read (splats smaller than a pixel add up).
+    coverage: Vec<f32>,
+    /// Whether writes came after the last `resolve`: the buffer cannot be read until it is
+    /// resolved again.
+    stale: bool,
 }
 
 /// The pixels a disk can cover (`Microbuffer::disk_bounds`): a box of the grid, inclusive,
@@ -71,14 +73,26 @@ pub struct Flat {
     pub normal: Vec3,
     pub centre: Vec3,
     pub slack: f32,
+    /// The centre's distance from the receiver, kept so that `holds` takes no square root
+    /// per write.
+    dist: f32,
 }
 
 impl Flat {
+    pub fn new(normal: Vec3, centre: Vec3, slack: f32) -> Self {
+        Flat { normal, centre, slack, dist: centre.length() }
+    }
+
+    /// The same plane with normal and centre mapped by `f`, a map that keeps lengths.
+    pub fn mapped(&self, f: impl Fn(Vec3) -> Vec3) -> Self {
+        Flat { normal: f(self.normal), centre: f(self.centre), ..*self }
+    }
+
     /// Whether `other` lies on this plane: normals within about 25° and its centre within
     /// both slacks of the plane (and a relative 10⁻⁴ for rounding).
     fn holds(&self, other: &Flat) -> bool {
         let off = self.normal.dot(other.centre - self.centre).abs();
-        let tol = self.slack + other.slack + 1e-4 * (self.centre.length() + other.centre.length());
+        let tol = self.slack + other.slack + 1e-4 * (self.dist + other.dist);
         self.normal.dot(other.normal) >= 0.9 && off <= tol
     }
 }
@@ -91,10 +105,10 @@ impl Microbuffer {
         Microbuffer {
             n,
             dirs,
-            depth: vec![f32::INFINITY; n * n],
+            layers: vec![Layers::default(); n * n],
             radiance: vec![Vec3::ZERO; n * n],
             coverage: vec![0.0; n * n],
-            layers: vec![Layers::default(); n * n],
+            stale: false,
         }
     }
 
@@ -103,10 +117,10 @@ impl Microbuffer {
     }
 
     pub fn clear(&mut self) {
-        self.depth.fill(f32::INFINITY);
+        self.layers.fill(Layers::default());
         self.radiance.fill(Vec3::ZERO);
         self.coverage.fill(0.0);
-        self.layers.fill(Layers::default());
+        self.stale = false;
     }
 
     /// Clears the pixels of columns `x0..=x1` in rows `y0..=y1` only (a buffer written there
@@ -114,19 +128,56 @@ impl Microbuffer {
     pub fn clear_rect(&mut self, (x0, y0, x1, y1): (usize, usize, usize, usize)) {
         for y in y0..=y1 {
             let row = y * self.n + x0..=y * self.n + x1;
-            self.depth[row.clone()].fill(f32::INFINITY);
+            self.layers[row.clone()].fill(Layers::default());
             self.radiance[row.clone()].fill(Vec3::ZERO);
-            self.coverage[row.clone()].fill(0.0);
-            self.layers[row].fill(Layers::default());
+            self.coverage[row].fill(0.0);
         }
     }
 
     /// Copies another buffer of the same resolution (the factorised gather's shared buffer).
     pub fn copy_from(&mut self, other: &Microbuffer) {
-        self.depth.copy_from_slice(&other.depth);
+        self.layers.copy_from_slice(&other.layers);
         self.radiance.copy_from_slice(&other.radiance);
         self.coverage.copy_from_slice(&other.coverage);
-        self.layers.copy_from_slice(&other.layers);
+        self.stale = other.stale;
+    }
+
+    /// Makes the buffer readable after writes: each pixel reads as its front layer over what
+    /// lies behind it. Done once per fill, not per write: a pixel takes many writes.
+    pub fn resolve(&mut self) {
+        if self.stale {
+            self.resolve_range(0..self.n * self.n);
+        }
+        self.stale = false;
+    }
+
+    /// `resolve` for the pixels of columns `x0..=x1` in rows `y0..=y1` only (a buffer written
+    /// there alone, as `clear_rect`).
+    pub fn resolve_rect(&mut self, (x0, y0, x1, y1): (usize, usize, usize, usize)) {
+        if self.stale {
+            for y in y0..=y1 {
+                self.resolve_range(y * self.n + x0..y * self.n + x1 + 1);
+            }
+        }
+        self.stale = false;
+    }
+
+    fn resolve_range(&mut self, pixels: std::ops::Range<usize>) {
+        let (layers, radiance, coverage) = (&self.layers[pixels.clone()], &mut self.radiance[pixels.clone()], &mut self.coverage[pixels]);
+        for ((s, l), c) in layers.iter().zip(radiance).zip(coverage) {
+            let seen = s.front.over(s.back);
+            (*l, *c) = (seen.radiance, seen.coverage);
+        }
+    }
+
+    /// Each pixel's Σ coverage · L as read (the buffer resolved).
+    pub fn radiance(&self) -> &[Vec3] {
+        self.check_resolved();
+        &self.radiance
+    }
+
+    fn check_resolved(&self) {
+        assert!(!self.stale, "a microbuffer read after writes without `resolve`");
     }
 
     /// Projected solid angle of one pixel: (2/N)², or π for the single-pixel buffer.
@@ -158,6 +209,7 @@ impl Microbuffer {
     /// is a gap between splats, not background (the round splats of two groups leave one
     /// along their straight boundary): it reads as the mean of those two (`gap_filled`).
     pub fn radiance_toward(&self, d: Vec3) -> Vec3 {
+        self.check_resolved();
         if self.n == 1 {
             return self.radiance[0] / self.coverage[0].max(READ_COVERAGE);
         }
@@ -223,13 +275,8 @@ impl Microbuffer {
     /// Adds to pixel `i` a write at `depth` of radiance `l` covering `cov` of it and hiding
     /// `opacity` of what lies behind, its disks on plane `flat` if known (`layer_write`).
     pub fn write(&mut self, i: usize, depth: f32, l: Vec3, cov: f32, opacity: f32, flat: Option<Flat>) {
-        let px = Pixel {
-            depth: &mut self.depth[i],
-            radiance: &mut self.radiance[i],
-            coverage: &mut self.coverage[i],
-            layers: &mut self.layers[i],
-        };
-        layer_write(px, depth, l, cov, opacity, flat);
+        self.stale = true;
+        layer_write(&mut self.layers[i], depth, l, cov, opacity, flat);
     }
 
     /// Rasterises a node seen in local direction `d` (unit, z > 0 part is visible) at distance
@@ -238,11 +285,9 @@ impl Microbuffer {
     /// one covers the pixels within its angular radius. `flat`: the plane of its disks, if
     /// they lie near one.
     pub fn splat(&mut self, d: Vec3, dist: f32, omega: f32, l: Vec3, flat: Option<Flat>) {
-        let Microbuffer { n, dirs, depth, radiance, coverage, layers } = self;
-        splat_taps(*n, dirs, d, omega, &mut |i, cov| {
-            let px = Pixel { depth: &mut depth[i], radiance: &mut radiance[i], coverage: &mut coverage[i], layers: &mut layers[i] };
-            layer_write(px, dist, l, cov, cov, flat)
-        });
+        self.stale = true;
+        let Microbuffer { n, dirs, layers, .. } = self;
+        splat_taps(*n, dirs, d, omega, &mut |i, cov| layer_write(&mut layers[i], dist, l, cov, cov, flat));
     }
 
     /// The writes `splat` makes (pixel, coverage), in its order, without making them.
@@ -302,7 +347,7 @@ impl Microbuffer {
         if t <= eps || off > (OCCLUDE_REACH * r).powi(2) {
             return;
         }
-        let flat = Some(Flat { normal: nrm, centre: c, slack: 0.25 * r });
+        let flat = Some(Flat::new(nrm, c, 0.25 * r));
         if off <= r * r {
             self.write(i, t, if denom < 0.0 { l } else { Vec3::ZERO }, 1.0, 1.0, flat);
         } else {
@@ -321,6 +366,7 @@ impl Microbuffer {
         buffer: &relume_base::math::frame::Frame,
         receiver: &relume_base::math::frame::Frame,
     ) -> Vec3 {
+        self.check_resolved();
         let w = self.pixel_weight();
         let wo_r = receiver.to_local(wo);
         let mut sum = Vec3::ZERO;
@@ -339,6 +385,7 @@ impl Microbuffer {
 
     /// Outgoing radiance toward `wo` (local): Σ f(wo, wi) L(wi) · pixel weight.
     pub fn convolve(&self, m: &Material, wo: Vec3) -> Vec3 {
+        self.check_resolved();
         let w = self.pixel_weight();
         let mut sum = Vec3::ZERO;
         for (d, l) in self.dirs.iter().zip(&self.radiance) {
@@ -352,11 +399,13 @@ impl Microbuffer {
     }
 }
 
-/// What one pixel holds besides its front depth: its front layer (Σ coverage · L, Σ
-/// coverage, opacity) and, merged into one, everything behind it.
+/// What one pixel holds: its front layer (Σ coverage · L, Σ coverage, opacity) and its
+/// depth and, merged into one, everything behind it.
 #[derive(Clone, Copy, Debug)]
 struct Layers {
     front: Layer,
+    /// Depth of the front layer (infinite where nothing was written).
+    depth: f32,
     /// The plane of the front layer's nearest write, when its disks lie near one.
     plane: Option<Flat>,
     back: Layer,
@@ -365,7 +414,7 @@ struct Layers {
 
 impl Default for Layers {
     fn default() -> Self {
-        Layers { front: Layer::default(), plane: None, back: Layer::default(), back_depth: f32::INFINITY }
+        Layers { front: Layer::default(), depth: f32::INFINITY, plane: None, back: Layer::default(), back_depth: f32::INFINITY }
     }
 }
 
@@ -399,15 +448,6 @@ impl Layer {
     }
 }
 
-/// One pixel's state, borrowed from a buffer's arrays: its front depth, the radiance and
-/// coverage it reads as, and its layers.
-struct Pixel<'a> {
-    depth: &'a mut f32,
-    radiance: &'a mut Vec3,
-    coverage: &'a mut f32,
-    layers: &'a mut Layers,
-}
-
 /// Adds a write covering fraction `cov` of a pixel at `depth` with radiance `l` and hiding
 /// `opacity` of what lies behind it (a splat's opacity is its coverage), by depth layers.
 /// Within one layer (depths within a factor 1.25) coverage adds up uncapped: the splats of one
@@ -423,21 +463,20 @@ struct Pixel<'a> {
 /// plane (`Flat`) joins that layer whatever its depth: a surface seen at a grazing angle
 /// spans depths several times apart within one pixel, and its far part hid behind its near
 /// part though they lie side by side.
-fn layer_write(px: Pixel, depth: f32, l: Vec3, cov: f32, opacity: f32, flat: Option<Flat>) {
-    let Pixel { depth: d0, radiance, coverage, layers: s } = px;
+fn layer_write(s: &mut Layers, depth: f32, l: Vec3, cov: f32, opacity: f32, flat: Option<Flat>) {
     let w = Layer::new(l, cov.max(0.0), opacity.max(0.0));
     let on_front = matches!((&s.plane, &flat), (Some(p), Some(f)) if p.holds(f));
-    if *d0 == f32::INFINITY {
-        *d0 = depth;
+    if s.depth == f32::INFINITY {
+        s.depth = depth;
         s.front = w;
         s.plane = flat;
     } else if on_front {
         s.front.add(w);
-        *d0 = d0.min(depth);
-    } else if depth * LAYER < *d0 {
-        (s.back, s.back_depth) = (s.front.over(s.back), *d0);
-        (s.front, *d0, s.plane) = (w, depth, flat);
-    } else if depth > *d0 * LAYER {
+        s.depth = s.depth.min(depth);
+    } else if depth * LAYER < s.depth {
+        (s.back, s.back_depth) = (s.front.over(s.back), s.depth);
+        (s.front, s.depth, s.plane) = (w, depth, flat);
+    } else if depth > s.depth * LAYER {
         if s.back_depth == f32::INFINITY {
             (s.back, s.back_depth) = (w, depth);
         } else if depth * LAYER < s.back_depth {
@@ -450,11 +489,9 @@ fn layer_write(px: Pixel, depth: f32, l: Vec3, cov: f32, opacity: f32, flat: Opt
         }
     } else {
         s.front.add(w);
-        *d0 = d0.min(depth);
+        s.depth = s.depth.min(depth);
         s.plane = s.plane.or(flat);
     }
-    let seen = s.front.over(s.back);
-    (*radiance, *coverage) = (seen.radiance, seen.coverage);
 }
 
 /// The box of pixels (lowest and highest x and y, inclusive) of an `n`-wide buffer that holds
@@ -593,6 +630,7 @@ mod tests {
         let mut mb = Microbuffer::new(16);
         let d = Vec3::new(0.1, 0.2, 1.0).normalize();
         mb.splat(d, 2.0, 1e-4, Vec3::ONE, None);
+        mb.resolve();
         let i = mb.pixel_of(d);
         let total: f32 = mb.coverage.iter().sum();
         assert!(total > 0.0 && total < 0.05, "a tiny node covers a small share: {total}");
@@ -600,8 +638,10 @@ mod tests {
         let energy: f32 = mb.coverage.iter().zip(&mb.dirs).map(|(c, d)| c * mb.pixel_weight() / d.map_or(1.0, |d| d.z)).sum();
         assert!((energy - 1e-4).abs() < 2e-6, "{energy}");
         mb.splat(d, 1.0, 0.5, Vec3::splat(3.0), None);
+        mb.resolve();
         assert_eq!(mb.radiance[i], Vec3::splat(3.0), "a large node in front covers the pixel");
         mb.splat(d, 5.0, 0.5, Vec3::splat(9.0), None);
+        mb.resolve();
         assert_eq!(mb.radiance[i], Vec3::splat(3.0), "farther does not show through a covered pixel");
         let covered = mb.radiance.iter().filter(|l| l.x == 3.0).count();
         assert!(covered > 5, "a large node covers many pixels: {covered}");
@@ -611,6 +651,7 @@ mod tests {
         for k in 0..8 {
             mb.splat(d, 2.0 + 0.01 * k as f32, pix * 0.3, Vec3::ONE, None);
         }
+        mb.resolve();
         let total: f32 = mb.coverage.iter().sum();
         assert!((total - 2.4).abs() < 0.05, "eight splats of 0.3 pixel of one layer add up to 2.4: {total}");
     }
@@ -627,6 +668,7 @@ mod tests {
             for &(depth, l, cov) in order.concat().iter() {
                 mb.write(5, depth, l, cov, cov, None);
             }
+            mb.resolve();
             assert!((mb.radiance[5] - Vec3::ONE).abs().max_element() < 1e-6, "{}", mb.radiance[5]);
             assert!((mb.coverage[5] - 1.0).abs() < 1e-6);
         }
@@ -635,6 +677,7 @@ mod tests {
         for &(depth, l, cov) in near[..2].iter().chain(&far) {
             mb.write(5, depth, l, cov, cov, None);
         }
+        mb.resolve();
         assert!((mb.radiance[5] - Vec3::splat(0.5 + 4.5)).abs().max_element() < 1e-5, "{}", mb.radiance[5]);
     }
 
@@ -643,12 +686,13 @@ mod tests {
         // Two half-pixel writes on the wall x = 0.5 (facing the receiver), at depths 0.94 and
         // 3.04, seen in one pixel as a grazing wall is: side by side, both count. A write at
         // depth 3 on another plane is hidden behind the near one by its coverage.
-        let wall = |z: f32| Some(Flat { normal: -Vec3::X, centre: Vec3::new(0.5, 0.0, z), slack: 0.01 });
-        let other = Some(Flat { normal: Vec3::Z, centre: Vec3::new(0.0, 0.0, 3.0), slack: 0.01 });
+        let wall = |z: f32| Some(Flat::new(-Vec3::X, Vec3::new(0.5, 0.0, z), 0.01));
+        let other = Some(Flat::new(Vec3::Z, Vec3::new(0.0, 0.0, 3.0), 0.01));
         for (far, want) in [(wall(3.0), 1.0), (other, 0.75), (None, 0.75)] {
             let mut mb = Microbuffer::new(4);
             mb.write(5, 0.94, Vec3::ONE, 0.5, 0.5, wall(0.8));
             mb.write(5, 3.04, Vec3::ONE, 0.5, 0.5, far);
+            mb.resolve();
             assert!((mb.coverage[5] - want).abs() < 1e-6, "{far:?}: coverage {}", mb.coverage[5]);
         }
     }
@@ -665,6 +709,7 @@ mod tests {
             }
         }
         mb.disk_exact(Vec3::Z, -Vec3::Z, 0.2, Vec3::ONE, 1e-6);
+        mb.resolve();
         let count = |v: f32| mb.radiance.iter().zip(&mb.dirs).filter(|(l, d)| d.is_some() && l.x == v).count();
         let (lit, rim) = (count(1.0), count(0.0));
         // In the Nusselt map the disk covers a circle of radius sin(atan 0.2) · n/2 pixels and
@@ -685,7 +730,6 @@ mod tests {
         for (x, l, c) in [(2, 2.0, 1.0), (3, 4.0, 2.0), (5, 8.0, 2.0), (6, 4.0, 1.0)] {
             mb.radiance[4 * 8 + x] = Vec3::splat(l);
             mb.coverage[4 * 8 + x] = c;
-            mb.depth[4 * 8 + x] = 1.0;
         }
         let at = |x: usize| mb.radiance_toward(nusselt_dir(8, 4 * 8 + x).unwrap());
         assert_eq!(at(3), Vec3::splat(2.0), "normalised by its coverage");
@@ -698,12 +742,14 @@ mod tests {
         let mut mb = Microbuffer::new(32);
         // A disk straight above, facing down (toward the receiver): visible.
         mb.disk_exact(Vec3::new(0.0, 0.0, 1.0), -Vec3::Z, 0.5, Vec3::ONE, 1e-6);
+        mb.resolve();
         let lit = mb.radiance.iter().filter(|l| l.x == 1.0).count();
         // Its solid angle is 2π(1 − cos atan 0.5); its projected share of the π-disk, in pixels.
         assert!(lit > 100, "{lit}");
         let mut back = Microbuffer::new(32);
         back.disk_exact(Vec3::new(0.0, 0.0, 1.0), Vec3::Z, 0.5, Vec3::ONE, 1e-6);
-        assert!(back.radiance.iter().all(|l| *l == Vec3::ZERO) && back.depth.iter().any(|d| d.is_finite()), "black occluder");
+        back.resolve();
+        assert!(back.radiance().iter().all(|l| *l == Vec3::ZERO) && back.layers.iter().any(|s| s.depth.is_finite()), "black occluder");
     }
 
     #[test]
@@ -727,7 +773,9 @@ mod tests {
                 for i in 0..n * n {
                     all.disk_pixel(i, &every, c, nrm, 1.0, Vec3::ONE, 1e-6);
                 }
-                assert_eq!((&fast.radiance, &fast.depth), (&all.radiance, &all.depth), "n {n}, c {c}, normal {nrm}");
+                (fast.resolve(), all.resolve());
+                let depths = |b: &Microbuffer| b.layers.iter().map(|s| s.depth).collect::<Vec<_>>();
+                assert_eq!((fast.radiance(), depths(&fast)), (all.radiance(), depths(&all)), "n {n}, c {c}, normal {nrm}");
             }
         }
     }

@@ -64,6 +64,12 @@ impl SphericalMicrobuffer {
         self.whole
     }
 
+    /// Makes both hemispheres readable after writes (`Microbuffer::resolve`).
+    pub fn resolve(&mut self) {
+        self.front.resolve();
+        self.back.resolve();
+    }
+
     /// The radiance the buffer holds toward local direction `d` (the pixel it lands in, in
     /// the hemisphere it points into); 0 behind a front-only buffer.
     pub fn radiance_toward(&self, d: Vec3) -> Vec3 {
@@ -104,16 +110,7 @@ impl Raster for SphericalMicrobuffer {
                 Raster::splat(&mut self.front, node, d, dist, omega, l, flat, stack)
             }
         } else if self.whole && self.only_front != Some(true) {
-            Raster::splat(
-                &mut self.back,
-                node,
-                mirror(d),
-                dist,
-                omega,
-                l,
-                flat.map(|f| Flat { normal: mirror(f.normal), centre: mirror(f.centre), ..f }),
-                stack,
-            )
+            Raster::splat(&mut self.back, node, mirror(d), dist, omega, l, flat.map(|f| f.mapped(mirror)), stack)
         }
     }
 
@@ -148,6 +145,7 @@ impl GatherBuffer for SphericalMicrobuffer {
     }
 
     fn end(&mut self, m: &Material, wo: Vec3) -> Vec3 {
+        self.resolve();
         self.outgoing(m, wo)
     }
 
@@ -176,6 +174,7 @@ impl GatherBuffer for SphericalMicrobuffer {
             }
             _ => t.run(&[t.tree.outer_root()], p, frame, self, stack, counts, |_, _| false),
         }
+        self.resolve();
     }
 }
 
@@ -295,7 +294,7 @@ mod tests {
         let wo = Vec3::new(0.3, -0.2, 0.9).normalize();
         let (l, mb, _) = between_planes(&m, wo, 16);
         assert!(!mb.whole());
-        assert!(mb.back.radiance.iter().all(|l| *l == Vec3::ZERO), "nothing behind an opaque receiver");
+        assert!(mb.back.radiance().iter().all(|l| *l == Vec3::ZERO), "nothing behind an opaque receiver");
         // The same traversal into the plain buffer.
         let (pts, rad) = two_planes();
         let tree = PointTree::build(&pts, &rad);
@@ -306,7 +305,7 @@ mod tests {
             false
         });
         assert_eq!(l.to_array(), plain.end(&m, wo).to_array());
-        assert_eq!(mb.front.radiance, plain.radiance);
+        assert_eq!(mb.front.radiance(), plain.radiance());
         // Red only: the blue plane lies under the horizon.
         assert!(l.x > 0.0 && l.y == 0.0 && l.z == 0.0, "{l}");
     }
@@ -380,7 +379,7 @@ mod tests {
         let (_, _, opaque) = between_planes(&Material::Lambert { albedo: Vec3::ONE }, Vec3::Z, 8);
         let (_, mb, whole) = between_planes(&glass(1.5), Vec3::Z, 8);
         assert!(whole.rasterised + whole.near_leaves > opaque.rasterised + opaque.near_leaves, "{whole:?} {opaque:?}");
-        assert!(mb.back.radiance.iter().any(|l| l.z > 0.0) && mb.back.radiance.iter().all(|l| l.x == 0.0));
-        assert!(mb.front.radiance.iter().all(|l| l.z == 0.0));
+        assert!(mb.back.radiance().iter().any(|l| l.z > 0.0) && mb.back.radiance().iter().all(|l| l.x == 0.0));
+        assert!(mb.front.radiance().iter().all(|l| l.z == 0.0));
     }
 }

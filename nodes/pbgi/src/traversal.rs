@@ -156,6 +156,7 @@ impl GatherBuffer for Microbuffer {
         self.clear();
     }
     fn end(&mut self, m: &relume_base::types::Material, wo: Vec3) -> Vec3 {
+        self.resolve();
         self.convolve(m, wo)
     }
 }
@@ -273,7 +274,7 @@ impl<'a, R: NodeRadiance> Traversal<'a, R> {
 pub fn flat_of(axis: Vec3, slab: [f32; 2], bound: f32, leaf: bool, frame: &Frame, v: Vec3) -> Option<Flat> {
     let half = slab[0].abs().max(slab[1].abs());
     let slack = if leaf { 0.25 * bound } else { half };
-    (leaf || slab[1] - slab[0] <= 0.1 * bound).then(|| Flat { normal: frame.to_local(axis), centre: frame.to_local(v), slack })
+    (leaf || slab[1] - slab[0] <= 0.1 * bound).then(|| Flat::new(frame.to_local(axis), frame.to_local(v), slack))
 }
 
 /// Whether a leaf's disk stands for the surface a receiver sits on (`v`: disk centre −
@@ -331,17 +332,18 @@ mod tests {
             let mut counts = GatherCounts::default();
             mb.clear();
             t.run(&[tree.root], p, &Frame::from_normal(nrm), mb, stack, &mut counts, |_, _| false);
+            mb.resolve();
             counts
         };
         // In the upper plane, facing up: both planes lie at or under its horizon.
         let c = run(Vec3::new(0.03, 0.02, 1.0), Vec3::Z, &mut mb, &mut stack);
         assert_eq!((c.rasterised, c.near_leaves), (0, 0), "{c:?}");
         assert!(c.visited <= 3, "the subtrees of both planes are culled at once: {c:?}");
-        assert!(mb.radiance.iter().all(|l| *l == Vec3::ZERO));
+        assert!(mb.radiance().iter().all(|l| *l == Vec3::ZERO));
         // Facing down from the same spot, the lower plane is seen; the upper one is still culled.
         let c = run(Vec3::new(0.03, 0.02, 1.0), -Vec3::Z, &mut mb, &mut stack);
         assert!(c.rasterised + c.near_leaves > 0 && c.visited < 2 * 400, "{c:?}");
-        assert!(mb.radiance.iter().any(|l| *l != Vec3::ZERO));
+        assert!(mb.radiance().iter().any(|l| *l != Vec3::ZERO));
     }
 
     /// What a traversal hands its raster, kept in order to be replayed in another.
@@ -398,9 +400,10 @@ mod tests {
             t.run(&[tree.outer_root()], r.position[i], &frame, &mut rec, &mut stack, &mut GatherCounts::default(), |_, _| false);
             let mut writes = rec.1;
             let wo = frame.to_local(r.wo[i]);
-            let mut gather = |writes: &[Write]| {
+            let gather = |writes: &[Write]| {
                 let mut mb = blank.clone();
                 writes.iter().for_each(|w| w.replay(&mut mb));
+                mb.resolve();
                 mb.convolve(&r.material[i], wo).x as f64
             };
             sums[0] += gather(&writes);

@@ -126,8 +126,8 @@ impl ViewTree {
             }
             Reflector::Glossy(k) => {
                 let (m, b) = &brdfs[k];
-                let mut map = to_cube(&b.outgoing(&mb.radiance), b.n, frame, side);
-                let irradiance = mb.radiance.iter().sum::<Vec3>() * mb.pixel_weight();
+                let mut map = to_cube(&b.outgoing(mb.radiance()), b.n, frame, side);
+                let irradiance = mb.radiance().iter().sum::<Vec3>() * mb.pixel_weight();
                 cap_exitance(&mut map, m, irradiance);
                 map
             }

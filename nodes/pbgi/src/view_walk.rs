@@ -171,6 +171,7 @@ impl<R: NodeRadiance> ViewWalk<'_, R> {
                     self.rasterise(&[s], rn.center, &frame, &mut mb, counts);
                 }
             }
+            mb.resolve();
             out.push((rn.point, done(rn.point, &mb, &frame)));
             progress.leaves(1)?;
             return Ok(());
@@ -272,6 +273,7 @@ impl<R: NodeRadiance> ViewWalk<'_, R> {
                 let mut c = GatherCounts::default();
                 mb.clear();
                 t.run(&[self.tree.outer_root()], node.center, &frame, mb, stack, &mut c, |_, _| false);
+                mb.resolve();
                 let counts = WalkCounts { pairs: c.visited, rasterised: c.rasterised, near: c.near_leaves, ..Default::default() };
                 ((node.point, done(node.point, mb, &frame)), counts)
             },
