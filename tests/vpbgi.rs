@@ -51,7 +51,8 @@ fn the_floor_of_two_bounces_keeps_to_the_path_tracers_within_two_percent() {
     let img = |n: &str| r.output(n).unwrap().get::<Image>().unwrap().clone();
     let receivers = r.output("receivers").unwrap().get::<Receivers>().unwrap().clone();
     let floor = |i: &Image| {
-        let pixels: Vec<usize> = receivers.pixel.iter().zip(&receivers.object).filter(|(_, &o)| o == 0).map(|(&p, _)| p as usize).collect();
+        let on_floor = |k: usize| receivers.object[k] == 0 && receivers.weight[k] == 1.0;
+        let pixels: Vec<usize> = (0..receivers.len()).filter(|&k| on_floor(k)).map(|k| receivers.pixel[k] as usize).collect();
         assert!(pixels.len() > 300, "the floor holds {} pixels", pixels.len());
         [0, 1, 2].map(|c| pixels.iter().map(|&p| i.pixels[p][c] as f64).sum::<f64>() / pixels.len() as f64)
     };

@@ -207,7 +207,8 @@ fn on_the_glossy_cornell_bunny_the_adaptive_buffer_lowers_the_error_over_the_sam
 fn glass_receivers_gather_through_the_spherical_microbuffer_and_leave_the_rest_alone() {
     // `glass` (docs/SCENES.md): the smooth sphere over the floor. With `gbuffer.dielectrics` the
     // pixels on the glass become receivers and read their spherical buffer along the
-    // reflected and refracted directions; every other pixel keeps its bytes.
+    // reflected and refracted directions; every other pixel keeps its bytes. One receiver
+    // at each pixel centre, so that a pixel lies on the glass or off it.
     let scene = graphs_dir().join("scenes/glass.ron").display().to_string();
     let graph = |dielectrics: &str| {
         load_graph(
@@ -220,6 +221,7 @@ fn glass_receivers_gather_through_the_spherical_microbuffer_and_leave_the_rest_a
                 ("wavelets.resolution", "8"),
                 ("gather.resolution", "8"),
                 ("gbuffer.dielectrics", dielectrics),
+                ("gbuffer.edge_samples", "1"),
             ],
         )
     };

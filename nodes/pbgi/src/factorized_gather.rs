@@ -76,10 +76,10 @@ pub fn factorized_gather(
             })
             .collect()
     })?;
-    let mut img = Image { width: r.width, height: r.height, pixels: vec![[0.0; 3]; r.width * r.height] };
+    let mut img = r.blank_image();
     let mut total = GatherCounts::default();
     for (x, l, c) in per_cluster.into_iter().flatten() {
-        img.pixels[r.pixel[x as usize] as usize] = l.to_array();
+        r.add_to(&mut img, x as usize, l);
         total = total + c;
     }
     Ok((img, total))

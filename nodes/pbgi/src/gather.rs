@@ -44,10 +44,10 @@ pub fn gather_with<R: NodeRadiance, B: GatherBuffer>(
             })
             .collect::<Vec<_>>()
     })?;
-    let mut img = Image { width: r.width, height: r.height, pixels: vec![[0.0; 3]; r.width * r.height] };
+    let mut img = r.blank_image();
     let mut total = GatherCounts::default();
     for (&i, (l, c)) in order.iter().zip(tasks.into_iter().flatten()) {
-        img.pixels[r.pixel[i as usize] as usize] = l.to_array();
+        r.add_to(&mut img, i as usize, l);
         total = total + c;
     }
     Ok((img, total))

@@ -93,11 +93,11 @@ impl PreviewSplat {
             let range = task * RECEIVERS_PER_TASK..((task + 1) * RECEIVERS_PER_TASK).min(r.len());
             range.map(|k| self.pixel(tree, level, &source, r.position[k], r.normal[k], r.wo[k], &mut stack)).collect::<Vec<_>>()
         })?;
-        let mut img = Image { width: r.width, height: r.height, pixels: vec![[0.0; 3]; r.width * r.height] };
+        let mut img = r.blank_image();
         let mut missed = 0u64;
         for (k, l) in tasks.into_iter().flatten().enumerate() {
             match l {
-                Some(l) => img.pixels[r.pixel[k] as usize] = l.to_array(),
+                Some(l) => r.add_to(&mut img, k, l),
                 None => missed += 1,
             }
         }
@@ -168,6 +168,7 @@ mod tests {
             wo: vec![Vec3::Z; 900],
             object: vec![0; 900],
             material: vec![Material::Lambert { albedo: Vec3::ONE }; 900],
+            weight: vec![1.0; 900],
         }
     }
 

@@ -353,6 +353,7 @@ mod tests {
             wo: p.normal.clone(),
             object: p.object.clone(),
             material: p.material.clone(),
+            weight: vec![1.0; n],
         };
         let cancel = CancelToken::new();
         let cx = RunCtx::new("t", &cancel, None);

@@ -7,7 +7,9 @@ use relume_core::codec::pod_vec;
 use relume_core::PortValue;
 use serde::{Deserialize, Serialize};
 
-/// One receiver per pixel whose primary ray hit a surface.
+/// The camera's primary hits a gather lights: one per pixel whose primary ray hit a surface,
+/// or several for a pixel whose footprint spans more than one surface (`GBuffer`), each with
+/// its share of the pixel.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Receivers {
     pub width: usize,
@@ -26,17 +28,36 @@ pub struct Receivers {
     #[serde(with = "pod_vec")]
     pub object: Vec<u32>,
     pub material: Vec<Material>,
+    /// Each receiver's share of its pixel: 1 for a pixel's only receiver; the shares of one
+    /// pixel add up to at most 1 (the rest of its footprint sees nothing a gather lights).
+    #[serde(with = "pod_vec")]
+    pub weight: Vec<f32>,
 }
 
 impl Receivers {
-    /// Memory per receiver: pixel index, position, normal, outgoing direction, object, material.
-    pub const BYTES_PER_RECEIVER: usize = 4 + 36 + 4 + std::mem::size_of::<Material>();
+    /// Memory per receiver: pixel index, position, normal, outgoing direction, object,
+    /// material, weight.
+    pub const BYTES_PER_RECEIVER: usize = 4 + 36 + 4 + std::mem::size_of::<Material>() + 4;
 
     pub fn len(&self) -> usize {
         self.pixel.len()
     }
     pub fn is_empty(&self) -> bool {
         self.pixel.is_empty()
+    }
+
+    /// A black image of the receivers' size.
+    pub fn blank_image(&self) -> relume_base::types::Image {
+        relume_base::types::Image { width: self.width, height: self.height, pixels: vec![[0.0; 3]; self.width * self.height] }
+    }
+
+    /// Adds receiver `i`'s value `l`, times its share of the pixel, to its pixel of `img`.
+    pub fn add_to(&self, img: &mut relume_base::types::Image, i: usize, l: Vec3) {
+        let px = &mut img.pixels[self.pixel[i] as usize];
+        let w = self.weight[i];
+        for (c, v) in px.iter_mut().zip(l.to_array()) {
+            *c += w * v;
+        }
     }
 }
 
@@ -46,9 +67,10 @@ impl Receivers {
     pub fn is_consistent(&self) -> bool {
         let n = self.len();
         let Some(pixels) = self.width.checked_mul(self.height) else { return false };
-        let lengths =
-            [self.position.len(), self.normal.len(), self.wo.len(), self.object.len(), self.material.len()].iter().all(|&l| l == n);
-        lengths && self.pixel.iter().all(|&p| (p as usize) < pixels)
+        let lengths = [self.position.len(), self.normal.len(), self.wo.len(), self.object.len(), self.material.len(), self.weight.len()]
+            .iter()
+            .all(|&l| l == n);
+        lengths && self.pixel.iter().all(|&p| (p as usize) < pixels) && self.weight.iter().all(|w| (0.0..=1.0).contains(w))
     }
 }
 
@@ -99,6 +121,7 @@ mod tests {
             wo: vec![Vec3::new(0.0, 0.6, 0.8); n],
             object: vec![0, 1, 1],
             material: vec![Material::Lambert { albedo: Vec3::splat(0.5) }; n],
+            weight: vec![1.0, 0.5, 0.25],
         }
     }
 
@@ -117,6 +140,9 @@ mod tests {
         let mut r = receivers();
         r.wo.pop();
         assert!(Receivers::decode(&r.encode()).is_none(), "arrays of different lengths");
+        let mut r = receivers();
+        r.weight[1] = f32::NAN;
+        assert!(Receivers::decode(&r.encode()).is_none(), "a share that is not a number");
         let mut r = receivers();
         r.width = 8;
         assert_ne!(r.fingerprint(), receivers().fingerprint());
