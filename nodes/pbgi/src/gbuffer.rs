@@ -32,9 +32,11 @@ fn same_surface(a: &(Surface, Vec3, f32), b: &(Surface, Vec3, f32)) -> bool {
     a.0.object == b.0.object && a.0.ns.dot(b.0.ns) >= 0.9 && (a.2 - b.2).abs() <= 0.05 * a.2.min(b.2)
 }
 
-/// Receivers of every pixel, row by row in parallel: the centre's hit where the `k` × `k`
-/// grid's hits all lie on its piece of surface, else each of the grid's hits at 1/k² of the
-/// pixel.
+/// Receivers of every pixel, row by row in parallel. First the pixel centres' hits; then each
+/// pixel whose centre's hit lies on another piece of surface than one of its four neighbours'
+/// (or sees what the other does not) traces a `k` × `k` grid: where all of the grid's hits lie on
+/// its centre's piece of surface it keeps the centre's receiver, else each hit becomes one at
+/// 1/k² of the pixel. An edge that passes between no two pixel centres goes unseen.
 pub fn gbuffer(scene: &Scene, accel: &Accel, dielectrics: bool, k: usize, cx: &RunCtx) -> Result<Receivers, NodeError> {
     let cam = CameraRays::new(&scene.camera);
     let (w, h) = (scene.camera.width, scene.camera.height);
@@ -49,20 +51,29 @@ pub fn gbuffer(scene: &Scene, accel: &Accel, dielectrics: bool, k: usize, cx: &R
         let dist = (s.p - o).length();
         (d.dot(s.ng) < 0.0 && (dielectrics || !matches!(m, Material::Dielectric { .. }))).then_some((s, -d, dist))
     };
+    let centres: Vec<Vec<Option<(Surface, Vec3, f32)>>> =
+        cx.par_map(h, |y| (0..w).map(|x| receiver_at(x as f32 + 0.5, y as f32 + 0.5)).collect())?;
+    let differs = |a: &Option<(Surface, Vec3, f32)>, b: &Option<(Surface, Vec3, f32)>| match (a, b) {
+        (Some(a), Some(b)) => !same_surface(a, b),
+        (None, None) => false,
+        _ => true,
+    };
     let rows: Vec<Vec<(u32, Surface, Vec3, f32)>> = cx.par_map(h, |y| {
         let mut row = Vec::new();
         for x in 0..w {
             let i = (y * w + x) as u32;
-            let centre = receiver_at(x as f32 + 0.5, y as f32 + 0.5);
-            if k == 1 {
-                row.extend(centre.map(|(s, wo, _)| (i, s, wo, 1.0)));
+            let centre = &centres[y][x];
+            let neighbours = [(x.wrapping_sub(1), y), (x + 1, y), (x, y.wrapping_sub(1)), (x, y + 1)];
+            let edge = k > 1 && neighbours.iter().any(|&(nx, ny)| nx < w && ny < h && differs(centre, &centres[ny][nx]));
+            if !edge {
+                row.extend(centre.as_ref().map(|(s, wo, _)| (i, s.clone(), *wo, 1.0)));
                 continue;
             }
             let grid: Vec<_> = (0..k * k)
                 .map(|j| receiver_at(x as f32 + ((j % k) as f32 + 0.5) / k as f32, y as f32 + ((j / k) as f32 + 0.5) / k as f32))
                 .collect();
             match centre {
-                Some(c) if grid.iter().all(|g| g.as_ref().is_some_and(|g| same_surface(&c, g))) => row.push((i, c.0, c.1, 1.0)),
+                Some(c) if grid.iter().all(|g| g.as_ref().is_some_and(|g| same_surface(c, g))) => row.push((i, c.0.clone(), c.1, 1.0)),
                 _ => row.extend(grid.into_iter().flatten().map(|(s, wo, _)| (i, s, wo, 1.0 / (k * k) as f32))),
             }
         }
@@ -87,16 +98,18 @@ fn edge_pixels(r: &Receivers) -> usize {
     r.pixel.iter().zip(&r.weight).filter(|&(&p, &w)| w < 1.0 && last.replace(p) != Some(p)).count()
 }
 
-#[node(category = "pbgi", version = 2, metrics = ["receivers", "edge_pixels"], outputs = [receivers])]
+#[node(category = "pbgi", version = 3, metrics = ["receivers", "edge_pixels"], outputs = [receivers])]
 impl GBuffer {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
-        // At most edge_samples² receivers per pixel.
+        // At most edge_samples² receivers per pixel; the pixel centres' hits while it runs.
         let per_pixel = self.edge_samples.clamp(1, 4).pow(2);
-        let size = inputs[0].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize {
+        let dims = inputs[0].and_then(|s| s.dims);
+        let size = dims.map(|[w, h]| relume_core::PortSize {
             bytes: (w * h * per_pixel * crate::types::Receivers::BYTES_PER_RECEIVER) as u64,
             dims: Some([w, h]),
         });
-        relume_core::MemoryEstimate { outputs: vec![size], working: 0 }
+        let centres = dims.map_or(0, |[w, h]| (w * h * std::mem::size_of::<Option<(Surface, Vec3, f32)>>()) as u64);
+        relume_core::MemoryEstimate { outputs: vec![size], working: centres }
     }
 
     fn run(&self, scene: &Scene, accel: &Accel, cx: &RunCtx) -> Result<Receivers, NodeError> {
