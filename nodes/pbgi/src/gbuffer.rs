@@ -127,12 +127,18 @@ mod tests {
     use relume_base::types::accel::BuildQuality;
     use relume_core::{CancelToken, Value};
 
-    #[test]
-    fn receivers_are_the_visible_hits_with_normals_toward_the_camera() {
+    /// `test_scene::spheres`'s receivers with a `k` × `k` grid in pixels that span an edge.
+    fn spheres(k: usize) -> (Scene, Receivers) {
         let scene = test_scene::spheres();
         let accel = Accel::build(&scene, BuildQuality::Fast);
         let cancel = CancelToken::new();
-        let r = gbuffer(&scene, &accel, false, 1, &RunCtx::new("t", &cancel, None)).unwrap();
+        let r = gbuffer(&scene, &accel, false, k, &RunCtx::new("t", &cancel, None)).unwrap();
+        (scene, r)
+    }
+
+    #[test]
+    fn receivers_are_the_visible_hits_with_normals_toward_the_camera() {
+        let (scene, r) = spheres(1);
         assert!(r.len() > 100 && r.len() <= 16 * 16, "{}", r.len());
         for i in 0..r.len() {
             assert!(r.normal[i].dot(r.wo[i]) > 0.0, "faces the camera");
@@ -146,12 +152,9 @@ mod tests {
 
     #[test]
     fn a_pixel_that_spans_an_edge_gets_a_receiver_per_share_of_it() {
-        let scene = test_scene::spheres();
-        let accel = Accel::build(&scene, BuildQuality::Fast);
-        let cancel = CancelToken::new();
-        let one = gbuffer(&scene, &accel, false, 1, &RunCtx::new("t", &cancel, None)).unwrap();
+        let (_, one) = spheres(1);
         for k in [2, 3] {
-            let r = gbuffer(&scene, &accel, false, k, &RunCtx::new("t", &cancel, None)).unwrap();
+            let (_, r) = spheres(k);
             let mut share = vec![0.0f32; r.width * r.height];
             let mut count = vec![0usize; r.width * r.height];
             for i in 0..r.len() {
