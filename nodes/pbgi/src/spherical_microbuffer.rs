@@ -18,7 +18,7 @@
 //! (1 − F)/η² · L(refracted) from the back (nearest pixel). With ior = 1 this is exactly the
 //! back pixel straight behind: light goes through unchanged (docs/QUALITY.md §2 "refraction").
 
-use super::microbuffer::{Flat, Microbuffer};
+use super::microbuffer::{DiskLight, Flat, Microbuffer};
 use super::traversal::{GatherBuffer, GatherCounts, NodeRadiance, Raster, Traversal};
 use crate::types::faces_inside;
 use glam::Vec3;
@@ -114,7 +114,7 @@ impl Raster for SphericalMicrobuffer {
         }
     }
 
-    fn disk(&mut self, node: u32, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
+    fn disk(&mut self, node: u32, c: Vec3, nrm: Vec3, r: f32, l: &DiskLight, eps: f32) {
         if self.whole && c.length() < OWN_SURFACE * r {
             // A disk this close is the receiver's own surface: the points around it overlap
             // beneath it (and its twin lies on it), and without the horizon culling that an
@@ -126,7 +126,8 @@ impl Raster for SphericalMicrobuffer {
         }
         if self.whole && self.only_front != Some(true) {
             // Mirroring the disk with the directions keeps which side of it each ray meets.
-            self.back.disk(node, mirror(c), mirror(nrm), r, l, eps);
+            let along = |w: Vec3| l.along(mirror(w));
+            self.back.disk(node, mirror(c), mirror(nrm), r, &DiskLight::Along(&along), eps);
         }
     }
 }

@@ -1,7 +1,7 @@
 //! What the two gathers (PbgiGather, FactorizedGather) share: their microbuffer parameters,
 //! the traversal of the point tree for one receiver, and its counts.
 
-use super::microbuffer::{Flat, Microbuffer};
+use super::microbuffer::{DiskLight, Flat, Microbuffer};
 use crate::types::PointTree;
 use glam::Vec3;
 use relume_base::math::frame::Frame;
@@ -81,6 +81,11 @@ pub trait NodeRadiance: Sync {
     fn radiance_toward(&self, i: u32, dir: Vec3) -> Vec3 {
         self.area_and_radiance(i, dir).1
     }
+    /// Whether a leaf sends different radiance toward different directions in front of it (a
+    /// near leaf's disk then reads it along each pixel's ray: `DiskLight::Along`).
+    fn directional_leaves(&self) -> bool {
+        false
+    }
 }
 
 impl NodeRadiance for PointTree {
@@ -108,8 +113,9 @@ pub trait Raster {
     /// that refines may hand nodes back for another visit by pushing them on `stack`.
     #[allow(clippy::too_many_arguments)]
     fn splat(&mut self, node: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, flat: Option<Flat>, stack: &mut Vec<u32>);
-    /// Ray-casts a near leaf exactly as a disk (centre `c`, normal `nrm`, radius `r`, local).
-    fn disk(&mut self, node: u32, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32);
+    /// Ray-casts a near leaf exactly as a disk (centre `c`, normal `nrm`, radius `r`, local)
+    /// showing `l`.
+    fn disk(&mut self, node: u32, c: Vec3, nrm: Vec3, r: f32, l: &DiskLight, eps: f32);
 }
 
 impl Raster for Microbuffer {
@@ -119,8 +125,8 @@ impl Raster for Microbuffer {
     fn splat(&mut self, _: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, flat: Option<Flat>, _: &mut Vec<u32>) {
         Microbuffer::splat(self, d, dist, omega, l, flat)
     }
-    fn disk(&mut self, _: u32, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
-        self.disk_exact(c, nrm, r, l, eps)
+    fn disk(&mut self, _: u32, c: Vec3, nrm: Vec3, r: f32, l: &DiskLight, eps: f32) {
+        self.disk_lit(c, nrm, r, l, eps)
     }
 }
 
@@ -250,9 +256,8 @@ impl<'a, R: NodeRadiance> Traversal<'a, R> {
                     return;
                 }
                 counts.near_leaves += 1;
-                let c = frame.to_local(v);
-                let toward = -v / d.max(f32::MIN_POSITIVE);
-                mb.disk(i, c, frame.to_local(node.axis), node.bound, self.source.radiance_toward(i, toward), self.eps);
+                let (c, nrm) = (frame.to_local(v), frame.to_local(node.axis));
+                disk_light(self.source, i, v, frame, |l| mb.disk(i, c, nrm, node.bound, l, self.eps));
             }
             return;
         }
@@ -264,6 +269,18 @@ impl<'a, R: NodeRadiance> Traversal<'a, R> {
         counts.rasterised += 1;
         let flat = flat_of(node.axis, node.slab, node.bound, node.right == u32::MAX, frame, v);
         Raster::splat(mb, i, frame.to_local(v / d), d, a / (d * d), l, flat, stack);
+    }
+}
+
+/// Hands `draw` the light near leaf `i` shows as a disk to a receiver in `frame` (`v`: the
+/// disk's centre − receiver): what it sends toward the receiver from its centre, or, for a
+/// source whose leaves send a lobe, what it sends along each pixel's ray.
+pub fn disk_light<R: NodeRadiance>(source: &R, i: u32, v: Vec3, frame: &Frame, draw: impl FnOnce(&DiskLight)) {
+    if source.directional_leaves() {
+        let along = |w: Vec3| source.radiance_toward(i, frame.to_world(-w));
+        draw(&DiskLight::Along(&along))
+    } else {
+        draw(&DiskLight::Uniform(source.radiance_toward(i, -v / v.length().max(f32::MIN_POSITIVE))))
     }
 }
 
@@ -376,8 +393,8 @@ mod tests {
         fn splat(&mut self, _: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, flat: Option<Flat>, _: &mut Vec<u32>) {
             self.1.push(Write::Splat { d, dist, omega, l, flat });
         }
-        fn disk(&mut self, _: u32, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
-            self.1.push(Write::Disk { c, nrm, r, l, eps });
+        fn disk(&mut self, _: u32, c: Vec3, nrm: Vec3, r: f32, l: &DiskLight, eps: f32) {
+            self.1.push(Write::Disk { c, nrm, r, l: l.along(c.normalize()), eps });
         }
     }
 

@@ -25,7 +25,7 @@
 //! threads changes no byte.
 
 use super::microbuffer::Microbuffer;
-use super::traversal::{flat_of, GatherCounts, NodeRadiance, Traversal};
+use super::traversal::{disk_light, flat_of, GatherCounts, NodeRadiance, Traversal};
 use super::view_pairs::{classify, Pair, PairTest};
 use crate::types::PointTree;
 use glam::Vec3;
@@ -220,9 +220,8 @@ impl<R: NodeRadiance> ViewWalk<'_, R> {
     fn near_leaf(&self, s: u32, p: Vec3, frame: &Frame, mb: &mut Microbuffer) {
         let sn = &self.tree.nodes[s as usize];
         let v = sn.center - p;
-        let toward = -v / v.length().max(f32::MIN_POSITIVE);
-        let l = self.source.radiance_toward(s, toward);
-        mb.disk_exact(frame.to_local(v), frame.to_local(sn.cone_axis), sn.bound, l, self.eps);
+        let (c, nrm) = (frame.to_local(v), frame.to_local(sn.cone_axis));
+        disk_light(self.source, s, v, frame, |l| mb.disk_lit(c, nrm, sn.bound, l, self.eps));
     }
 
     /// Rasterises senders seen from `p` into `mb` (in `frame`), in the order given.

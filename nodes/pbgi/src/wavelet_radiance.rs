@@ -239,6 +239,9 @@ impl super::traversal::NodeRadiance for WaveletSource<'_> {
         }
         (a, self.intensity_per_area(i, dir) * (node.area / a))
     }
+    fn directional_leaves(&self) -> bool {
+        true
+    }
 }
 
 #[cfg(test)]
