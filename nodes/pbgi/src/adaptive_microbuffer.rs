@@ -24,16 +24,33 @@
 //! result is that level's uniform buffer, write for write.
 
 use super::microbuffer::{DiskBounds, DiskLight, Flat, Microbuffer, OCCLUDE_REACH};
-use super::traversal::Raster;
+use super::traversal::{radiance_along, GatherBuffer, GatherCounts, NodeRadiance, Raster, Traversal};
 use glam::Vec3;
 use relume_base::brdf;
+use relume_base::math::frame::Frame;
 use relume_base::types::Material;
 
 /// One rasterisation to replay: a splat or a near leaf's exact disk.
 #[derive(Clone, Copy, Debug)]
 enum Record {
-    Splat { node: u32, d: Vec3, dist: f32, omega: f32, l: Vec3, flat: Option<Flat> },
-    Disk { c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32 },
+    Splat {
+        node: u32,
+        d: Vec3,
+        dist: f32,
+        omega: f32,
+        l: Vec3,
+        flat: Option<Flat>,
+    },
+    /// `l`: the light its centre sends toward the receiver (`finish_lit` may read each
+    /// pixel's own).
+    Disk {
+        node: u32,
+        c: Vec3,
+        nrm: Vec3,
+        r: f32,
+        l: Vec3,
+        eps: f32,
+    },
 }
 
 /// A pixel of some level: (level, x, y) at that level's grid of side N 2^level.
@@ -69,6 +86,8 @@ pub struct AdaptiveMicrobuffer {
     /// (the uniform buffer's writes, in its order), so that a receiver nothing refines costs
     /// no replay; the first split clears the base buffer and `finish` replays them all.
     direct: bool,
+    /// Whether `finish` has run since `start`.
+    finished: bool,
     /// Splits by light during the traversal (for the report).
     pub light_splits: u64,
     /// Scratch: one splat's writes.
@@ -91,6 +110,7 @@ impl AdaptiveMicrobuffer {
             records: vec![],
             coarse_cut: false,
             direct: false,
+            finished: false,
             light_splits: 0,
             writes: vec![],
         }
@@ -116,6 +136,7 @@ impl AdaptiveMicrobuffer {
             }
         }
         self.records.clear();
+        self.finished = false;
         self.light_levels.fill(0);
         self.light_splits = 0;
         let n = self.n;
@@ -197,8 +218,18 @@ impl AdaptiveMicrobuffer {
     }
 
     /// Rasterises the records into the pixels of their final levels (nothing to do where
-    /// nothing refined: they went into the base buffer as they were made).
+    /// nothing refined: they went into the base buffer as they were made), each near disk
+    /// with the light its centre sends.
     pub fn finish(&mut self) {
+        self.finish_lit(None)
+    }
+
+    /// `finish`, a near disk's pixels reading `along(node, w)` along their own rays (local
+    /// direction w from the receiver) where given. Once per `start`: later calls do nothing.
+    pub fn finish_lit(&mut self, along: Option<&dyn Fn(u32, Vec3) -> Vec3>) {
+        if std::mem::replace(&mut self.finished, true) {
+            return;
+        }
         if !self.direct {
             let records = std::mem::take(&mut self.records);
             for (at, r) in &records {
@@ -207,7 +238,10 @@ impl AdaptiveMicrobuffer {
                 }
                 match *r {
                     Record::Splat { d, dist, omega, l, flat, .. } => self.raster_splat(d, dist, omega, l, flat),
-                    Record::Disk { c, nrm, r, l, eps } => self.raster_disk(c, nrm, r, l, eps),
+                    Record::Disk { node, c, nrm, r, l, eps } => match along {
+                        Some(f) => self.raster_disk(c, nrm, r, &DiskLight::Along(&|w| f(node, w)), eps),
+                        None => self.raster_disk(c, nrm, r, &DiskLight::Uniform(l), eps),
+                    },
                 }
             }
             self.records = records;
@@ -223,7 +257,7 @@ impl AdaptiveMicrobuffer {
     /// ray meets it. The pixels are found down the quadtree from the base pixels in the disk's
     /// box, so a level costs only its own pixels (a pixel outside its level's box has no
     /// children inside theirs: the boxes shrink with the level).
-    fn raster_disk(&mut self, c: Vec3, nrm: Vec3, r: f32, l: Vec3, eps: f32) {
+    fn raster_disk(&mut self, c: Vec3, nrm: Vec3, r: f32, l: &DiskLight, eps: f32) {
         let bounds: Vec<DiskBounds> = self.buffers.iter().map(|b| b.disk_bounds(c, OCCLUDE_REACH * r)).collect();
         let fine = self.fine();
         let mut stack: Vec<Pixel> = vec![];
@@ -241,7 +275,7 @@ impl AdaptiveMicrobuffer {
             let shift = self.max_level - p.level;
             if self.level[(p.y << shift) * fine + (p.x << shift)] as u32 == p.level {
                 let side = self.n << p.level;
-                self.buffers[p.level as usize].disk_pixel(p.y * side + p.x, b, c, nrm, r, &DiskLight::Uniform(l), eps);
+                self.buffers[p.level as usize].disk_pixel(p.y * side + p.x, b, c, nrm, r, l, eps);
             } else {
                 for (dx, dy) in [(1, 1), (0, 1), (1, 0), (0, 0)] {
                     stack.push(Pixel { level: p.level + 1, x: 2 * p.x + dx, y: 2 * p.y + dy });
@@ -322,9 +356,25 @@ impl AdaptiveMicrobuffer {
     }
 }
 
-impl super::traversal::GatherBuffer for AdaptiveMicrobuffer {
+impl GatherBuffer for AdaptiveMicrobuffer {
     fn begin(&mut self, m: &Material, wo: Vec3) {
         self.start(m, wo, None);
+    }
+    /// The traversal, then the records rastered at their final levels, a near disk of a
+    /// source whose leaves send a lobe read along each pixel's ray.
+    fn gather<R: NodeRadiance>(
+        &mut self,
+        t: &Traversal<R>,
+        _: &Material,
+        p: Vec3,
+        frame: &Frame,
+        stack: &mut Vec<u32>,
+        counts: &mut GatherCounts,
+    ) {
+        t.run(&[t.tree.outer_root()], p, frame, self, stack, counts, |_, _| false);
+        if t.source.directional_leaves() {
+            self.finish_lit(Some(&|node, w| radiance_along(t.source, node, frame, w)));
+        }
     }
     fn end(&mut self, m: &Material, wo: Vec3) -> Vec3 {
         self.finish();
@@ -358,14 +408,12 @@ impl Raster for AdaptiveMicrobuffer {
         self.records.push((Some(p), Record::Splat { node, d, dist, omega, l, flat }));
     }
 
-    fn disk(&mut self, _: u32, c: Vec3, nrm: Vec3, r: f32, l: &DiskLight, eps: f32) {
+    fn disk(&mut self, node: u32, c: Vec3, nrm: Vec3, r: f32, l: &DiskLight, eps: f32) {
         if self.direct {
             self.buffers[0].disk_lit(c, nrm, r, l, eps);
         }
-        // Kept to be rastered again at finer levels, with the light seen along its centre's
-        // direction over the whole disk.
         let l = l.along(c.normalize_or(Vec3::Z));
-        self.records.push((Some(Pixel { level: 0, x: 0, y: 0 }), Record::Disk { c, nrm, r, l, eps }));
+        self.records.push((Some(Pixel { level: 0, x: 0, y: 0 }), Record::Disk { node, c, nrm, r, l, eps }));
     }
 }
 
@@ -373,8 +421,6 @@ impl Raster for AdaptiveMicrobuffer {
 mod tests {
     use super::*;
     use crate::test_support::pbgi_setup;
-    use crate::traversal::{GatherCounts, Traversal};
-    use relume_base::math::frame::Frame;
 
     /// Gathers receiver `i` of the Cornell set-up into `mb` (adaptive) and returns the
     /// outgoing radiance and the counts.
@@ -411,6 +457,38 @@ mod tests {
                 assert_eq!(adaptive.buffers[level as usize].radiance(), uniform.radiance(), "receiver {i}, level {level}");
             }
         }
+    }
+
+    #[test]
+    fn refined_pixels_read_a_near_disks_lobe_along_their_own_rays() {
+        // A disk whose light grows with the ray's x, kept and rastered again at level 1
+        // everywhere: with the lobe handed to `finish_lit`, the pixels are the uniform 16²
+        // buffer's; `finish` alone paints the light toward the centre over the whole disk.
+        let lambert = Material::Lambert { albedo: Vec3::ONE };
+        let (c, nrm, r) = (Vec3::new(0.1, 0.0, 0.5), Vec3::new(0.0, 0.0, -1.0), 0.3);
+        let lobe = |w: Vec3| Vec3::splat(1.0 + w.x);
+        let mut uniform = Microbuffer::new(16);
+        uniform.disk_lit(c, nrm, r, &DiskLight::Along(&lobe), 1e-6);
+        uniform.resolve();
+        let fill = |with_lobe: bool| {
+            let mut mb = AdaptiveMicrobuffer::new(8, 1, f32::INFINITY);
+            mb.start(&lambert, Vec3::Z, Some(1));
+            Raster::disk(&mut mb, 7, c, nrm, r, &DiskLight::Along(&lobe), 1e-6);
+            if with_lobe {
+                mb.finish_lit(Some(&|node, w| {
+                    assert_eq!(node, 7);
+                    lobe(w)
+                }));
+            } else {
+                mb.finish();
+            }
+            mb.buffers[1].radiance().to_vec()
+        };
+        assert_eq!(fill(true), uniform.radiance());
+        let centre = lobe(c.normalize());
+        let painted = fill(false);
+        assert!(painted.iter().zip(uniform.radiance()).any(|(a, b)| a != b));
+        assert!(painted.iter().all(|l| l.x <= centre.x + 1e-6), "one light over the disk");
     }
 
     #[test]

@@ -277,11 +277,16 @@ impl<'a, R: NodeRadiance> Traversal<'a, R> {
 /// source whose leaves send a lobe, what it sends along each pixel's ray.
 pub fn disk_light<R: NodeRadiance>(source: &R, i: u32, v: Vec3, frame: &Frame, draw: impl FnOnce(&DiskLight)) {
     if source.directional_leaves() {
-        let along = |w: Vec3| source.radiance_toward(i, frame.to_world(-w));
+        let along = |w: Vec3| radiance_along(source, i, frame, w);
         draw(&DiskLight::Along(&along))
     } else {
         draw(&DiskLight::Uniform(source.radiance_toward(i, -v / v.length().max(f32::MIN_POSITIVE))))
     }
+}
+
+/// What leaf `i` sends back along local direction `w` (unit, from a receiver in `frame`).
+pub fn radiance_along<R: NodeRadiance>(source: &R, i: u32, frame: &Frame, w: Vec3) -> Vec3 {
+    source.radiance_toward(i, frame.to_world(-w))
 }
 
 /// The plane a node's disks lie near, in the receiver's frame (`v`: node centre − receiver),
