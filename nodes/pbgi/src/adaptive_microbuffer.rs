@@ -519,12 +519,10 @@ mod tests {
             fine_sum += fine.x as f64;
         }
         // The same light, spread over finer pixels: the totals agree with both buffers'.
-        // The finer pixels raise the 8² buffer's result to within a few percent of the 32²
-        // one's (measured: 2.428 against 2.269 at 8² and 2.339 at 32²; the 32² buffer opens
-        // the tree further and sees more of it as near disks, whose random gaps read a few
-        // percent dark: `microbuffer::DISK_FULL`).
+        // The finer pixels move the result toward the 32² buffer's (measured: 2.480 against
+        // 2.337 at 8² and 2.478 at 32²).
         assert!(
-            coarse_sum > base_sum && (coarse_sum - fine_sum).abs() < 0.05 * fine_sum,
+            (coarse_sum - fine_sum).abs() < (base_sum - fine_sum).abs(),
             "coarse cut {coarse_sum}, uniform 8² {base_sum}, 32² {fine_sum}"
         );
     }

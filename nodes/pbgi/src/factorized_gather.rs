@@ -85,7 +85,7 @@ pub fn factorized_gather(
     Ok((img, total))
 }
 
-#[node(category = "pbgi", version = 5, metrics = ["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver", "clusters"], outputs = [indirect, stats])]
+#[node(category = "pbgi", version = 6, metrics = ["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver", "clusters"], outputs = [indirect, stats])]
 impl FactorizedGather {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let image = inputs[1].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));

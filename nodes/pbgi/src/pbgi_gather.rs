@@ -25,7 +25,7 @@ pub fn gather(tree: &PointTree, r: &Receivers, p: &PbgiGather, extent: f32, cx: 
     gather_with(&Traversal::new(tree, p.microbuffer.threshold, 1e-5 * extent), r, Microbuffer::new(p.microbuffer.resolution), cx)
 }
 
-#[node(category = "pbgi", version = 5, metrics = ["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver"], outputs = [indirect, stats])]
+#[node(category = "pbgi", version = 6, metrics = ["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver"], outputs = [indirect, stats])]
 impl PbgiGather {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let image = inputs[1].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));

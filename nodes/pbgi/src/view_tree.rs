@@ -185,7 +185,7 @@ impl ViewTree {
     }
 }
 
-#[node(category = "pbgi", version = 9, metrics = ["bounces", "pairs_per_point", "nodes_rasterised_per_point", "near_leaves_per_point", "group_buffers", "points_reusing_a_group_buffer", "coded_bytes", "terms_per_point", "walk_seconds"], outputs = [coded, stats])]
+#[node(category = "pbgi", version = 10, metrics = ["bounces", "pairs_per_point", "nodes_rasterised_per_point", "near_leaves_per_point", "group_buffers", "points_reusing_a_group_buffer", "coded_bytes", "terms_per_point", "walk_seconds"], outputs = [coded, stats])]
 impl ViewTree {
     fn run(
         &self,
