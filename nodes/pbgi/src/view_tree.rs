@@ -378,7 +378,7 @@ mod tests {
             };
             let a = pick(&|k| pbgi.pixels[k][0] as f64);
             let b = pick(&|k| view[k]);
-            // Measured: floor 0.015776 against 0.015676, wall 0.022402 against 0.022107. Each
+            // Measured: floor 0.015755 against 0.015650, wall 0.022377 against 0.022075. Each
             // point rasterises its nodes in the order its own traversal would (descending
             // index); without group buffers the view tree gives the per-receiver walk's
             // bytes (`view_walk`'s tests), and the microbuffer's depth layers depend on
@@ -386,7 +386,7 @@ mod tests {
             // far 10 %).
             assert!(a > 0.0 && ((b - a) / a).abs() < 0.015, "object {object}: PbgiGather {a}, view tree {b}");
             // Against the path tracer's expectation (`exact_one_bounce`, on every fourth point
-            // of the surface). Measured: the floor 0.34 % over it, the wall 3.9 % under. The
+            // of the surface). Measured: the floor 0.33 % over it, the wall 3.7 % under. The
             // wall sees the floor edge-on, so one pixel holds floor splats at depths several
             // times apart; they join one depth layer because they lie on one plane
             // (`microbuffer::Flat`). Split by depth alone, the far ones hid behind the near
