@@ -127,7 +127,11 @@ impl Raster for SphericalMicrobuffer {
         if self.whole && self.only_front != Some(true) {
             // Mirroring the disk with the directions keeps which side of it each ray meets.
             let along = |w: Vec3| l.along(mirror(w));
-            self.back.disk(node, mirror(c), mirror(nrm), r, &DiskLight::Along(&along), eps);
+            let mirrored = match l {
+                DiskLight::Uniform(_) => *l,
+                DiskLight::Along(_) => DiskLight::Along(&along),
+            };
+            self.back.disk(node, mirror(c), mirror(nrm), r, &mirrored, eps);
         }
     }
 }
