@@ -25,8 +25,9 @@ pub enum Caching {
     /// hashing their content: for the per-edit nodes of an interactive pipeline, whose
     /// megabytes of output change with every edit (hashing them would cost a noticeable part
     /// of a frame, and an unchanged output, the one thing content hashing would catch, does
-    /// not happen there). What this gives up is only the early cut-off when a re-run
-    /// reproduces the same bytes.
+    /// not happen there); and for large outputs that change whenever their inputs do (a
+    /// point hierarchy of hundreds of megabytes, whose hash costs a good part of its build).
+    /// What this gives up is only the early cut-off when a re-run reproduces the same bytes.
     Keyed,
 }
 

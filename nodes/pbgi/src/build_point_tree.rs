@@ -18,16 +18,22 @@ use relume_core::{node, NodeError, Params, RunCtx};
 /// and its radiance is power / area; leaves are exact. Points facing the inside of glass
 /// (`TwinDielectrics`' inner twins) are split off first, into the root's second subtree: what
 /// they send travels inside the glass only, and the gathers traverse each side apart.
+/// The tree is told apart from others by its inputs, not by hashing its hundreds of
+/// megabytes.
 #[derive(Params)]
 pub struct BuildPointTree;
 
-#[node(category = "pbgi", kind = "PointTree", version = 2, metrics = ["nodes", "depth"], outputs = [tree])]
+#[node(category = "pbgi", kind = "PointTree", version = 3, caching = Keyed, metrics = ["nodes", "depth"], outputs = [tree])]
 impl BuildPointTree {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // 2N − 1 nodes and the points' radiance.
         let n = inputs[0].map(|s| s.bytes / relume_base::types::SurfacePoints::BYTES_PER_POINT as u64);
         let node = std::mem::size_of::<crate::types::TreeNode>() as u64;
-        relume_core::MemoryEstimate { outputs: vec![n.map(|n| relume_core::PortSize::bytes(2 * n * node + 12 * n))], working: 0 }
+        // The build moves a 32-byte copy of each point (position, normal, radius, index).
+        relume_core::MemoryEstimate {
+            outputs: vec![n.map(|n| relume_core::PortSize::bytes(2 * n * node + 12 * n))],
+            working: n.map_or(0, |n| 32 * n),
+        }
     }
 
     fn run(&self, points: &SurfacePoints, radiance: &PointRadiance, cx: &RunCtx) -> Result<PointTree, NodeError> {

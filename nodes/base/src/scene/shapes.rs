@@ -64,23 +64,42 @@ pub fn crease_normals(pos: &[Vec3], tris: &[[u32; 3]], crease_deg: f32) -> (Vec<
         .iter()
         .map(|t| (pos[t[1] as usize] - pos[t[0] as usize]).cross(pos[t[2] as usize] - pos[t[0] as usize]).normalize_or_zero())
         .collect();
-    let angle = |t: &[u32; 3], k: usize| {
-        let p = t.map(|i| pos[i as usize]);
-        let e1 = (p[(k + 1) % 3] - p[k]).normalize_or_zero();
-        let e2 = (p[(k + 2) % 3] - p[k]).normalize_or_zero();
-        e1.dot(e2).clamp(-1.0, 1.0).acos()
-    };
-    let mut incident: Vec<Vec<(u32, u8)>> = vec![Vec::new(); pos.len()];
-    for (f, t) in tris.iter().enumerate() {
-        for k in 0..3 {
-            incident[t[k] as usize].push((f as u32, k as u8));
+    // Each corner's angle, once (a vertex's corners are weighed against each other).
+    let angle: Vec<f32> = tris
+        .iter()
+        .flat_map(|t| {
+            let p = t.map(|i| pos[i as usize]);
+            (0..3).map(move |k| {
+                let e1 = (p[(k + 1) % 3] - p[k]).normalize_or_zero();
+                let e2 = (p[(k + 2) % 3] - p[k]).normalize_or_zero();
+                e1.dot(e2).clamp(-1.0, 1.0).acos()
+            })
+        })
+        .collect();
+    // The corners at each vertex, grouped by vertex (counting sort, faces in order).
+    let mut start = vec![0u32; pos.len() + 1];
+    for t in tris {
+        for &v in t {
+            start[v as usize + 1] += 1;
         }
     }
+    for v in 0..pos.len() {
+        start[v + 1] += start[v];
+    }
+    let mut fill = start.clone();
+    let mut corners = vec![(0u32, 0u8); 3 * tris.len()];
+    for (f, t) in tris.iter().enumerate() {
+        for (k, &v) in t.iter().enumerate() {
+            corners[fill[v as usize] as usize] = (f as u32, k as u8);
+            fill[v as usize] += 1;
+        }
+    }
+    let incident = (0..pos.len()).map(|v| &corners[start[v] as usize..start[v + 1] as usize]);
     let mut out_pos = Vec::with_capacity(pos.len());
     let mut out_nrm: Vec<Vec3> = Vec::with_capacity(pos.len());
     let mut origin = Vec::with_capacity(pos.len());
     let mut out_tris = tris.to_vec();
-    for (v, inc) in incident.iter().enumerate() {
+    for (v, inc) in incident.enumerate() {
         // Distinct corner normals at this vertex, each becoming one output vertex.
         let mut made: Vec<(Vec3, u32)> = Vec::new();
         for &(f, k) in inc {
@@ -89,7 +108,7 @@ pub fn crease_normals(pos: &[Vec3], tris: &[[u32; 3]], crease_deg: f32) -> (Vec<
             for &(g, kg) in inc {
                 let ng = face[g as usize];
                 if nf != Vec3::ZERO && ng.dot(nf) >= cos_crease {
-                    n += ng * angle(&tris[g as usize], kg as usize);
+                    n += ng * angle[3 * g as usize + kg as usize];
                 }
             }
             let n = n.try_normalize().unwrap_or(if nf != Vec3::ZERO { nf } else { Vec3::Y });

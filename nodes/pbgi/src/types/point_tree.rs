@@ -154,11 +154,14 @@ const PARALLEL_POINTS: usize = 4096;
 /// counts the points of each finished one.
 const CHUNK_POINTS: usize = 1024;
 
-struct Input<'a> {
-    pos: &'a [Vec3],
-    normal: Vec<Vec3>,
-    radius: &'a [f32],
-    radiance: &'a [Vec3],
+/// One point as the build moves it: the build partitions these in place, so that each level
+/// reads its subtree's points in order instead of gathering them through an index list.
+#[derive(Clone, Copy)]
+struct Packed {
+    pos: Vec3,
+    id: u32,
+    normal: Vec3,
+    radius: f32,
 }
 
 impl PointTree {
@@ -179,13 +182,12 @@ impl PointTree {
         if n == 0 {
             return Ok(PointTree::default());
         }
-        let input = Input {
-            pos: &points.position,
-            normal: points.normal.iter().map(|v| v.normalize_or(Vec3::Z)).collect(),
-            radius: &points.radius,
-            radiance,
+        let packed = |i: u32| {
+            let k = i as usize;
+            Packed { pos: points.position[k], id: i, normal: points.normal[k].normalize_or(Vec3::Z), radius: points.radius[k].max(0.0) }
         };
-        let (mut idx, inner): (Vec<u32>, Vec<u32>) = (0..n as u32).partition(|&i| !faces_inside(&points.material[i as usize]));
+        let (mut idx, inner): (Vec<Packed>, Vec<Packed>) =
+            (0..n as u32).map(packed).partition(|p| !faces_inside(&points.material[p.id as usize]));
         let empty = TreeNode {
             center: Vec3::ZERO,
             radius: 0.0,
@@ -203,7 +205,7 @@ impl PointTree {
         let progress = Progress { cx, done: AtomicU64::new(0), total: n as u64 };
         if idx.is_empty() || inner.is_empty() {
             idx.extend(inner);
-            build_rec(&mut idx, &input, &mut nodes, 0, Some(&progress))?;
+            build_rec(&mut idx, radiance, &mut nodes, 0, Some(&progress))?;
             return Ok(PointTree { nodes, root: 0, point_radiance: radiance.to_vec(), sides: None });
         }
         // The root's children: the outer points' subtree, then the inner twins'.
@@ -211,11 +213,11 @@ impl PointTree {
         let (head, rest) = nodes.split_at_mut(1);
         let (outer_nodes, inner_nodes) = rest.split_at_mut(2 * m - 1);
         let mut inner = inner;
-        build_rec(&mut idx, &input, outer_nodes, 1, Some(&progress))?;
-        build_rec(&mut inner, &input, inner_nodes, 2 * m as u32, Some(&progress))?;
+        build_rec(&mut idx, radiance, outer_nodes, 1, Some(&progress))?;
+        build_rec(&mut inner, radiance, inner_nodes, 2 * m as u32, Some(&progress))?;
         head[0] = merge(&outer_nodes[0], &inner_nodes[0], [1, 2 * m as u32]);
         idx.extend(inner);
-        tighten(&mut head[0], &idx, &input);
+        tighten(&mut head[0], &idx);
         Ok(PointTree { nodes, root: 0, point_radiance: radiance.to_vec(), sides: Some([1, 2 * m as u32]) })
     }
 
@@ -342,15 +344,13 @@ fn cone_bounds(node: &TreeNode, dir: Vec3) -> (f32, f32) {
     (lo.max(0.0), hi.clamp(0.0, 1.0))
 }
 
-fn leaf(p: u32, input: &Input) -> TreeNode {
-    let i = p as usize;
-    let r = input.radius[i].max(0.0);
+fn leaf(p: &Packed, radiance: &[Vec3]) -> TreeNode {
+    let (r, n) = (p.radius, p.normal);
     let area = std::f32::consts::PI * r * r;
-    let n = input.normal[i];
     let sh = sh9_clamped_cosine(n);
-    let b = input.radiance[i];
+    let b = radiance[p.id as usize];
     TreeNode {
-        center: input.pos[i],
+        center: p.pos,
         radius: r,
         bound: r,
         slab: [0.0; 2],
@@ -360,7 +360,7 @@ fn leaf(p: u32, input: &Input) -> TreeNode {
         sh_area: sh.map(|c| c * area),
         sh_power: sh.map(|c| b * (c * area)),
         children: None,
-        point: p,
+        point: p.id,
     }
 }
 
@@ -374,26 +374,29 @@ struct Progress<'a> {
 /// Builds the subtree over `idx` into `nodes` (its 2·len − 1 slots; `base` is the index of
 /// `nodes[0]` in the whole tree). Returns the subtree's depth. With `progress`, checks for
 /// cancellation at every node above `CHUNK_POINTS` points and reports each chunk built.
-fn build_rec(idx: &mut [u32], input: &Input, nodes: &mut [TreeNode], base: u32, progress: Option<&Progress>) -> Result<usize, NodeError> {
+fn build_rec(
+    idx: &mut [Packed],
+    radiance: &[Vec3],
+    nodes: &mut [TreeNode],
+    base: u32,
+    progress: Option<&Progress>,
+) -> Result<usize, NodeError> {
     let n = idx.len();
     if let Some(p) = progress {
         p.cx.check()?;
         if n <= CHUNK_POINTS {
-            let depth = build_rec(idx, input, nodes, base, None)?;
+            let depth = build_rec(idx, radiance, nodes, base, None)?;
             p.cx.progress(p.done.fetch_add(n as u64, Ordering::Relaxed) + n as u64, p.total);
             return Ok(depth);
         }
     }
     if n == 1 {
-        nodes[0] = leaf(idx[0], input);
+        nodes[0] = leaf(&idx[0], radiance);
         return Ok(0);
     }
     // Median split along the longest axis of the points' bounding box; ties by point index so
     // the result does not depend on the input order within equal coordinates.
-    let (lo, hi) = idx.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &i| {
-        let p = input.pos[i as usize];
-        (lo.min(p), hi.max(p))
-    });
+    let (lo, hi) = idx.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p.pos), hi.max(p.pos)));
     let ext = hi - lo;
     let axis = if ext.x >= ext.y && ext.x >= ext.z {
         0
@@ -403,19 +406,19 @@ fn build_rec(idx: &mut [u32], input: &Input, nodes: &mut [TreeNode], base: u32, 
         2
     };
     let mid = n / 2;
-    idx.select_nth_unstable_by(mid, |&a, &b| input.pos[a as usize][axis].total_cmp(&input.pos[b as usize][axis]).then(a.cmp(&b)));
+    idx.select_nth_unstable_by(mid, |a, b| a.pos[axis].total_cmp(&b.pos[axis]).then(a.id.cmp(&b.id)));
     let (li, ri) = idx.split_at_mut(mid);
     let (head, rest) = nodes.split_at_mut(1);
     let (ln, rn) = rest.split_at_mut(2 * mid - 1);
     let (l, r) = (base + 1, base + 2 * mid as u32);
     let (dl, dr) = if n > PARALLEL_POINTS {
-        rayon::join(|| build_rec(li, input, ln, l, progress), || build_rec(ri, input, rn, r, progress))
+        rayon::join(|| build_rec(li, radiance, ln, l, progress), || build_rec(ri, radiance, rn, r, progress))
     } else {
-        (build_rec(li, input, ln, l, progress), build_rec(ri, input, rn, r, progress))
+        (build_rec(li, radiance, ln, l, progress), build_rec(ri, radiance, rn, r, progress))
     };
     let (dl, dr) = (dl?, dr?);
     head[0] = merge(&ln[0], &rn[0], [l, r]);
-    tighten(&mut head[0], idx, input);
+    tighten(&mut head[0], idx);
     Ok(1 + dl.max(dr))
 }
 
@@ -423,12 +426,11 @@ fn build_rec(idx: &mut [u32], input: &Input, nodes: &mut [TreeNode], base: u32, 
 /// little for rounding). A disk of radius r, normal n, whose centre is at q from the node's
 /// centre reaches √((|q⊥| + r)² + (q·n)²) from it (q⊥: q in the disk's plane) and spans
 /// ± r |a × n| along the axis a.
-fn tighten(node: &mut TreeNode, idx: &[u32], input: &Input) {
+fn tighten(node: &mut TreeNode, idx: &[Packed]) {
     let (c, a) = (node.center.as_dvec3(), node.cone_axis.as_dvec3());
     let (mut reach2, mut lo, mut hi) = (0.0f64, f64::INFINITY, f64::NEG_INFINITY);
-    for &i in idx {
-        let i = i as usize;
-        let (q, n, r) = (input.pos[i].as_dvec3() - c, input.normal[i].as_dvec3(), input.radius[i].max(0.0) as f64);
+    for p in idx {
+        let (q, n, r) = (p.pos.as_dvec3() - c, p.normal.as_dvec3(), p.radius as f64);
         let qn = q.dot(n);
         let q_plane = (q.length_squared() - qn * qn).max(0.0).sqrt();
         reach2 = reach2.max((q_plane + r) * (q_plane + r) + qn * qn);
