@@ -48,10 +48,17 @@ fn edits_rerun_only_what_they_reach(name: &str, material: (&str, &str)) {
     assert_eq!(rerun(material.0, material.1), with(&["apply", "error", "incident", "project", "raster", "relight"]), "{name}");
     // Turning the sky: the environment's cube map and what reads it (the rasterisers read
     // the sky where the samples miss), never the transfer nor what the camera sees.
-    assert_eq!(
-        rerun("turn.rotation_deg", "45"),
-        with(&["apply", "bounced", "direct", "env", "error", "incident", "raster", "relight", "turn"])
-    );
+    let sky = ["apply", "bounced", "direct", "env", "error", "incident", "raster", "relight", "turn"];
+    assert_eq!(rerun("turn.rotation_deg", "45"), with(&sky));
+    assert_eq!(rerun("turn.tilt_deg", "30"), with(&sky));
+    // Another sky in place of the scene's: the same, from the map's node on.
+    let dir = tempfile::tempdir().unwrap();
+    let other = dir.path().join("dusk.exr");
+    let dusk = Image::from_fn(64, 32, |x, y| [0.2 + 0.01 * x as f32, 0.1, 0.05 * (32 - y) as f32]);
+    relume_base::image::io::write_exr(&other, &dusk).unwrap();
+    let mut replaced = sky.to_vec();
+    replaced.push("sky");
+    assert_eq!(rerun("sky.path", other.to_str().unwrap()), with(&replaced), "{name}");
 }
 
 #[test]

@@ -119,6 +119,9 @@ impl EditorApp {
                 ("azimuth", ParamValue::Float(wrap_deg(f(self, "azimuth") - ORBIT_DEG_PER_WIDTH * g.total.x / w) as f64)),
                 ("elevation", ParamValue::Float((f(self, "elevation") - ORBIT_DEG_PER_HEIGHT * g.total.y / h).clamp(-89.0, 89.0) as f64)),
             ],
+            Tool::Turn if input.alternate => {
+                vec![("tilt_deg", ParamValue::Float(wrap_deg(f(self, "tilt_deg") + TILT_DEG_PER_HEIGHT * g.total.y / h) as f64))]
+            }
             Tool::Turn => {
                 vec![("rotation_deg", ParamValue::Float(wrap_deg(f(self, "rotation_deg") + TURN_DEG_PER_WIDTH * g.total.x / w) as f64))]
             }

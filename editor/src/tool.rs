@@ -9,8 +9,10 @@ use relume_core::ParamValue;
 /// Degrees an orbit turns for a drag across the whole image, sideways and up-down.
 pub(crate) const ORBIT_DEG_PER_WIDTH: f32 = 180.0;
 pub(crate) const ORBIT_DEG_PER_HEIGHT: f32 = 90.0;
-/// Degrees the sky turns for a drag across the whole image.
+/// Degrees the sky turns about the vertical for a drag across the whole image, and tilts
+/// (shift or secondary button) for a drag down the whole image.
 pub(crate) const TURN_DEG_PER_WIDTH: f32 = 360.0;
+pub(crate) const TILT_DEG_PER_HEIGHT: f32 = 180.0;
 /// The distance factor per point of wheel turn: exp(−k · scroll).
 pub(crate) const ZOOM_PER_POINT: f32 = 0.002;
 /// Dabs one stroke adds at most (a longer stroke keeps moving its last dab).
@@ -60,7 +62,7 @@ impl Tool {
         match self {
             Tool::Orbit => "drag to orbit the camera, shift-drag or right-drag to pan, wheel to zoom",
             Tool::Move => "drag to move the object in the view's plane",
-            Tool::Turn => "drag sideways to turn the environment",
+            Tool::Turn => "drag sideways to turn the environment; shift-drag up or down to tilt it",
             Tool::Pick => "click an object to select the node that edits its material",
             Tool::Paint => "stroke over an object to paint its material map (the brush is the selected or last paint node)",
             Tool::PaintVolume => "stroke over the medium to paint it (the brush is the selected or last volume paint node)",

@@ -114,6 +114,12 @@ fn dragging_sideways_turns_the_sky_and_the_image_follows() {
     assert!(app.viewer.image().unwrap().pixels != img.pixels, "the turned sky shows");
     app.undo();
     assert_eq!(float(&app, "turn", "rotation_deg"), 0.0);
+    // With shift, dragging a quarter of the image down tilts the sky by 45°.
+    drag_on_image(&ctx, &mut app, (0.5, 0.3), (0.5, 0.55), 5, true);
+    assert!((float(&app, "turn", "tilt_deg") - 45.0).abs() < 1.0, "{}", float(&app, "turn", "tilt_deg"));
+    assert_eq!(float(&app, "turn", "rotation_deg"), 0.0);
+    until_idle(&ctx, &mut app);
+    assert!(app.viewer.image().unwrap().pixels != img.pixels, "the tilted sky shows");
 }
 
 const SPOT: &str = r#"Graph(

@@ -129,7 +129,8 @@ pub fn open_shipped(dir: &Path, name: &str, params: &[(&str, &str, ParamValue)])
     let mut app = app();
     let path = dir.join(name);
     let text = std::fs::read_to_string(graphs().join(name)).unwrap();
-    std::fs::write(&path, text.replace("\"scenes/", &format!("\"{}/scenes/", graphs().display()))).unwrap();
+    let text = text.replace("\"scenes/", &format!("\"{}/scenes/", graphs().display()));
+    std::fs::write(&path, text.replace("\"assets/", &format!("\"{}/assets/", graphs().display()))).unwrap();
     app.open(&path).unwrap();
     for (id, param, v) in params {
         app.set_param(id, param, v.clone()).unwrap();
