@@ -372,3 +372,26 @@ fn an_x_axis_series_or_port_output_that_does_not_exist_exits_2() {
     }
     assert!(!csv.exists(), "nothing written");
 }
+
+#[test]
+fn each_sweep_graph_renders_the_image_of_the_pipeline_graph_it_compares() {
+    // The sweep graphs are their pipeline graphs plus a path tracer as the baseline, with the
+    // same node ids and parameters: at test size the same image, byte for byte, so each
+    // pipeline graph's error bounds (tests/ptt.rs, tests/relight.rs) hold for its sweep graph.
+    use relume_base::types::Image;
+    use relume_tests::{engine, load_test_graph, run_outputs};
+    let e = engine();
+    for (sweep, pipeline) in [
+        ("ptt_vs_reference.ron", "ptt_envlit.ron"),
+        ("relight_vs_reference.ron", "relight_cornell_bunny.ron"),
+        ("relight_sv_vs_reference.ron", "relight_sv_spot.ron"),
+    ] {
+        let image = |name: &str| {
+            let r = run_outputs(&e, &load_test_graph(name, &[("scene.width", "24"), ("scene.height", "24")]), &["image"]);
+            r.output("image").unwrap().get::<Image>().unwrap().clone()
+        };
+        let (a, b) = (image(sweep), image(pipeline));
+        assert!(a.pixels.iter().any(|p| p[0] > 0.0), "{sweep}: an image");
+        assert_eq!(a, b, "{sweep} renders {pipeline}'s image");
+    }
+}
