@@ -87,6 +87,10 @@ fn the_bounce_graph_holds_the_cook_torrance_lobe_on_its_own_space_and_isolates_t
     }
     let m = |id: &str, k: &str| r.report.node(id).unwrap().metrics[k];
     assert!(m("bounce_error_ct", "l2_percent").is_finite() && m("bounce_error_bp", "l2_percent").is_finite());
+    // Its whole image is ptt_envlit_ct.ron's, byte for byte (the same nodes), so that graph's
+    // error bound against the path tracer holds for it.
+    let ct = e.run(&small_ptt("ptt_envlit_ct.ron"), &RunOptions::default()).unwrap();
+    assert_eq!(r.output("image").unwrap().get::<Image>(), ct.output("image").unwrap().get::<Image>());
 }
 
 #[test]
