@@ -238,29 +238,39 @@ fn on_pixels_one_object_covers_the_relit_image_passes_the_z_test_with_seven_base
 }
 
 #[test]
-fn on_the_ring_the_same_paths_pass_the_z_test_and_the_relit_image_shows_the_planes_lobe_in_blue() {
-    // `relight_ring.ron` (its eight bases) at 64², 256 camera samples a pixel in the precompute
-    // (1,024 bounce rays) against the path tracer at 2,048, on the pixels whose samples all hit
-    // one object, as for cornell-bunny above. Measured: the same paths pass on 99.9 %, the relit
-    // image on 96.7 % (QUALITY asks 99.5 %), mean z −0.58. Of its 122 failing pixels 100 fail in
-    // blue alone: the ring reflects no blue, so blue is the plane's s = 5 lobe under the lamp
-    // with little noise, and that lobe comes back from the basis slightly dark, as the
-    // cornell-bunny walls' s = 5 lobe does with six bases (the basis error over the whole image
-    // is 0.10 %).
+fn on_the_ring_ten_bases_pass_the_z_test_and_the_shipped_eight_show_the_planes_lobe_in_blue() {
+    // `relight_ring.ron` at 64², 256 camera samples a pixel in the precompute (1,024 bounce
+    // rays) against the path tracer at 2,048, on the pixels whose samples all hit one object,
+    // as for cornell-bunny above. Measured (one seed pair): the same paths pass on 99.9 %; the
+    // relit image with eight bases (the graph's) on 96.7 %, nine 98.6 %, ten 99.84 % (with
+    // the exponents spread geometrically: eight 97.8 %, ten 99.87 %). With eight, 100 of the
+    // 122 failing pixels fail in blue alone: the ring reflects no blue, so blue is the plane's
+    // s = 5 lobe under the lamp with little noise, and eight bases rebuild that lobe slightly
+    // dark (the basis error over the whole image is 0.10 %), as six do cornell-bunny's walls.
+    let reg = relume_cli::registry();
     let sets =
         [("scene.width", "64"), ("scene.height", "64"), ("transfer.spp", "256"), ("transfer.bounce_rays", "4"), ("reference.spp", "2048")];
     let mut g = load_graph("relight_ring.ron", &sets);
     relume_tests::add_output(&mut g, "dropped", "transfer.dropped");
     relume_tests::add_output(&mut g, "paths_z_map", "paths_z_test.z_map");
-    let r = relume_tests::run_outputs(&relume_tests::engine(), &g, &["z_map", "paths_z_map", "dropped"]);
-    let img = |name: &str| r.output(name).unwrap().get::<Image>().unwrap().clone();
-    let one: Vec<bool> = img("dropped").pixels.iter().map(|p| p[0] == 0.0).collect();
-    let ((relit, n), (paths, _)) = (pass_within(&img("z_map"), &one), pass_within(&img("paths_z_map"), &one));
+    let e = relume_tests::engine();
+    let mut at_bases = |bases: &str| {
+        g.set_param_text(&reg, "pca.bases", bases).unwrap();
+        let r = relume_tests::run_outputs(&e, &g, &["z_map", "paths_z_map", "dropped"]);
+        let img = |name: &str| r.output(name).unwrap().get::<Image>().unwrap().clone();
+        let one: Vec<bool> = img("dropped").pixels.iter().map(|p| p[0] == 0.0).collect();
+        let ((relit, n), (paths, _)) = (pass_within(&img("z_map"), &one), pass_within(&img("paths_z_map"), &one));
+        let z = img("z_map");
+        let fails: Vec<[f32; 3]> =
+            (0..one.len()).filter(|&i| one[i] && z.pixels[i].iter().any(|&c| c > 3.29)).map(|i| z.pixels[i]).collect();
+        (relit, paths, n, fails)
+    };
+    let (ten, paths, n, _) = at_bases("10");
     assert!(n > 4096 * 8 / 10, "{n} of 4,096 pixels see one object");
     assert!(paths >= 0.995, "the same paths pass on {paths} of the {n} pixels one object covers");
-    assert!(relit >= 0.95, "the relit ring passes on {relit} of the {n} pixels one object covers");
-    let z = img("z_map");
-    let fails: Vec<[f32; 3]> = (0..one.len()).filter(|&i| one[i] && z.pixels[i].iter().any(|&c| c > 3.29)).map(|i| z.pixels[i]).collect();
+    assert!(ten >= 0.995, "ten bases: the relit ring passes on {ten} of the {n} pixels one object covers");
+    let (eight, _, _, fails) = at_bases("8");
+    assert!(eight < 0.99, "eight bases: the relit ring passes on {eight}");
     let blue = fails.iter().filter(|p| p[2] > 3.29 && p[0] <= 3.29 && p[1] <= 3.29).count();
     assert!(blue * 4 >= fails.len() * 3, "{blue} of {} failing pixels fail in blue alone", fails.len());
 }
