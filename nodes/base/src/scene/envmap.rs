@@ -61,6 +61,12 @@ impl EnvMap {
         Ok(EnvMap { width, height, texels, distribution })
     }
 
+    /// A lat-long image as a map, each pixel times `scale` (how a scene file's
+    /// `environment: Map(path, scale)` and `ReplaceEnvironment` read one).
+    pub fn from_image(img: &crate::types::Image, scale: f32) -> Result<EnvMap, String> {
+        EnvMap::new(img.width, img.height, img.pixels.iter().map(|c| Vec3::from(*c) * scale).collect())
+    }
+
     /// The texel grid lookups and sampling work on: at least 2 × 3 (see the module comment).
     pub fn grid(&self) -> (usize, usize) {
         padded(self.width, self.height)

@@ -437,8 +437,7 @@ impl Builder {
                 let scale = f.opt("scale").map(|s| f64_in(s, "scale", 0.0, 1e9)).transpose()?.unwrap_or(1.0) as f32;
                 let (p, bytes) = self.read_file(pv)?;
                 let img = decode_image(&p, &bytes).map_err(|m| at(pv, m))?;
-                let texels = img.pixels.iter().map(|c| Vec3::from(*c) * scale).collect();
-                Environment::Map(EnvMap::new(img.width, img.height, texels).map_err(|m| at(pv, format!("{}: {m}", p.display())))?)
+                Environment::Map(EnvMap::from_image(&img, scale).map_err(|m| at(pv, format!("{}: {m}", p.display())))?)
             }
             _ => {
                 let sky = Sky {

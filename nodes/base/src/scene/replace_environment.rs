@@ -49,17 +49,8 @@ impl ReplaceEnvironment {
             }
         }
         let img = read_image(&self.path).map_err(|m| NodeError::param("path", m))?;
-        if let Some(k) = img.pixels.iter().position(|p| p.iter().any(|c| !c.is_finite() || *c < 0.0)) {
-            let (x, y) = (k % img.width, k / img.width);
-            return Err(NodeError::param(
-                "path",
-                format!("texel ({x}, {y}) of {} is {:?}: a sky must be finite and non-negative", self.path.display(), img.pixels[k]),
-            ));
-        }
-        let scale = self.scale as f32;
-        let texels = img.pixels.iter().map(|c| glam::Vec3::from(*c) * scale).collect();
         let map =
-            EnvMap::new(img.width, img.height, texels).map_err(|m| NodeError::param("path", format!("{}: {m}", self.path.display())))?;
+            EnvMap::from_image(&img, self.scale as f32).map_err(|m| NodeError::param("path", format!("{}: {m}", self.path.display())))?;
         let mut scene = scene.clone();
         scene.environment = Some(Environment::Map(map));
         Ok(scene)
