@@ -6,6 +6,8 @@
 //! bench once) the graph runs at test size instead, in a cache of its own.
 //! `cargo bench -p relume-benches --bench ptt`; `PTT_BENCH_NODES=1` prints each edit's node
 //! times, `PTT_BENCH_KINDS=view,view+brdf` times only those kinds (to profile one).
+//! `PTT_BENCH_GRAPH=ptt_envlit_pair.ron PTT_BENCH_BRDF=spot.s` times the two-object graph
+//! instead (its BRDF edit on Spot, which re-runs both objects' projections).
 
 use relume_benches::{graphs_dir, test_mode};
 use relume_core::{Engine, Graph, RunOptions};
@@ -19,7 +21,8 @@ fn main() {
 /// ptt_envlit.ron: full size with the workspace's disk cache, or test size.
 fn graph_and_engine() -> (Graph, Engine) {
     let reg = relume_cli::registry();
-    let mut g = Graph::load(&graphs_dir().join("ptt_envlit.ron"), &reg).expect("graph loads");
+    let name = std::env::var("PTT_BENCH_GRAPH").unwrap_or_else(|_| "ptt_envlit.ron".into());
+    let mut g = Graph::load(&graphs_dir().join(name), &reg).expect("graph loads");
     let mut e = Engine::new(relume_cli::registry());
     if let Some(mb) = std::env::var("PTT_BENCH_CACHE_MB").ok().and_then(|v| v.parse::<usize>().ok()) {
         e = e.with_memory_budget(mb << 20);
@@ -49,7 +52,7 @@ fn edits(kind: &str, k: u64) -> Vec<(&'static str, String)> {
     let warm = if k >= WARM_FIRST { 0.0625 } else { 0.0 };
     let salt = KINDS.iter().position(|&x| x == kind).expect("a kind") as f64 * 0.125 + warm;
     let view = ("camera.azimuth", format!("{}", (k % 360) as f64 + 0.5 + salt));
-    let brdf = ("project.s", format!("{}", 20.0 + (k % 100) as f64 + 0.25 + salt));
+    let brdf = (brdf_param(), format!("{}", 20.0 + (k % 100) as f64 + 0.25 + salt));
     let light = ("turn.rotation_deg", format!("{}", (k % 360) as f64 + 0.75 + salt));
     let spp = ("hits.spp", if kind == "view@1spp" { "1" } else { "16" }.to_string());
     let adaptive = ("hits.adaptive", (kind != "view@1spp" && kind != "view@16uniform").to_string());
@@ -58,6 +61,12 @@ fn edits(kind: &str, k: u64) -> Vec<(&'static str, String)> {
         "view+brdf" => vec![spp, adaptive, view, brdf],
         _ => vec![spp, adaptive, view, brdf, light],
     }
+}
+
+/// The parameter a BRDF edit sets (`PTT_BENCH_BRDF`, default `project.s`).
+fn brdf_param() -> &'static str {
+    static P: OnceLock<String> = OnceLock::new();
+    P.get_or_init(|| std::env::var("PTT_BENCH_BRDF").unwrap_or_else(|_| "project.s".into()))
 }
 
 /// Untimed edits of each kind before its timed ones, and the number of the first.

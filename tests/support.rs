@@ -304,11 +304,16 @@ pub fn furnace_ratios(g: &Graph) -> [f64; 3] {
 /// Σ over the three channels of the pixels with x ∈ [x0, x1) × width, y ∈ [y0, y1) × height
 /// (fractions of the image).
 pub fn region_sum(img: &relume_base::types::Image, x: [f32; 2], y: [f32; 2]) -> f64 {
+    region_channels(img, x, y).iter().sum()
+}
+
+/// Per colour channel, the sum of `region_sum`'s pixels.
+pub fn region_channels(img: &relume_base::types::Image, x: [f32; 2], y: [f32; 2]) -> [f64; 3] {
     let (w, h) = (img.width as f32, img.height as f32);
-    let mut s = 0.0;
+    let mut s = [0.0; 3];
     for py in (y[0] * h) as usize..(y[1] * h) as usize {
         for px in (x[0] * w) as usize..(x[1] * w) as usize {
-            s += img.pixels[py * img.width + px].iter().map(|&c| c as f64).sum::<f64>();
+            s.iter_mut().zip(img.pixels[py * img.width + px]).for_each(|(s, c)| *s += c as f64);
         }
     }
     s

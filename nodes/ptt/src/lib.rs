@@ -19,6 +19,7 @@ pub mod bounce;
 pub mod brdf_factors;
 pub mod camera_hits;
 pub mod channels;
+pub mod compress_t2;
 pub mod cta_compress;
 pub mod env_lighting;
 pub mod incident_projection;

@@ -3,7 +3,7 @@
 use super::bounce::SH;
 use super::types::BounceTransfer;
 use super::types::EnvLight;
-use super::types::TwoBounce;
+use super::types::PackedTwoBounce;
 use crate::types::{BounceLight, LitCore};
 use glam::Vec3;
 use relume_base::math::cubemap::CubeView;
@@ -33,12 +33,43 @@ fn slot_of_channels(t: &BounceTransfer) -> Vec<(usize, Vec3)> {
 /// Vertices per task of the two-bounce contraction.
 const CHUNK: usize = 1024;
 
+/// Per cluster of `two`, its mean and then each direction contracted with `light` (per colour,
+/// Σ_l light_l T²(l, c₁, c₂)) and folded into slot pairs by `pair`: (1 + m) × slots² values.
+fn lit_clusters(
+    two: &PackedTwoBounce,
+    light: &[Vec3],
+    pair: &[(usize, Vec3)],
+    slots: usize,
+    cx: &RunCtx,
+) -> Result<Vec<Vec<Vec3>>, NodeError> {
+    let (m, cc) = (two.m as usize, (two.channels as usize).pow(2));
+    cx.par_map(two.clusters(), |c| {
+        let mut out = vec![Vec3::ZERO; (1 + m) * slots * slots];
+        // Per colour, contiguous rows, so that it vectorises.
+        let mut acc = [vec![0.0f32; cc], vec![0.0f32; cc], vec![0.0f32; cc]];
+        for (j, dst) in out.chunks_mut(slots * slots).enumerate() {
+            let row = if j == 0 { two.mean(c) } else { two.direction(c, j - 1) };
+            acc.iter_mut().for_each(|a| a.fill(0.0));
+            for (r, li) in row.chunks_exact(cc).zip(light) {
+                for (a, lc) in acc.iter_mut().zip(li.to_array()) {
+                    a.iter_mut().zip(r).for_each(|(a, x)| *a += lc * x);
+                }
+            }
+            for (k, &(d, w)) in pair.iter().enumerate() {
+                dst[d] += w * Vec3::new(acc[0][k], acc[1][k], acc[2][k]);
+            }
+        }
+        out
+    })
+}
+
 params! {
     /// The bounced light under the current environment ([S] 5-5, 5-6; the lighting half of the
     /// bounces, which a material edit does not re-run): the environment box-averaged to
     /// `TransferT1`'s lighting bases (`CubeMap::box_downsample`) contracted with each cluster's
     /// compressed transfer (its lighting factor, then its core), and, with `bounces` = 2, box-averaged to
-    /// `TransferT2`'s bases and contracted with every vertex's two-bounce transfer. The fixed
+    /// `TransferT2`'s bases and contracted with the two-bounce transfer as `CompressT2` packed it
+    /// (each cluster's mean and directions once, then per vertex its coefficients). The fixed
     /// objects' channels are folded into one reflector slot on the way (their reflectance is
     /// known); the dynamic objects' channels stay apart for `PttIncident` to weigh by the
     /// materials' basis coefficients. With `bounces` 0 it holds nothing, with 1 no pairs: what
@@ -53,7 +84,7 @@ params! {
 
 #[node(category = "ptt", caching = Keyed, metrics = ["bounces", "clusters", "slots", "bytes"], outputs = [light])]
 impl PttBounceLight {
-    fn run(&self, env: &EnvLight, bounce: &BounceTransfer, two: &TwoBounce, cx: &RunCtx) -> Result<BounceLight, NodeError> {
+    fn run(&self, env: &EnvLight, bounce: &BounceTransfer, two: &PackedTwoBounce, cx: &RunCtx) -> Result<BounceLight, NodeError> {
         let t = bounce;
         let n = t.plan.vertices();
         let ch = t.channels();
@@ -63,13 +94,10 @@ impl PttBounceLight {
                 format!("has {} channels, the one-bounce transfer {ch}: they must come from the same scene and basis", two.channels),
             ));
         }
-        if self.bounces == 2 && two.values.len() / two.stride().max(1) != n {
+        if self.bounces == 2 && two.vertices() != n {
             return Err(NodeError::input(
                 "two",
-                format!(
-                    "holds {} vertices, the one-bounce transfer {n}: they must come from the same scene",
-                    two.values.len() / two.stride().max(1)
-                ),
+                format!("holds {} vertices, the one-bounce transfer {n}: they must come from the same scene", two.vertices()),
             ));
         }
         let slot = slot_of_channels(t);
@@ -112,19 +140,15 @@ impl PttBounceLight {
             // Each channel pair's slot pair and colour weight.
             let pair: Vec<(usize, Vec3)> =
                 slot.iter().flat_map(|&(r1, w1)| slot.iter().map(move |&(r2, w2)| (r1 * slots + r2, w1 * w2))).collect();
-            out.pairs = vec![Vec3::ZERO; n * slots * slots];
-            cx.par_chunks_mut(&mut out.pairs, CHUNK * slots * slots, |k, pairs| {
-                // Per colour, Σ_l light_l T²(l, ·): contiguous rows, so that it vectorises.
-                let mut acc = [vec![0.0f32; ch * ch], vec![0.0f32; ch * ch], vec![0.0f32; ch * ch]];
-                for (v, dst) in (k * CHUNK..).zip(pairs.chunks_mut(slots * slots)) {
-                    acc.iter_mut().for_each(|a| a.fill(0.0));
-                    for (row, li) in two.of(v).chunks_exact(ch * ch).zip(&light) {
-                        for (a, lc) in acc.iter_mut().zip(li.to_array()) {
-                            a.iter_mut().zip(row).for_each(|(a, x)| *a += lc * x);
-                        }
-                    }
-                    for (c, &(d, w)) in pair.iter().enumerate() {
-                        dst[d] += w * Vec3::new(acc[0][c], acc[1][c], acc[2][c]);
+            let lit = lit_clusters(two, &light, &pair, slots, cx)?;
+            let ss = slots * slots;
+            out.pairs = vec![Vec3::ZERO; n * ss];
+            cx.par_chunks_mut(&mut out.pairs, CHUNK * ss, |k, pairs| {
+                for (v, dst) in (k * CHUNK..).zip(pairs.chunks_mut(ss)) {
+                    let l = &lit[two.cluster[v] as usize];
+                    dst.copy_from_slice(&l[..ss]);
+                    for (j, &w) in two.coefficients_of(v).iter().enumerate() {
+                        dst.iter_mut().zip(&l[(1 + j) * ss..(2 + j) * ss]).for_each(|(o, x)| *o += w * *x);
                     }
                 }
             })?;

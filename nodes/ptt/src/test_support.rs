@@ -2,6 +2,7 @@
 //! nodes' unit tests.
 
 use super::brdf_factors::test_support::small_brdf;
+use super::compress_t2::CompressT2;
 use super::cta_compress::CtaCompress;
 use super::env_lighting::EnvLighting;
 use super::incident_projection::IncidentProjection;
@@ -99,6 +100,8 @@ impl Chain {
         )
         .expect("t2")
         .remove(0);
+        // Every direction kept: the packed rows are the traced ones to f32 rounding.
+        let packed = run_on::<CompressT2>(&[("clusters", i(2)), ("eigenvectors", i(512))], vec![t2.clone()]).expect("packed T2").remove(0);
         let t0 = run_on::<TransferT0>(&[], vec![Value::new(vis.clone()), Value::new(brdf.clone()), Value::new(lobes.clone())]).expect("t0");
         let env: EnvLight = first(&run_on::<EnvLighting>(&[("side", i(16))], vec![sv.clone()]).expect("env"));
         let mats = run_on::<SceneMaterials>(&[], vec![sv.clone()]).expect("materials").remove(0);
@@ -110,7 +113,8 @@ impl Chain {
             ("direct", t0[0].clone()),
             ("lobe_visibility", t0[1].clone()),
             ("bounce", t1),
-            ("two", t2),
+            ("two_raw", t2),
+            ("two", packed),
             ("projection", proj),
             ("materials", mats),
             ("brdf", Value::new(brdf)),

@@ -7,7 +7,7 @@ mod incident;
 mod transfer;
 
 pub use incident::{BounceLight, DirectLight, LitCore, ShColumns, VertexIncident, NO_OWNER, NO_SLOT};
-pub use transfer::{BounceTransfer, DirectTransfer, LobeVisibility, TwoBounce};
+pub use transfer::{BounceTransfer, DirectTransfer, LobeVisibility, PackedTwoBounce, TwoBounce};
 
 use glam::Vec3;
 use relume_base::math::cubemap::CubeMap;

@@ -187,6 +187,91 @@ impl PortValue for TwoBounce {
     relume_core::serde_codec!(check TwoBounce::is_consistent);
 }
 
+/// The two-bounce transfer compressed by clustered PCA ([S] 5.3.3.4 compresses T² by CPCA as
+/// T¹; `CompressT2`): the vertices' rows of `TwoBounce` (length `dim()` = 6 side² × channels²,
+/// laid out (l, c₁, c₂)) fall into clusters, and vertex v of cluster c = `cluster[v]` is rebuilt
+/// as mean_c + Σ_j coefficients[v · m + j] · direction_{c, j}. Cluster c's mean at
+/// `means[c · dim ..]`, its m directions at `directions[(c · m + j) · dim ..]` (zero past the
+/// cluster's rank).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PackedTwoBounce {
+    pub side: u32,
+    pub channels: u32,
+    pub m: u32,
+    #[serde(with = "pod_vec")]
+    pub means: Vec<f32>,
+    #[serde(with = "pod_vec")]
+    pub directions: Vec<f32>,
+    #[serde(with = "pod_vec")]
+    pub cluster: Vec<u32>,
+    #[serde(with = "pod_vec")]
+    pub coefficients: Vec<f32>,
+}
+
+impl PackedTwoBounce {
+    /// Length of a vertex's row: 6 side² × channels².
+    pub fn dim(&self) -> usize {
+        6 * (self.side as usize).pow(2) * (self.channels as usize).pow(2)
+    }
+    pub fn clusters(&self) -> usize {
+        self.means.len() / self.dim().max(1)
+    }
+    pub fn vertices(&self) -> usize {
+        self.cluster.len()
+    }
+    /// Cluster c's mean row.
+    pub fn mean(&self, c: usize) -> &[f32] {
+        let d = self.dim();
+        &self.means[c * d..(c + 1) * d]
+    }
+    /// Cluster c's direction j.
+    pub fn direction(&self, c: usize, j: usize) -> &[f32] {
+        let d = self.dim();
+        &self.directions[(c * self.m as usize + j) * d..][..d]
+    }
+    /// Vertex v's coefficients, one per direction.
+    pub fn coefficients_of(&self, v: usize) -> &[f32] {
+        let m = self.m as usize;
+        &self.coefficients[v * m..(v + 1) * m]
+    }
+    /// Vertex v's row rebuilt (the `TwoBounce::of` it stands for).
+    pub fn row(&self, v: usize) -> Vec<f32> {
+        let c = self.cluster[v] as usize;
+        let mut out = self.mean(c).to_vec();
+        for (j, &w) in self.coefficients_of(v).iter().enumerate() {
+            out.iter_mut().zip(self.direction(c, j)).for_each(|(o, x)| *o += w * x);
+        }
+        out
+    }
+    /// Bytes held for `vertices`, rows of `dim`, `clusters` and `m` directions (checked before
+    /// allocating; saturating).
+    pub fn bytes_for(vertices: u64, dim: u64, clusters: u64, m: u64) -> u64 {
+        let floats = clusters.saturating_mul(m.saturating_add(1)).saturating_mul(dim).saturating_add(vertices.saturating_mul(m));
+        floats.saturating_add(vertices).saturating_mul(4).saturating_add(32)
+    }
+    pub(crate) fn is_consistent(&self) -> bool {
+        let (d, m, k) = (self.dim(), self.m as usize, self.clusters());
+        self.side > 0
+            && d > 0
+            && self.means.len() == k * d
+            && self.directions.len() == k * m * d
+            && self.coefficients.len() == self.cluster.len() * m
+            && self.cluster.iter().all(|&c| (c as usize) < k)
+            && self.means.iter().chain(&self.directions).chain(&self.coefficients).all(|x| x.is_finite())
+    }
+}
+
+impl PortValue for PackedTwoBounce {
+    const NAME: &'static str = "PackedTwoBounce";
+    const COLOR: [u8; 3] = [140, 110, 200];
+    const DOC: &'static str =
+        "the two-bounce transfer of every vertex compressed by clustered PCA (a cluster mean and directions, per vertex coefficients)";
+    fn byte_size(&self) -> usize {
+        (self.means.len() + self.directions.len() + self.cluster.len() + self.coefficients.len()) * 4 + 32
+    }
+    relume_core::serde_codec!(check PackedTwoBounce::is_consistent);
+}
+
 /// Per vertex, the direct-light transfer T̃⁰ ([S] 5-7) as the largest Haar terms of each column:
 /// columns 0 … n_ωi − 1 are the columns k of the BRDF tensor's incoming factor U^ωi, column
 /// n_ωi (`diffuse()`) the cosine alone (the diffuse term, shaded outside the tensor, [S]
