@@ -22,6 +22,7 @@ pub mod channels;
 pub mod compress_t2;
 pub mod cta_compress;
 pub mod env_lighting;
+pub mod glossy_as_dynamic;
 pub mod incident_projection;
 pub mod ptt_bounce_light;
 pub mod ptt_direct;

@@ -163,7 +163,7 @@ impl PttRelight {
                 return Err(NodeError::input(
                     "scene",
                     format!(
-                        "fixed object \"{}\" is not Lambertian: the transfer shades fixed objects by their irradiance (make it dynamic)",
+                        "fixed object \"{}\" is not Lambertian: the transfer shades fixed objects by their irradiance (make it dynamic, or pass the scene through GlossyAsDynamic)",
                         o.name
                     ),
                 ));

@@ -111,7 +111,7 @@ impl TransferT2 {
     fn check(&self, i: &TransferT2In, budget: u64) -> Result<Channels, NodeError> {
         let ch = Channels::new(i.scene, i.basis.bases()).map_err(|m| NodeError::input("scene", m))?;
         if let Some(o) = i.scene.objects.iter().find(|o| !o.dynamic && !matches!(o.material, Material::Lambert { .. })) {
-            return Err(NodeError::input("scene", format!("fixed object \"{}\" is not Lambertian: the two-bounce transfer reflects fixed objects diffusely only (not implemented for glossy fixed objects)", o.name)));
+            return Err(NodeError::input("scene", format!("fixed object \"{}\" is not Lambertian: the two-bounce transfer reflects fixed objects diffusely only (make it dynamic, or pass the scene through GlossyAsDynamic)", o.name)));
         }
         let t1 = i.bounce;
         if t1.channels() != ch.count() || t1.plan.vertices() != i.scene.positions.len() {
