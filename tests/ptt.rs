@@ -185,6 +185,38 @@ fn pair_envlit(dir: &std::path::Path) -> std::path::PathBuf {
     )
 }
 
+/// `name` at test size on the light scene `scene`, 32², against the path tracer at 1,024
+/// samples per pixel, then `sets` applied.
+fn light_graph(name: &str, scene: &std::path::Path, sets: &[(&str, &str)]) -> Graph {
+    let mut g = load_test_graph(
+        name,
+        &[
+            ("scene.path", &format!("{:?}", scene.display().to_string())),
+            ("scene.width", "32"),
+            ("scene.height", "32"),
+            ("reference.spp", "1024"),
+            ("hits.spp", "4"),
+        ],
+    );
+    for (k, v) in sets {
+        g.set_param_text(&relume_cli::registry(), k, v).unwrap();
+    }
+    g
+}
+
+/// Asserts, for the run `r` of `what`, each region's sum (x and y as fractions of the image)
+/// within its bound of the path tracer's, and the image's L2 error under `l2` percent.
+fn assert_keeps_to_the_path_tracer(r: &relume_core::RunResult, what: &str, regions: &[(&str, [f32; 2], [f32; 2], f64)], l2: f64) {
+    let img = |n: &str| r.output(n).unwrap().get::<Image>().unwrap().clone();
+    let (ptt, reference) = (img("image"), img("reference"));
+    for (region, x, y, bound) in regions {
+        let ratio = relume_tests::region_sum(&ptt, *x, *y) / relume_tests::region_sum(&reference, *x, *y);
+        assert!((ratio - 1.0).abs() < *bound, "{what}, {region}: {ratio} of the path tracer");
+    }
+    let got = r.output("error").unwrap().get::<relume_base::types::Metrics>().unwrap().get("l2_percent").unwrap();
+    assert!(got < l2, "{what}: L2 {got} % against the path tracer");
+}
+
 #[test]
 fn at_test_size_the_relit_image_keeps_to_the_path_tracer_by_region_means_blinn_phong_and_cook_torrance() {
     // `ptt_envlit.ron` and its Cook-Torrance variant at test size (8² cube faces, 16 Haar
@@ -204,35 +236,15 @@ fn at_test_size_the_relit_image_keeps_to_the_path_tracer_by_region_means_blinn_p
     // 3 × 2, m = 0.3 and F0 = 0.5 fall between grid points and Spot comes out 17 % too bright.
     let ct_grid: &[(&str, &str)] = &[("tensor.m_count", "10"), ("tensor.f0_count", "10")];
     for (name, extra) in [("ptt_envlit.ron", &[][..]), ("ptt_envlit_ct.ron", ct_grid)] {
-        let mut g = load_test_graph(
-            name,
-            &[
-                ("scene.path", &format!("{:?}", scene.display().to_string())),
-                ("project.object", "\"spot\""),
-                ("scene.width", "32"),
-                ("scene.height", "32"),
-                ("reference.spp", "1024"),
-                ("hits.spp", "4"),
-                ("ref_hits.spp", "4"),
-            ],
-        );
-        for (k, v) in extra {
-            g.set_param_text(&relume_cli::registry(), k, v).unwrap();
-        }
+        let g = light_graph(name, &scene, &[&[("project.object", "\"spot\""), ("ref_hits.spp", "4")][..], extra].concat());
         let r = e.run(&g, &RunOptions::default()).unwrap();
-        let img = |n: &str| r.output(n).unwrap().get::<Image>().unwrap().clone();
-        let (ptt, reference) = (img("image"), img("reference"));
-        for (region, x, y, bound) in [
+        let regions = [
             ("the whole image", [0.0, 1.0], [0.0, 1.0], 0.01),
             ("the sky and far ground", [0.0, 1.0], [0.0, 0.4], 0.035),
             ("Spot", [0.25, 0.75], [0.3, 0.8], 0.035),
             ("the near ground", [0.0, 1.0], [0.8, 1.0], 0.035),
-        ] {
-            let ratio = relume_tests::region_sum(&ptt, x, y) / relume_tests::region_sum(&reference, x, y);
-            assert!((ratio - 1.0).abs() < bound, "{name}, {region}: {ratio} of the path tracer");
-        }
-        let l2 = r.output("error").unwrap().get::<relume_base::types::Metrics>().unwrap().get("l2_percent").unwrap();
-        assert!(l2 < 15.0, "{name}: L2 {l2} % against the path tracer");
+        ];
+        assert_keeps_to_the_path_tracer(&r, name, &regions, 15.0);
     }
 }
 
@@ -246,31 +258,18 @@ fn with_two_dynamic_objects_each_keeps_to_the_path_tracer_and_its_material_edit_
     let dir = tempfile::tempdir().unwrap();
     let scene = pair_envlit(dir.path());
     let (reg, e) = (relume_cli::registry(), Engine::new(relume_cli::registry()));
-    let mut g = load_test_graph(
-        "ptt_envlit_pair.ron",
-        &[
-            ("scene.path", &format!("{:?}", scene.display().to_string())),
-            ("scene.width", "32"),
-            ("scene.height", "32"),
-            ("reference.spp", "1024"),
-            ("hits.spp", "4"),
-        ],
-    );
+    let mut g = light_graph("ptt_envlit_pair.ron", &scene, &[]);
     let r = e.run(&g, &RunOptions::default()).unwrap();
     let img = |r: &relume_core::RunResult, n: &str| r.output(n).unwrap().get::<Image>().unwrap().clone();
-    let (ptt, reference) = (img(&r, "image"), img(&r, "reference"));
+    let ptt = img(&r, "image");
     let (spot, teapot) = (([0.0, 0.5], [0.35, 0.75]), ([0.5, 1.0], [0.35, 0.75]));
-    for (region, (x, y), bound) in [
-        ("the whole image", ([0.0, 1.0], [0.0, 1.0]), 0.01),
-        ("Spot", spot, 0.035),
-        ("the teapot", teapot, 0.035),
-        ("the near ground", ([0.0, 1.0], [0.8, 1.0]), 0.035),
-    ] {
-        let ratio = relume_tests::region_sum(&ptt, x, y) / relume_tests::region_sum(&reference, x, y);
-        assert!((ratio - 1.0).abs() < bound, "{region}: {ratio} of the path tracer");
-    }
-    let l2 = r.output("error").unwrap().get::<relume_base::types::Metrics>().unwrap().get("l2_percent").unwrap();
-    assert!(l2 < 15.0, "L2 {l2} % against the path tracer");
+    let regions = [
+        ("the whole image", [0.0, 1.0], [0.0, 1.0], 0.01),
+        ("Spot", spot.0, spot.1, 0.035),
+        ("the teapot", teapot.0, teapot.1, 0.035),
+        ("the near ground", [0.0, 1.0], [0.8, 1.0], 0.035),
+    ];
+    assert_keeps_to_the_path_tracer(&r, "two objects", &regions, 15.0);
     // Each object's material is an edit of its own, chained: Spot's re-runs both projections
     // (the teapot's reads Spot's output), the teapot's only its own; neither the transfer.
     let mut rerun = |param: &str, value: &str| {
@@ -305,36 +304,16 @@ fn a_glossy_fixed_ground_is_shaded_as_a_dynamic_object_and_keeps_to_the_path_tra
     let dir = tempfile::tempdir().unwrap();
     let scene = spot_envlit(dir.path(), "BlinnPhong(kd: 0.5, ks: 0.15, exponent: 10)");
     let e = Engine::new(relume_cli::registry());
-    let g = load_test_graph(
-        "ptt_envlit.ron",
-        &[
-            ("scene.path", &format!("{:?}", scene.display().to_string())),
-            ("project.object", "\"spot\""),
-            ("scene.width", "32"),
-            ("scene.height", "32"),
-            ("reference.spp", "1024"),
-            ("hits.spp", "4"),
-            ("ref_hits.spp", "4"),
-        ],
-    );
+    let g = light_graph("ptt_envlit.ron", &scene, &[("project.object", "\"spot\""), ("ref_hits.spp", "4")]);
     let r = e.run(&g, &RunOptions::default()).unwrap();
     assert_eq!(r.report.node("glossy").unwrap().metrics["turned"], 1.0, "the ground is turned dynamic");
-    assert_eq!(
-        r.report.node("relight").unwrap().metrics["shaded"],
-        r.report.node("relight").unwrap().metrics["seen"],
-        "every seen vertex shaded with the tensor"
-    );
-    let img = |n: &str| r.output(n).unwrap().get::<Image>().unwrap().clone();
-    let (ptt, reference) = (img("image"), img("reference"));
-    for (region, x, y, bound) in [
+    let relight = &r.report.node("relight").unwrap().metrics;
+    assert_eq!(relight["shaded"], relight["seen"], "every seen vertex shaded with the tensor");
+    let regions = [
         ("the whole image", [0.0, 1.0], [0.0, 1.0], 0.025),
         ("the sky and far ground", [0.0, 1.0], [0.0, 0.4], 0.05),
         ("Spot", [0.25, 0.75], [0.3, 0.8], 0.05),
         ("the near ground", [0.0, 1.0], [0.8, 1.0], 0.05),
-    ] {
-        let ratio = relume_tests::region_sum(&ptt, x, y) / relume_tests::region_sum(&reference, x, y);
-        assert!((ratio - 1.0).abs() < bound, "{region}: {ratio} of the path tracer");
-    }
-    let l2 = r.output("error").unwrap().get::<relume_base::types::Metrics>().unwrap().get("l2_percent").unwrap();
-    assert!(l2 < 15.0, "L2 {l2} % against the path tracer");
+    ];
+    assert_keeps_to_the_path_tracer(&r, "a glossy ground", &regions, 15.0);
 }
