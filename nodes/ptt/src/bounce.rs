@@ -108,7 +108,8 @@ impl<'a> Bounce<'a> {
             let object = self.scene.tri_object[hit.tri as usize] as usize;
             let chans = self.channels.of_object(object);
             let fy = vertex_frame(ny);
-            let material = &self.scene.objects[object].material;
+            // A fixed object's material at the hit, its texture maps applied there.
+            let material = self.scene.material_on(hit.tri as usize, b);
             for (l, &e) in direct.iter().enumerate() {
                 if e <= 0.0 {
                     continue;
@@ -122,7 +123,7 @@ impl<'a> Bounce<'a> {
                         out[base + c * SH..base + (c + 1) * SH].iter_mut().zip(&sh).for_each(|(t, y)| *t += r * y);
                     }
                 } else {
-                    let rgb = brdf::eval(material, fy.to_local(wo), fy.to_local(wi)) * e;
+                    let rgb = brdf::eval(&material, fy.to_local(wo), fy.to_local(wi)) * e;
                     let values = [rgb.x, rgb.y, rgb.z];
                     for (k, c) in chans.clone().enumerate() {
                         let r = values[k];

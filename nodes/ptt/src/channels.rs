@@ -3,11 +3,12 @@
 //! has one channel per basis BRDF, weighted at run time by its material's coefficients
 //! H(r, p); the fixed-material objects together share channels that already hold their own
 //! reflectance: one grey channel when every fixed material is colourless (r = g = b, as the
-//! thesis stores "单颜色通道" for paths through fixed materials, 5.4), else three (r, g, b);
+//! thesis stores "单颜色通道" for paths through fixed materials, 5.4), else three (r, g, b;
+//! a fixed object with texture maps counts as coloured: its maps are read at each hit);
 //! none when there is no fixed object. What a scene does not need is left out.
 
 use glam::Vec3;
-use relume_base::types::{Material, Scene};
+use relume_base::types::{Material, Object, Scene};
 use std::ops::Range;
 
 /// The channel layout of a scene (see the module doc).
@@ -61,10 +62,11 @@ impl Channels {
                 object_group[m as usize] = Some(g);
             }
         }
-        let fixed: Vec<&Material> = scene.objects.iter().filter(|o| !o.dynamic).map(|o| &o.material).collect();
+        // A texture map may colour what its material leaves grey: such objects count as coloured.
+        let fixed: Vec<&Object> = scene.objects.iter().filter(|o| !o.dynamic).collect();
         let fixed = match () {
             _ if fixed.is_empty() => 0,
-            _ if fixed.iter().all(|m| colourless(m)) => 1,
+            _ if fixed.iter().all(|o| colourless(&o.material) && o.maps.is_empty()) => 1,
             _ => 3,
         };
         Ok(Channels { fixed, groups: groups.into_iter().map(|g| g.0).collect(), bases, object_group })
@@ -127,6 +129,11 @@ mod tests {
         assert_eq!((c.fixed, c.count(), c.of_object(1)), (3, 8, 3..8));
         let c = Channels::new(&scene(Vec3::splat(0.6), false), 5).expect("layout");
         assert_eq!((c.fixed, c.count(), c.groups.len()), (1, 1, 0));
+        // A grey floor whose albedo a texture map colours is coloured.
+        let mut textured = scene(Vec3::splat(0.6), true);
+        let tex = relume_base::types::Texture::new(1, 1, vec![Vec3::new(1.0, 0.5, 0.5)]);
+        textured.objects[0].maps = Box::new(relume_base::types::MaterialMaps { kd: tex, ..Default::default() });
+        assert_eq!(Channels::new(&textured, 5).expect("layout").fixed, 3);
         let w = Channels::new(&scene(Vec3::splat(0.6), true), 2).expect("layout").weights(&[vec![Vec3::X, Vec3::Y]]);
         assert_eq!(w, vec![Vec3::ONE, Vec3::X, Vec3::Y]);
         let mut s = scene(Vec3::ONE, true);

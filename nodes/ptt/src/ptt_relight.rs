@@ -16,7 +16,8 @@ use std::f32::consts::PI;
 /// Shades the vertices the camera sees (`hits`, from `CameraHits`; the others stay black,
 /// as no pixel reads them) toward the camera from the light that reaches them ([S] 5-5,
 /// 5-6; the view-dependent half of the relighting): a fixed object's vertex (Lambertian) as
-/// ρ/π · E; a dynamic object's as Kd/π · E (the diffuse term, shaded outside the tensor,
+/// ρ/π · E (with a diffuse texture map, ρ/π · E goes to the colours' `textured` part, and
+/// `RasterizeVertexColors` multiplies the map in at each pixel); a dynamic object's as Kd/π · E (the diffuse term, shaded outside the tensor,
 /// [S] 5.3.3.1) plus Ks times the specular part: the Tucker-decomposed residual
 /// f_r, u_o(ωo) · (D ×_h u_h(s)) · U^I with ωo the view direction in the vertex frame
 /// (`vertex_frame`), plus each separated lobe k of width σ_k ([S] 5.3.1) as its amplitude
@@ -179,7 +180,7 @@ impl PttRelight {
             if !m.maps.is_empty() {
                 return Err(NodeError::input(
                     "materials",
-                    format!("\"{name}\" has texture maps: per-vertex relighting shades one material per object"),
+                    format!("\"{name}\" has texture maps: a dynamic object reflects one material through its basis channels (fixed Lambertian objects take diffuse maps)"),
                 ));
             }
             let h = material_position(&i.brdf.family, m)?;
@@ -194,7 +195,7 @@ impl PttRelight {
     }
 }
 
-#[node(category = "ptt", caching = Keyed, version = 2, metrics = ["vertices", "seen", "shaded", "diffuse_mean", "specular_mean"])]
+#[node(category = "ptt", caching = Keyed, version = 3, metrics = ["vertices", "seen", "shaded", "diffuse_mean", "specular_mean"])]
 impl PttRelight {
     fn run(&self, i: PttRelightIn, cx: &RunCtx) -> Result<PttRelightOut, NodeError> {
         let scene = i.scene;
@@ -221,6 +222,9 @@ impl PttRelight {
         VertexColors::check_budget(n, cx.memory_budget())?;
         let sources = self.sources(&i)?;
         let shadings = self.shadings(&i)?;
+        // Fixed objects whose albedo a texture map multiplies: their diffuse light goes to the
+        // rasteriser, which applies the map per pixel.
+        let textured: Vec<bool> = scene.objects.iter().map(|o| !o.dynamic && o.maps.kd.is_some() && !scene.uvs.is_empty()).collect();
         if p.owner.iter().any(|&o| o != NO_OWNER && o as usize >= scene.objects.len()) {
             return Err(NodeError::input(
                 "projection",
@@ -350,7 +354,8 @@ impl PttRelight {
             // The block's colours, and its shaded vertices' count and luminance sums (summed
             // over the blocks in order: the same on any thread count).
             let mut sums = (0usize, 0.0, 0.0);
-            let colors: Vec<Vec3> = block
+            // (colour, the part the object's texture map multiplies at each pixel).
+            let colors: Vec<(Vec3, Vec3)> = block
                 .iter()
                 .zip(views.iter())
                 .map(|(&v, view)| {
@@ -358,16 +363,25 @@ impl PttRelight {
                     if p.slot[v as usize] != NO_SLOT {
                         sums = (sums.0 + 1, sums.1 + lum(d), sums.2 + lum(s));
                     }
-                    d + s
+                    match view {
+                        Seen::Fixed(o) if textured[*o as usize] => (Vec3::ZERO, d),
+                        _ => (d + s, Vec3::ZERO),
+                    }
                 })
                 .collect();
             (colors, sums)
         })?;
         let (mut dsum, mut ssum, mut shaded) = (0.0, 0.0, 0usize);
-        let mut colors = vec![Vec3::ZERO; n];
+        let mut out = VertexColors::plain(vec![Vec3::ZERO; n]);
+        if textured.iter().any(|t| *t) {
+            out.textured = vec![Vec3::ZERO; n];
+        }
         for (b, (block, sums)) in blocks.iter().enumerate() {
-            for (&v, c) in seen[b * BLOCK..].iter().zip(block) {
-                colors[v as usize] = *c;
+            for (&v, (c, t)) in seen[b * BLOCK..].iter().zip(block) {
+                out.colors[v as usize] = *c;
+                if let Some(x) = out.textured.get_mut(v as usize) {
+                    *x = *t;
+                }
             }
             (shaded, dsum, ssum) = (shaded + sums.0, dsum + sums.1, ssum + sums.2);
         }
@@ -376,7 +390,7 @@ impl PttRelight {
         cx.metric("shaded", shaded as f64);
         cx.metric("diffuse_mean", dsum / shaded.max(1) as f64);
         cx.metric("specular_mean", ssum / shaded.max(1) as f64);
-        Ok(PttRelightOut { colors: VertexColors { colors } })
+        Ok(PttRelightOut { colors: out })
     }
 }
 

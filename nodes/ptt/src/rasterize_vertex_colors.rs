@@ -18,7 +18,11 @@ params! {
     /// scene here, the loaded one into `CameraHits`). Shading per vertex is the thesis' choice; what
     /// interpolation loses across shadow edges on coarse meshes is part of the method's error,
     /// measured against a vertex-sampled reference elsewhere. The image's bytes are checked
-    /// against the budget before it is allocated.
+    /// against the budget before it is allocated. Where the colours have a `textured` part
+    /// (fixed objects whose albedo is a texture map, `PttRelight`), each pixel adds that part
+    /// interpolated like the colours times the object's map at the UV interpolated with the
+    /// same weights: shading per vertex, texture per pixel (one lookup a pixel and object, so
+    /// a map finer than the pixels aliases where the path tracer averages it).
     ///
     /// Metrics: the vertex weights summed.
     pub struct RasterizeVertexColors {
@@ -27,10 +31,74 @@ params! {
     }
 }
 
-#[node(category = "ptt", version = 3, caching = Keyed, metrics = ["weights"], outputs = [image])]
+/// Objects a pixel's texture lookups tell apart (more, at a pixel where more textured
+/// objects meet, share the last one's coordinates).
+const TEXTURED_PER_PIXEL: usize = 4;
+
+/// What applies the colours' `textured` part: per vertex its object, and the scene's UVs and
+/// maps.
+struct Textured<'a> {
+    scene: &'a Scene,
+    part: &'a [Vec3],
+    object: Vec<u32>,
+}
+
+impl<'a> Textured<'a> {
+    /// `None` when nothing is textured; an input error when the part does not fit the scene.
+    fn of(scene: &'a Scene, colors: &'a VertexColors) -> Result<Option<Textured<'a>>, NodeError> {
+        if colors.textured.is_empty() {
+            return Ok(None);
+        }
+        let n = scene.positions.len();
+        if colors.textured.len() != n || scene.uvs.len() != n {
+            return Err(NodeError::input(
+                "colors",
+                format!(
+                    "has a textured part of {} vertices for a scene of {n} with {} UVs: they must come from the same scene",
+                    colors.textured.len(),
+                    scene.uvs.len()
+                ),
+            ));
+        }
+        let mut object = vec![u32::MAX; n];
+        for (tri, &o) in scene.triangles.iter().zip(&scene.tri_object) {
+            tri.iter().for_each(|&v| object[v as usize] = o);
+        }
+        Ok(Some(Textured { scene, part: &colors.textured, object }))
+    }
+
+    /// A pixel's textured radiance from its hits: per object, the textured part and the UV
+    /// interpolated with the hits' weights, the part times the object's map at that UV.
+    fn pixel(&self, vertices: &[u32], weights: &[f32]) -> Vec3 {
+        // (object, Σ w, Σ w uv, Σ w part)
+        let mut acc: [(u32, f32, glam::Vec2, Vec3); TEXTURED_PER_PIXEL] =
+            [(u32::MAX, 0.0, glam::Vec2::ZERO, Vec3::ZERO); TEXTURED_PER_PIXEL];
+        for (&v, &w) in vertices.iter().zip(weights) {
+            let part = self.part[v as usize];
+            if part == Vec3::ZERO {
+                continue;
+            }
+            let o = self.object[v as usize];
+            let k = acc.iter().position(|a| a.0 == o || a.0 == u32::MAX).unwrap_or(TEXTURED_PER_PIXEL - 1);
+            let a = &mut acc[k];
+            *a = (o, a.1 + w, a.2 + self.scene.uvs[v as usize] * w, a.3 + part * w);
+        }
+        let mut sum = Vec3::ZERO;
+        for &(o, w, uv, part) in acc.iter().take_while(|a| a.0 != u32::MAX) {
+            let map = self.scene.objects.get(o as usize).and_then(|obj| obj.maps.kd.as_ref());
+            sum += match map {
+                Some(m) if w > 0.0 => part * m.lookup(uv / w),
+                _ => part,
+            };
+        }
+        sum
+    }
+}
+
+#[node(category = "ptt", version = 4, caching = Keyed, metrics = ["weights"], outputs = [image])]
 impl RasterizeVertexColors {
     fn run(&self, hits: &ScreenHits, colors: &VertexColors, scene: &Scene, cx: &RunCtx) -> Result<Image, NodeError> {
-        let (hits, colors) = (hits, &colors.colors);
+        let (hits, colors_in, colors) = (hits, colors, &colors.colors);
         if colors.len() != hits.vertices as usize {
             return Err(NodeError::input(
                 "colors",
@@ -46,6 +114,7 @@ impl RasterizeVertexColors {
                 fmt_bytes(cx.memory_budget())
             )));
         }
+        let textured = Textured::of(scene, colors_in)?;
         let mut image = Image::try_new(w, h)?;
         cx.par_chunks_mut(&mut image.pixels, w * 8, |band, px| {
             let first = band * w * 8;
@@ -68,8 +137,11 @@ impl RasterizeVertexColors {
                     Some((_, l)) => *l * hits.miss[p],
                     None => Vec3::ZERO,
                 };
-                for (v, wt) in hits.vertex[r.clone()].iter().zip(&hits.weight[r]) {
+                for (v, wt) in hits.vertex[r.clone()].iter().zip(&hits.weight[r.clone()]) {
                     sum += colors[*v as usize] * *wt;
+                }
+                if let Some(t) = &textured {
+                    sum += t.pixel(&hits.vertex[r.clone()], &hits.weight[r]);
                 }
                 *out = sum.to_array();
             }
@@ -113,7 +185,7 @@ mod tests {
     /// is the rasteriser's.
     fn raster(s: &Scene, colors: Vec<Vec3>, params: &[(&str, ParamValue)]) -> Image {
         let (own, hit): (Vec<_>, Vec<_>) = params.iter().cloned().partition(|(k, _)| *k == "background");
-        let inputs = vec![Value::new(hits(s, &hit)), Value::new(VertexColors { colors }), Value::new(s.clone())];
+        let inputs = vec![Value::new(hits(s, &hit)), Value::new(VertexColors::plain(colors)), Value::new(s.clone())];
         first(&run_on::<RasterizeVertexColors>(&own, inputs).expect("runs"))
     }
 
@@ -217,6 +289,39 @@ mod tests {
     }
 
     #[test]
+    fn a_textured_part_is_multiplied_by_the_map_at_each_pixels_uv_and_the_rest_added() {
+        use relume_base::types::{MaterialMaps, Texture};
+        // The right half of the view, UVs linear in position, a 16² map of (u, v, 0.5) ramps.
+        let mut s = right_of(0.0);
+        let uv = |p: Vec3| glam::Vec2::new(p.x / 1.1, (p.y + 1.1) / 2.2);
+        s.uvs = s.positions.iter().map(|p| uv(*p)).collect();
+        let tex = Texture::new(16, 16, (0..256).map(|k| Vec3::new((k % 16) as f32 / 16.0, (k / 16) as f32 / 16.0, 0.5)).collect());
+        s.objects[0].maps = Box::new(MaterialMaps { kd: tex.clone(), ..Default::default() });
+        let (part, rest) = (Vec3::new(2.0, 1.0, 4.0), Vec3::new(0.1, 0.2, 0.3));
+        let colors = VertexColors { colors: vec![rest; 4], textured: vec![part; 4] };
+        let sample = [("spp", i(1)), ("seed", i(9))];
+        let inputs = vec![Value::new(hits(&s, &sample)), Value::new(colors), Value::new(s.clone())];
+        let img: Image = first(&run_on::<RasterizeVertexColors>(&[], inputs).expect("runs"));
+        let (ox, oy) = sample_pattern(1, 9)[0];
+        let (accel, cam, tex) = (Accel::build(&s, BuildQuality::Fast), CameraRays::new(&s.camera), tex.expect("texture"));
+        let mut textured = 0;
+        for y in 0..32 {
+            for x in 16..32 {
+                let (o, d) = cam.ray(x as f32 + ox, y as f32 + oy);
+                let hit = accel.intersect(o, d, 0.0, f32::INFINITY).expect("the quad");
+                let want = rest + part * tex.lookup(uv(o + d * hit.t));
+                assert!(close(img.get(x, y), want, 1e-4), "({x}, {y}): {:?} against {want}", img.get(x, y));
+                textured += 1;
+            }
+        }
+        assert_eq!(textured, 512);
+        // A textured part of another length is refused.
+        let wrong = VertexColors { colors: vec![rest; 4], textured: vec![part; 3] };
+        let e = run_on::<RasterizeVertexColors>(&[], vec![Value::new(hits(&s, &sample)), Value::new(wrong), Value::new(s)]);
+        assert!(e.is_err());
+    }
+
+    #[test]
     fn the_same_bytes_on_one_and_two_threads() {
         let s = camera().sphere("ball", Vec3::new(0.2, 0.1, 0.0), 0.7, BLACK, Vec3::ZERO, false).build();
         let colors: Vec<Vec3> = s.positions.iter().map(|p| Vec3::new(p.x.abs(), p.y * p.y, 0.3 + 0.1 * p.z)).collect();
@@ -232,7 +337,7 @@ mod tests {
     fn a_wrong_colour_count_and_an_oversized_image_are_refused() {
         let s = right_of(0.0);
         let h = hits(&s, &[("spp", i(1))]);
-        let colors = |n| Value::new(VertexColors { colors: vec![Vec3::ONE; n] });
+        let colors = |n| Value::new(VertexColors::plain(vec![Vec3::ONE; n]));
         let e = run_on::<RasterizeVertexColors>(&[], vec![Value::new(h.clone()), colors(3), Value::new(s.clone())]).expect_err("refused");
         assert!(e.to_string().contains('3') && e.to_string().contains("4 vertices"), "{e}");
         let mut big = h;
@@ -250,7 +355,7 @@ mod tests {
         assert!(h.byte_size() > 0);
         cancels_midway::<RasterizeVertexColors>(
             &[],
-            vec![Value::new(h), Value::new(VertexColors { colors: vec![Vec3::ONE; n] }), Value::new(s)],
+            vec![Value::new(h), Value::new(VertexColors::plain(vec![Vec3::ONE; n])), Value::new(s)],
         );
     }
 
@@ -263,7 +368,7 @@ mod tests {
         s.environment = Some(Environment::Map(relume_base::types::EnvMap::new(64, 32, texels).unwrap()));
         let h = hits(&s, &[("spp", i(4))]);
         let inputs =
-            vec![Value::new(h.clone()), Value::new(VertexColors { colors: vec![Vec3::ZERO; s.positions.len()] }), Value::new(s.clone())];
+            vec![Value::new(h.clone()), Value::new(VertexColors::plain(vec![Vec3::ZERO; s.positions.len()])), Value::new(s.clone())];
         let img: Image = first(&run_on::<RasterizeVertexColors>(&[], inputs).expect("runs"));
         let mut sky = 0;
         for p in 0..32 * 32 {
@@ -282,7 +387,7 @@ mod tests {
         let h = hits(&s, &[("spp", i(4))]);
         let colors = vec![Vec3::new(1.0, 0.5, 0.25); s.positions.len()];
         let with = |scene: &Scene| -> Image {
-            let inputs = vec![Value::new(h.clone()), Value::new(VertexColors { colors: colors.clone() }), Value::new(scene.clone())];
+            let inputs = vec![Value::new(h.clone()), Value::new(VertexColors::plain(colors.clone())), Value::new(scene.clone())];
             first(&run_on::<RasterizeVertexColors>(&[], inputs).expect("runs"))
         };
         let mut bright = s.clone();

@@ -194,9 +194,11 @@ impl TransferT2 {
                 let mirror = (2.0 * cos_o * ny - wo).normalize_or_zero();
                 sh_basis_into(mirror, &mut y);
                 let bin = ((cos_o.clamp(0.0, 1.0).acos() / std::f32::consts::FRAC_PI_2 * ALBEDO_BINS as f32) as usize).min(ALBEDO_BINS - 1);
+                // A fixed object's material at the hit, its texture maps applied there.
+                let material = scene.material_on(hit.tri as usize, b);
                 for (k, cidx) in chans.clone().enumerate() {
                     let r = &mut rho[cidx];
-                    match (ch.object_group[object], &scene.objects[object].material) {
+                    match (ch.object_group[object], &material) {
                         (None, Material::Lambert { albedo }) => {
                             let a = if ch.fixed == 1 { albedo.x } else { albedo[k] };
                             r.iter_mut().zip(&cosine).for_each(|(o, c)| *o = a / PI * c);

@@ -70,7 +70,7 @@ impl VertexPathTrace {
         })?;
         cx.metric("vertices", n as f64);
         cx.metric("rays", per.iter().map(|p| p.1).sum::<u64>() as f64);
-        Ok(VertexColors { colors: per.into_iter().map(|p| p.0).collect() })
+        Ok(VertexColors::plain(per.into_iter().map(|p| p.0).collect()))
     }
 }
 

@@ -71,13 +71,7 @@ pub fn sample_surface_with(scene: &Scene, p: &SampleSurface, cx: &RunCtx) -> Res
             (scene.normals[i0] * b0 + scene.normals[i1] * b1 + scene.normals[i2] * (1.0 - b0 - b1)).try_normalize().unwrap_or(ng)
         };
         let obj = scene.tri_object[t];
-        let o = &scene.objects[obj as usize];
-        let material = if o.maps.is_empty() || scene.uvs.is_empty() {
-            o.material
-        } else {
-            let [i0, i1, i2] = scene.triangles[t].map(|i| i as usize);
-            o.maps.apply(o.material, scene.uvs[i0] * b0 + scene.uvs[i1] * b1 + scene.uvs[i2] * (1.0 - b0 - b1))
-        };
+        let material = scene.material_on(t, [b0, b1, 1.0 - b0 - b1]);
         (pos, if n.dot(ng) < 0.0 { -n } else { n }, obj, material)
     };
     // The first `n` points, in order, generated in parallel chunks.

@@ -136,6 +136,18 @@ impl Scene {
         self.derived.planes(&self.positions, &self.triangles)
     }
 
+    /// The material of triangle `tri`'s object at the point of barycentric weights `b` (of its
+    /// three corners): the object's texture maps applied at the interpolated UV, or its plain
+    /// material where it has no maps or the scene no UVs.
+    pub fn material_on(&self, tri: usize, b: [f32; 3]) -> Material {
+        let o = &self.objects[self.tri_object[tri] as usize];
+        if o.maps.is_empty() || self.uvs.is_empty() {
+            return o.material;
+        }
+        let uv = self.triangles[tri].iter().zip(b).map(|(&i, w)| self.uvs[i as usize] * w).sum();
+        o.maps.apply(o.material, uv)
+    }
+
     /// The dynamic objects as the relighting pipelines edit them: (name, scene object indices),
     /// in order of first appearance. Dynamic objects with the same named material form one
     /// group named after the material; others are a group of their own, named after the object.

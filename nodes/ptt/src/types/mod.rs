@@ -173,11 +173,17 @@ impl PortValue for VisibilityChunk {
 }
 
 /// One RGB value per scene vertex (the relit radiance toward the camera, [S] 5-5), in the
-/// scene's vertex order.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+/// scene's vertex order; and, where some object's diffuse reflectance is a texture map
+/// (`textured` non-empty, one per vertex too), the part of each vertex's radiance that the
+/// map multiplies at each pixel (the light times the material's own reflectance over π),
+/// `colors` then holding the rest. Shading per vertex and texturing per pixel, as a GPU
+/// multiplies a texture into the interpolated lighting.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct VertexColors {
     #[serde(with = "pod_vec")]
     pub colors: Vec<Vec3>,
+    #[serde(with = "pod_vec")]
+    pub textured: Vec<Vec3>,
 }
 
 impl VertexColors {
@@ -194,17 +200,23 @@ impl VertexColors {
         Ok(())
     }
 
+    /// Colours alone, nothing textured per pixel.
+    pub fn plain(colors: Vec<Vec3>) -> VertexColors {
+        VertexColors { colors, textured: vec![] }
+    }
+
     fn is_consistent(&self) -> bool {
-        self.colors.iter().all(|c| c.is_finite())
+        (self.textured.is_empty() || self.textured.len() == self.colors.len())
+            && self.colors.iter().chain(&self.textured).all(|c| c.is_finite())
     }
 }
 
 impl PortValue for VertexColors {
     const NAME: &'static str = "VertexColors";
     const COLOR: [u8; 3] = [240, 150, 200];
-    const DOC: &'static str = "one RGB value per scene vertex";
+    const DOC: &'static str = "one RGB value per scene vertex (and the part a texture map multiplies per pixel)";
     fn byte_size(&self) -> usize {
-        self.colors.len() * 12 + 8
+        (self.colors.len() + self.textured.len()) * 12 + 16
     }
     relume_core::serde_codec!(check VertexColors::is_consistent);
 }
