@@ -104,6 +104,7 @@ pub fn graph_edits() -> Vec<GraphEdit> {
         ("ptt_envlit.ron", "camera.azimuth", |k| format!("{}", 10.0 + k as f64 * 1e-6)),
         ("ptt_envlit_ct.ron", "project.m", |k| format!("{}", 0.3 + k as f64 * 1e-6)),
         ("ptt_envlit_ct_bounce.ron", "project.m", |k| format!("{}", 0.3 + k as f64 * 1e-6)),
+        ("ptt_envlit_pair.ron", "teapot.s", |k| format!("{}", 80.0 + k as f64 * 1e-6)),
         ("ptt_vs_reference.ron", "camera.azimuth", |k| format!("{}", 10.0 + k as f64 * 1e-6)),
         ("wpbgi_ring.ron", "coded.threshold", |k| format!("{}", 0.002 + k as f64 * 1e-9)),
         ("wpbgi_cornell_bunny.ron", "coded.threshold", |k| format!("{}", 0.002 + k as f64 * 1e-9)),
