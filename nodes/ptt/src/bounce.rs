@@ -116,9 +116,17 @@ impl<'a> Bounce<'a> {
                 }
                 let wi = self.coarse[l];
                 let base = l * cc * SH;
-                if self.channels.object_group[object].is_some() {
+                if let Some(g) = self.channels.object_group[object] {
                     eval_bases(self.basis, &fy, wi, wo, &mut f);
-                    for (c, fc) in chans.clone().zip(&f) {
+                    // A diffuse map splits the diffuse basis into its colours at the hit.
+                    let spread: Vec<f32> = match self.channels.textured[g] {
+                        true => {
+                            let t = self.scene.kd_map_on(hit.tri as usize, b).unwrap_or(Vec3::ONE) * f[0];
+                            [t.x, t.y, t.z].into_iter().chain(f[1..].iter().copied()).collect()
+                        }
+                        false => f.clone(),
+                    };
+                    for (c, fc) in chans.clone().zip(&spread) {
                         let r = fc * e;
                         out[base + c * SH..base + (c + 1) * SH].iter_mut().zip(&sh).for_each(|(t, y)| *t += r * y);
                     }

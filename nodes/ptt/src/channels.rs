@@ -22,6 +22,27 @@ pub struct Channels {
     pub bases: usize,
     /// Per scene object, its dynamic group.
     pub object_group: Vec<Option<usize>>,
+    /// Per dynamic group, whether a diffuse texture map colours it: its diffuse basis then
+    /// takes three channels (r, g, b), each holding the map's colour at the hits, weighted
+    /// by that colour of Kd.
+    pub textured: Vec<bool>,
+}
+
+/// Channels of each dynamic group with `bases` basis BRDFs: two more where a diffuse map
+/// colours it (its diffuse basis in r, g and b).
+pub fn group_channels(bases: usize, textured: &[bool]) -> impl Iterator<Item = usize> + '_ {
+    textured.iter().map(move |&t| bases + if t { 2 } else { 0 })
+}
+
+/// A dynamic group's channel weights from its basis coefficients `c` (RGB, one per basis):
+/// each coefficient; textured, the diffuse one split into its three colours.
+pub fn group_weights(c: &[Vec3], textured: bool) -> Vec<Vec3> {
+    match (textured, c.split_first()) {
+        (true, Some((d, rest))) => {
+            [Vec3::new(d.x, 0.0, 0.0), Vec3::new(0.0, d.y, 0.0), Vec3::new(0.0, 0.0, d.z)].into_iter().chain(rest.iter().copied()).collect()
+        }
+        _ => c.to_vec(),
+    }
 }
 
 /// Whether every colour of `m` has equal components.
@@ -69,18 +90,31 @@ impl Channels {
             _ if fixed.iter().all(|o| colourless(&o.material) && o.maps.is_empty()) => 1,
             _ => 3,
         };
-        Ok(Channels { fixed, groups: groups.into_iter().map(|g| g.0).collect(), bases, object_group })
+        let mut textured = Vec::with_capacity(groups.len());
+        for (name, members) in &groups {
+            let maps: Vec<&Object> = members.iter().map(|&m| &scene.objects[m as usize]).collect();
+            if maps.iter().any(|o| o.maps.ks.is_some() || o.maps.exponent.is_some()) {
+                return Err(format!(
+                    "dynamic object \"{name}\" has a specular texture map: the transfer's basis channels carry one Ks and exponent per object (a diffuse map is taken)"
+                ));
+            }
+            textured.push(!scene.uvs.is_empty() && maps.iter().any(|o| o.maps.kd.is_some()));
+        }
+        Ok(Channels { fixed, groups: groups.into_iter().map(|g| g.0).collect(), bases, object_group, textured })
     }
 
     /// Channels in all.
     pub fn count(&self) -> usize {
-        self.fixed + self.groups.len() * self.bases
+        self.fixed + group_channels(self.bases, &self.textured).sum::<usize>()
     }
 
     /// The channels light reflected by scene object `o` lands in.
     pub fn of_object(&self, o: usize) -> Range<usize> {
         match self.object_group[o] {
-            Some(g) => self.fixed + g * self.bases..self.fixed + (g + 1) * self.bases,
+            Some(g) => {
+                let start = self.fixed + group_channels(self.bases, &self.textured[..g]).sum::<usize>();
+                start..start + group_channels(self.bases, &self.textured[g..=g]).sum::<usize>()
+            }
             None => 0..self.fixed,
         }
     }
@@ -93,8 +127,9 @@ impl Channels {
             1 => vec![Vec3::ONE],
             _ => vec![Vec3::X, Vec3::Y, Vec3::Z],
         };
-        for g in 0..self.groups.len() {
-            w.extend((0..self.bases).map(|p| h.get(g).and_then(|c| c.get(p)).copied().unwrap_or(Vec3::ZERO)));
+        for (g, &textured) in self.textured.iter().enumerate() {
+            let c: Vec<Vec3> = (0..self.bases).map(|p| h.get(g).and_then(|c| c.get(p)).copied().unwrap_or(Vec3::ZERO)).collect();
+            w.extend(group_weights(&c, textured));
         }
         w
     }
@@ -132,8 +167,24 @@ mod tests {
         // A grey floor whose albedo a texture map colours is coloured.
         let mut textured = scene(Vec3::splat(0.6), true);
         let tex = relume_base::types::Texture::new(1, 1, vec![Vec3::new(1.0, 0.5, 0.5)]);
-        textured.objects[0].maps = Box::new(relume_base::types::MaterialMaps { kd: tex, ..Default::default() });
+        textured.objects[0].maps = Box::new(relume_base::types::MaterialMaps { kd: tex.clone(), ..Default::default() });
         assert_eq!(Channels::new(&textured, 5).expect("layout").fixed, 3);
+        // A dynamic box a diffuse map colours: its diffuse basis in three channels, weighed by
+        // Kd's colours; the next objects' channels after them. Without UVs the map is unread.
+        let mut dynamic = scene(Vec3::splat(0.6), true);
+        dynamic.objects[1].maps = Box::new(relume_base::types::MaterialMaps { kd: tex, ..Default::default() });
+        let untextured = Channels::new(&dynamic, 5).expect("layout");
+        assert_eq!(untextured.count(), 6, "no UVs");
+        dynamic.uvs = vec![glam::Vec2::ZERO; dynamic.positions.len()];
+        let c = Channels::new(&dynamic, 3).expect("layout");
+        assert_eq!((c.textured.clone(), c.count(), c.of_object(1)), (vec![true], 6, 1..6));
+        let kd = Vec3::new(0.5, 0.25, 0.125);
+        assert_eq!(
+            c.weights(&[vec![kd, Vec3::ONE, Vec3::Y]]),
+            vec![Vec3::ONE, kd * Vec3::X, kd * Vec3::Y, kd * Vec3::Z, Vec3::ONE, Vec3::Y]
+        );
+        dynamic.objects[1].maps.ks = dynamic.objects[1].maps.kd.clone();
+        assert!(Channels::new(&dynamic, 3).expect_err("a specular map").contains("specular texture map"));
         let w = Channels::new(&scene(Vec3::splat(0.6), true), 2).expect("layout").weights(&[vec![Vec3::X, Vec3::Y]]);
         assert_eq!(w, vec![Vec3::ONE, Vec3::X, Vec3::Y]);
         let mut s = scene(Vec3::ONE, true);

@@ -111,7 +111,14 @@ impl PttBounceLight {
                 fmt_bytes(cx.memory_budget())
             )));
         }
-        let mut out = BounceLight { bounces: self.bounces as u32, groups: t.groups.clone(), bases: t.bases, cores: vec![], pairs: vec![] };
+        let mut out = BounceLight {
+            bounces: self.bounces as u32,
+            groups: t.groups.clone(),
+            bases: t.bases,
+            textured: t.textured.clone(),
+            cores: vec![],
+            pairs: vec![],
+        };
         if self.bounces >= 1 {
             let light = box_light(env, t.coarse as usize)?;
             out.cores = cx.par_map(t.clusters.len(), |c| {

@@ -45,10 +45,11 @@ fn lum(v: Vec3) -> f64 {
 }
 
 /// The reflector slots' weights for the dynamic objects' materials: the fixed objects' slot
-/// 1, then each dynamic group's basis coefficients (in the light's group order, matched by name).
+/// 1, then each dynamic group's basis coefficients (in the light's group order, matched by
+/// name; a textured group's diffuse one split into its colours, `channels::group_weights`).
 fn slot_weights(light: &BounceLight, materials: &ObjectMaterials) -> Result<Vec<Vec3>, NodeError> {
     let mut w = vec![Vec3::ONE];
-    for g in &light.groups {
+    for (g, &textured) in light.groups.iter().zip(&light.textured) {
         let m = materials.0.iter().find(|m| &m.name == g).ok_or_else(|| {
             NodeError::input("materials", format!("no material for the dynamic object \"{g}\" the transfer was traced for"))
         })?;
@@ -63,7 +64,8 @@ fn slot_weights(light: &BounceLight, materials: &ObjectMaterials) -> Result<Vec<
                 ),
             ));
         }
-        w.extend(m.coefficients.iter().map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32)));
+        let c: Vec<Vec3> = m.coefficients.iter().map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32)).collect();
+        w.extend(crate::channels::group_weights(&c, textured));
     }
     Ok(w)
 }
@@ -102,7 +104,7 @@ impl PttIncident {
             || (l.cores.len() == i.bounce.clusters.len()
                 && l.cores.iter().zip(&i.bounce.clusters).all(|(c, t)| c.rank_v == t.rank_v)
                 && l.slots() == 1 + i.bounce.channels() - i.bounce.fixed as usize);
-        if !same_clusters || l.groups != i.bounce.groups {
+        if !same_clusters || l.groups != i.bounce.groups || l.textured != i.bounce.textured {
             return Err(NodeError::input(
                 "light",
                 "was lit from another transfer: the bounced light and the transfer must come from the same TransferT1",

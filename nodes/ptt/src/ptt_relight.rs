@@ -16,8 +16,7 @@ use std::f32::consts::PI;
 /// Shades the vertices the camera sees (`hits`, from `CameraHits`; the others stay black,
 /// as no pixel reads them) toward the camera from the light that reaches them ([S] 5-5,
 /// 5-6; the view-dependent half of the relighting): a fixed object's vertex (Lambertian) as
-/// ρ/π · E (with a diffuse texture map, ρ/π · E goes to the colours' `textured` part, and
-/// `RasterizeVertexColors` multiplies the map in at each pixel); a dynamic object's as Kd/π · E (the diffuse term, shaded outside the tensor,
+/// ρ/π · E; a dynamic object's as Kd/π · E (the diffuse term, shaded outside the tensor,
 /// [S] 5.3.3.1) plus Ks times the specular part: the Tucker-decomposed residual
 /// f_r, u_o(ωo) · (D ×_h u_h(s)) · U^I with ωo the view direction in the vertex frame
 /// (`vertex_frame`), plus each separated lobe k of width σ_k ([S] 5.3.1) as its amplitude
@@ -26,7 +25,9 @@ use std::f32::consts::PI;
 /// fraction of the lobe there (`TransferT0`'s maps; the 0° lobe reads the visibility bit of
 /// m's texel), plus the one-bounce SH convolved with the lobe (zonal factors
 /// exp(−l(l + 1)σ²/2), the spherical Gaussian's) at m; two-bounce light reaches the
-/// specular part through U^I only ([S] 5.3.3.5: no lobe). The dynamic objects' (Kd, Ks, s),
+/// specular part through U^I only ([S] 5.3.3.5: no lobe). Where a diffuse texture map
+/// multiplies an object's ρ or Kd, the diffuse term goes to the colours' `textured` part and
+/// `RasterizeVertexColors` multiplies the map in at each pixel; specular maps are refused. The dynamic objects' (Kd, Ks, s),
 /// or (Kd, Ks, m, F0) for Cook-Torrance, come from `materials` (`MaterialProject`, the BRDF
 /// edit); u_h and the lobes' amplitudes are taken at the material's position on the
 /// tensor's h axis: linear in s between Blinn-Phong samples, bilinear on a Cook-Torrance
@@ -177,10 +178,10 @@ impl PttRelight {
                 .iter()
                 .find(|m| m.name == name)
                 .ok_or_else(|| NodeError::input("materials", format!("no material for the dynamic object \"{name}\"")))?;
-            if !m.maps.is_empty() {
+            if m.maps.ks.is_some() || m.maps.exponent.is_some() {
                 return Err(NodeError::input(
                     "materials",
-                    format!("\"{name}\" has texture maps: a dynamic object reflects one material through its basis channels (fixed Lambertian objects take diffuse maps)"),
+                    format!("\"{name}\" has a specular texture map: a dynamic object reflects one Ks and exponent through its basis channels (a diffuse map is taken)"),
                 ));
             }
             let h = material_position(&i.brdf.family, m)?;
@@ -222,9 +223,9 @@ impl PttRelight {
         VertexColors::check_budget(n, cx.memory_budget())?;
         let sources = self.sources(&i)?;
         let shadings = self.shadings(&i)?;
-        // Fixed objects whose albedo a texture map multiplies: their diffuse light goes to the
+        // Objects whose diffuse reflectance a texture map multiplies: their diffuse light goes to the
         // rasteriser, which applies the map per pixel.
-        let textured: Vec<bool> = scene.objects.iter().map(|o| !o.dynamic && o.maps.kd.is_some() && !scene.uvs.is_empty()).collect();
+        let textured: Vec<bool> = scene.objects.iter().map(|o| o.maps.kd.is_some() && !scene.uvs.is_empty()).collect();
         if p.owner.iter().any(|&o| o != NO_OWNER && o as usize >= scene.objects.len()) {
             return Err(NodeError::input(
                 "projection",
@@ -363,8 +364,12 @@ impl PttRelight {
                     if p.slot[v as usize] != NO_SLOT {
                         sums = (sums.0 + 1, sums.1 + lum(d), sums.2 + lum(s));
                     }
-                    match view {
-                        Seen::Fixed(o) if textured[*o as usize] => (Vec3::ZERO, d),
+                    let owner = match view {
+                        Seen::Fixed(o) | Seen::Diffuse(o) | Seen::Glossy { o, .. } => Some(*o as usize),
+                        Seen::Dark => None,
+                    };
+                    match owner {
+                        Some(o) if textured[o] => (s, d),
                         _ => (d + s, Vec3::ZERO),
                     }
                 })

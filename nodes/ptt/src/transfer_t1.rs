@@ -126,6 +126,7 @@ impl TransferT1 {
             bases: ch.bases as u32,
             plan: i.plan.clone(),
             clusters,
+            textured: ch.textured.clone(),
         };
         if !t.is_consistent() {
             return Err(NodeError::failed("the clusters' tensors do not fit the plan"));

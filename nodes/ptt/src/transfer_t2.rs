@@ -194,11 +194,16 @@ impl TransferT2 {
                 let mirror = (2.0 * cos_o * ny - wo).normalize_or_zero();
                 sh_basis_into(mirror, &mut y);
                 let bin = ((cos_o.clamp(0.0, 1.0).acos() / std::f32::consts::FRAC_PI_2 * ALBEDO_BINS as f32) as usize).min(ALBEDO_BINS - 1);
-                // A fixed object's material at the hit, its texture maps applied there.
+                // A fixed object's material at the hit, its texture maps applied there; a
+                // textured dynamic group's diffuse channels in r, g, b, then its bases 1…
                 let material = scene.material_on(hit.tri as usize, b);
+                let spread = ch.object_group[object].map_or(0, |g| if ch.textured[g] { 2 } else { 0 });
+                let map = if spread > 0 { scene.kd_map_on(hit.tri as usize, b).unwrap_or(Vec3::ONE) } else { Vec3::ONE };
                 for (k, cidx) in chans.clone().enumerate() {
                     let r = &mut rho[cidx];
                     match (ch.object_group[object], &material) {
+                        (Some(_), _) if k < spread + 1 && spread > 0 => r.iter_mut().zip(&cosine).for_each(|(o, c)| *o = map[k] * c / PI),
+                        (Some(_), _) if spread > 0 => r.iter_mut().zip(&y).for_each(|(o, yy)| *o = albedo[k - spread][bin] * yy),
                         (None, Material::Lambert { albedo }) => {
                             let a = if ch.fixed == 1 { albedo.x } else { albedo[k] };
                             r.iter_mut().zip(&cosine).for_each(|(o, c)| *o = a / PI * c);

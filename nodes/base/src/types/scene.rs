@@ -144,8 +144,19 @@ impl Scene {
         if o.maps.is_empty() || self.uvs.is_empty() {
             return o.material;
         }
-        let uv = self.triangles[tri].iter().zip(b).map(|(&i, w)| self.uvs[i as usize] * w).sum();
-        o.maps.apply(o.material, uv)
+        o.maps.apply(o.material, self.uv_on(tri, b))
+    }
+
+    /// The diffuse texture map of triangle `tri`'s object at barycentric `b`: the factor it
+    /// multiplies Kd with there (`None` without a map or without UVs).
+    pub fn kd_map_on(&self, tri: usize, b: [f32; 3]) -> Option<Vec3> {
+        let map = self.objects[self.tri_object[tri] as usize].maps.kd.as_ref()?;
+        (!self.uvs.is_empty()).then(|| map.lookup(self.uv_on(tri, b)))
+    }
+
+    /// The UV of triangle `tri` at barycentric `b` (the scene must have UVs).
+    fn uv_on(&self, tri: usize, b: [f32; 3]) -> Vec2 {
+        self.triangles[tri].iter().zip(b).map(|(&i, w)| self.uvs[i as usize] * w).sum()
     }
 
     /// The dynamic objects as the relighting pipelines edit them: (name, scene object indices),

@@ -171,7 +171,8 @@ impl PortValue for DirectLight {
 /// The bounced light of every vertex under the current environment, with the reflectors'
 /// materials still open ([S] 5-5, 5-6): what `PttIncident` weighs by the materials. Reflector
 /// slots: slot 0 the fixed objects together (their own reflectance folded in), slot 1 + j the
-/// j-th dynamic channel (group by group, `bases` each), weighted by its basis coefficient.
+/// j-th dynamic channel (group by group, `bases` each, two more for a group a diffuse map
+/// colours: `textured`), weighted by its basis coefficient.
 /// `cores`: per cluster of `TransferT1`, the lighting-contracted core (`LitCore`); `pairs`:
 /// per vertex, the two-bounce light per reflector pair (r₁, r₂), RGB at
 /// `pairs[(v · slots + r₁) · slots + r₂]`, to be weighted by both slots' coefficients.
@@ -180,6 +181,8 @@ pub struct BounceLight {
     pub bounces: u32,
     pub groups: Vec<String>,
     pub bases: u32,
+    #[serde(default)]
+    pub textured: Vec<bool>,
     pub cores: Vec<LitCore>,
     #[serde(with = "pod_vec")]
     pub pairs: Vec<Vec3>,
@@ -188,7 +191,7 @@ pub struct BounceLight {
 impl BounceLight {
     /// Reflector slots: the fixed objects, then every dynamic channel.
     pub fn slots(&self) -> usize {
-        1 + self.groups.len() * self.bases as usize
+        1 + crate::channels::group_channels(self.bases as usize, &self.textured).sum::<usize>()
     }
 
     /// Vertex `v`'s pairs (slots² RGB values).
@@ -207,7 +210,8 @@ impl BounceLight {
 
     pub(crate) fn is_consistent(&self) -> bool {
         let s = self.slots();
-        self.bounces <= 2
+        self.textured.len() == self.groups.len()
+            && self.bounces <= 2
             && self.pairs.len().is_multiple_of(s * s)
             && self.cores.iter().all(|c| c.core.len() == c.rank_v as usize * s * SH && c.core.iter().all(|v| v.is_finite()))
             && self.pairs.iter().all(|v| v.is_finite())

@@ -111,8 +111,9 @@ impl PortValue for LobeVisibility {
 }
 
 /// The compressed one-bounce transfer of every vertex: per cluster of `plan`, its tensor
-/// approximation over (member, lighting basis, channel × 16 SH); `fixed`, `groups` and
-/// `bases` give the channel layout (`ptt::channels`), `coarse` the lighting cube's side.
+/// approximation over (member, lighting basis, channel × 16 SH); `fixed`, `groups`, `bases`
+/// and `textured` (per group) give the channel layout (`ptt::channels`), `coarse` the lighting
+/// cube's side.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BounceTransfer {
     pub coarse: u32,
@@ -121,16 +122,19 @@ pub struct BounceTransfer {
     pub bases: u32,
     pub plan: CtaPlan,
     pub clusters: Vec<ClusterTensor>,
+    #[serde(default)]
+    pub textured: Vec<bool>,
 }
 
 impl BounceTransfer {
     /// Channels in all.
     pub fn channels(&self) -> usize {
-        self.fixed as usize + self.groups.len() * self.bases as usize
+        self.fixed as usize + crate::channels::group_channels(self.bases as usize, &self.textured).sum::<usize>()
     }
     pub(crate) fn is_consistent(&self) -> bool {
         let (l, s) = (6 * (self.coarse as usize).pow(2), self.channels() * SH);
-        self.clusters.len() == self.plan.members.len()
+        self.textured.len() == self.groups.len()
+            && self.clusters.len() == self.plan.members.len()
             && self.clusters.iter().zip(&self.plan.members).all(|(t, m)| {
                 let (rv, rl) = (t.rank_v as usize, t.rank_l as usize);
                 t.vertices as usize == m.len()
