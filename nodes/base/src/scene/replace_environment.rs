@@ -38,6 +38,14 @@ impl ReplaceEnvironment {
     }
 
     fn run(&self, scene: &Scene, cx: &RunCtx) -> Result<Scene, NodeError> {
+        self.replaced(scene, cx)
+    }
+}
+
+impl ReplaceEnvironment {
+    /// The node's work: the map's size read from its header and checked against the budget,
+    /// then the map decoded and put in place.
+    fn replaced(&self, scene: &Scene, cx: &RunCtx) -> Result<Scene, NodeError> {
         if let Ok((w, h)) = ::image::image_dimensions(&self.path) {
             let bytes = map_bytes(w as u64, h as u64);
             if bytes > cx.memory_budget() {
@@ -83,6 +91,19 @@ mod tests {
         assert!(m.texels.iter().zip(&img.pixels).all(|(t, p)| *t == Vec3::from(*p) * 2.0));
         assert_eq!(after.camera, before.camera);
         assert_eq!(after.triangles, before.triangles);
+    }
+
+    #[test]
+    fn a_map_over_the_budget_is_refused_from_its_header_before_it_is_decoded() {
+        let dir = tempfile::tempdir().unwrap();
+        crate::image::io::write_exr(&dir.path().join("sky.exr"), &Image::from_fn(16, 8, |_, _| [1.0; 3])).unwrap();
+        let node = ReplaceEnvironment { path: dir.path().join("sky.exr"), scale: 1.0 };
+        let scene = SceneBuilder::new(Vec3::Z, Vec3::ZERO, 40.0, 8, 8).build();
+        let cancel = relume_core::CancelToken::new();
+        let need = map_bytes(16, 8);
+        let e = node.replaced(&scene, &RunCtx::new("sky", &cancel, None).with_memory_budget(need - 1)).expect_err("over the budget");
+        assert!(matches!(e, NodeError::OverLimit { .. }) && e.to_string().contains("16 × 8"), "{e}");
+        assert!(node.replaced(&scene, &RunCtx::new("sky", &cancel, None).with_memory_budget(need)).is_ok());
     }
 
     #[test]

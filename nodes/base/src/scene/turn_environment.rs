@@ -79,6 +79,14 @@ impl TurnEnvironment {
     }
 
     fn run(&self, scene: &Scene, cx: &RunCtx) -> Result<Scene, NodeError> {
+        self.turned(scene, cx)
+    }
+}
+
+impl TurnEnvironment {
+    /// The node's work: `scene` under the turned sky, the map's copies checked against the
+    /// budget first.
+    fn turned(&self, scene: &Scene, cx: &RunCtx) -> Result<Scene, NodeError> {
         let mut scene = scene.clone();
         scene.environment = match &scene.environment {
             None => {
@@ -117,6 +125,17 @@ mod tests {
         let (sx, sy) = ((uv.x * w as f32) as usize, (uv.y * h as f32) as usize);
         let texels = (0..w * h).map(|k| if k == sy * w + sx { Vec3::splat(1e4) } else { Vec3::splat(0.5) }).collect();
         SceneBuilder::new(Vec3::Z, Vec3::ZERO, 40.0, 8, 8).environment(Environment::Map(EnvMap::new(w, h, texels).expect("map"))).build()
+    }
+
+    #[test]
+    fn a_map_whose_copies_exceed_the_budget_is_refused_before_it_is_turned() {
+        let s = sunny(Vec3::Y);
+        let node = TurnEnvironment { rotation_deg: 30.0, tilt_deg: 10.0, roll_deg: 0.0, scale: 1.0 };
+        let need = 64 * 32 * 12 * 3;
+        let cancel = relume_core::CancelToken::new();
+        let e = node.turned(&s, &RunCtx::new("turn", &cancel, None).with_memory_budget(need - 1)).expect_err("over the budget");
+        assert!(matches!(e, NodeError::OverLimit { .. }) && e.to_string().contains("budget"), "{e}");
+        assert!(node.turned(&s, &RunCtx::new("turn", &cancel, None).with_memory_budget(need)).is_ok());
     }
 
     fn turned(s: &Scene, p: &[(&str, relume_core::ParamValue)]) -> Scene {
