@@ -83,6 +83,7 @@ impl<'a> Bounce<'a> {
         let mut sh = [0.0f32; SH];
         let mut direct = vec![0.0f32; lights];
         let mut f = vec![0.0f32; self.basis.bases()];
+        let mut spread = vec![0.0f32; self.basis.bases() + 2];
         let mut rays = 0;
         for &(d, omega) in &self.rays {
             if d.dot(n) <= 0.0 {
@@ -108,35 +109,39 @@ impl<'a> Bounce<'a> {
             let object = self.scene.tri_object[hit.tri as usize] as usize;
             let chans = self.channels.of_object(object);
             let fy = vertex_frame(ny);
-            // A fixed object's material at the hit, its texture maps applied there.
-            let material = self.scene.material_on(hit.tri as usize, b);
+            let group = self.channels.object_group[object];
+            // Read once a hit: a fixed object's material, its texture maps applied there; a
+            // textured dynamic group's diffuse map there.
+            let material = group.is_none().then(|| self.scene.material_on(hit.tri as usize, b));
+            let map = group.filter(|&g| self.channels.textured[g]).map(|_| self.scene.kd_map_on(hit.tri as usize, b).unwrap_or(Vec3::ONE));
             for (l, &e) in direct.iter().enumerate() {
                 if e <= 0.0 {
                     continue;
                 }
                 let wi = self.coarse[l];
                 let base = l * cc * SH;
-                if let Some(g) = self.channels.object_group[object] {
-                    eval_bases(self.basis, &fy, wi, wo, &mut f);
-                    // A diffuse map splits the diffuse basis into its colours at the hit.
-                    let spread: Vec<f32> = match self.channels.textured[g] {
-                        true => {
-                            let t = self.scene.kd_map_on(hit.tri as usize, b).unwrap_or(Vec3::ONE) * f[0];
-                            [t.x, t.y, t.z].into_iter().chain(f[1..].iter().copied()).collect()
+                let rgb: [f32; 3];
+                let values: &[f32] = match &material {
+                    None => {
+                        eval_bases(self.basis, &fy, wi, wo, &mut f);
+                        // A diffuse map spreads the diffuse basis into its colours.
+                        match map {
+                            Some(t) => {
+                                spread[..3].copy_from_slice(&(t * f[0]).to_array());
+                                spread[3..].copy_from_slice(&f[1..]);
+                                &spread
+                            }
+                            None => &f,
                         }
-                        false => f.clone(),
-                    };
-                    for (c, fc) in chans.clone().zip(&spread) {
-                        let r = fc * e;
-                        out[base + c * SH..base + (c + 1) * SH].iter_mut().zip(&sh).for_each(|(t, y)| *t += r * y);
                     }
-                } else {
-                    let rgb = brdf::eval(&material, fy.to_local(wo), fy.to_local(wi)) * e;
-                    let values = [rgb.x, rgb.y, rgb.z];
-                    for (k, c) in chans.clone().enumerate() {
-                        let r = values[k];
-                        out[base + c * SH..base + (c + 1) * SH].iter_mut().zip(&sh).for_each(|(t, y)| *t += r * y);
+                    Some(m) => {
+                        rgb = (brdf::eval(m, fy.to_local(wo), fy.to_local(wi))).to_array();
+                        &rgb
                     }
+                };
+                for (c, v) in chans.clone().zip(values) {
+                    let r = v * e;
+                    out[base + c * SH..base + (c + 1) * SH].iter_mut().zip(&sh).for_each(|(t, y)| *t += r * y);
                 }
             }
         }
