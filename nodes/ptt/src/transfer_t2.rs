@@ -194,23 +194,32 @@ impl TransferT2 {
                 let mirror = (2.0 * cos_o * ny - wo).normalize_or_zero();
                 sh_basis_into(mirror, &mut y);
                 let bin = ((cos_o.clamp(0.0, 1.0).acos() / std::f32::consts::FRAC_PI_2 * ALBEDO_BINS as f32) as usize).min(ALBEDO_BINS - 1);
-                // A fixed object's material at the hit, its texture maps applied there; a
-                // textured dynamic group's diffuse channels in r, g, b, then its bases 1…
-                let material = scene.material_on(hit.tri as usize, b);
-                let spread = ch.object_group[object].map_or(0, |g| if ch.textured[g] { 2 } else { 0 });
-                let map = if spread > 0 { scene.kd_map_on(hit.tri as usize, b).unwrap_or(Vec3::ONE) } else { Vec3::ONE };
+                // Each channel's reflectance toward the vertex: a fixed object's albedo at the
+                // hit (its maps applied there); a dynamic group's basis p, a textured group's
+                // diffuse basis spread over r, g, b channels times its map's colours there.
+                let group = ch.object_group[object];
+                let material = group.is_none().then(|| scene.material_on(hit.tri as usize, b));
+                let map = group.filter(|&g| ch.textured[g]).map(|_| scene.kd_map_on(hit.tri as usize, b).unwrap_or(Vec3::ONE));
                 for (k, cidx) in chans.clone().enumerate() {
                     let r = &mut rho[cidx];
-                    match (ch.object_group[object], &material) {
-                        (Some(_), _) if k < spread + 1 && spread > 0 => r.iter_mut().zip(&cosine).for_each(|(o, c)| *o = map[k] * c / PI),
-                        (Some(_), _) if spread > 0 => r.iter_mut().zip(&y).for_each(|(o, yy)| *o = albedo[k - spread][bin] * yy),
-                        (None, Material::Lambert { albedo }) => {
+                    match &material {
+                        Some(Material::Lambert { albedo }) => {
                             let a = if ch.fixed == 1 { albedo.x } else { albedo[k] };
                             r.iter_mut().zip(&cosine).for_each(|(o, c)| *o = a / PI * c);
                         }
-                        (None, _) => r.fill(0.0),
-                        (Some(_), _) if k == 0 => r.iter_mut().zip(&cosine).for_each(|(o, c)| *o = c / PI),
-                        (Some(_), _) => r.iter_mut().zip(&y).for_each(|(o, yy)| *o = albedo[k][bin] * yy),
+                        Some(_) => r.fill(0.0),
+                        None => {
+                            let (p, colour) = match map {
+                                Some(t) if k < 3 => (0, t[k]),
+                                Some(_) => (k - 2, 1.0),
+                                None => (k, 1.0),
+                            };
+                            if p == 0 {
+                                r.iter_mut().zip(&cosine).for_each(|(o, c)| *o = colour * c / PI);
+                            } else {
+                                r.iter_mut().zip(&y).for_each(|(o, yy)| *o = albedo[p][bin] * yy);
+                            }
+                        }
                     }
                 }
                 let w = omega * c / PI;
