@@ -82,6 +82,7 @@ pub fn graph_edits() -> Vec<GraphEdit> {
         ("filters.ron", "blur.sigma", |k| format!("{}", 0.8 + k as f64 * 1e-6)),
         ("brdf_basis.ron", "project.s", |k| format!("{}", 5.0 + k as f64 * 1e-6)),
         ("relight_cornell_bunny.ron", "project.kd", |k| format!("({}, 0.2, 0.2)", 0.2 + k as f64 * 1e-6)),
+        ("relight_cornell_spot.ron", "project.kd", |k| format!("({}, 0.7, 0.7)", 0.7 - k as f64 * 1e-6)),
         ("relight_ring.ron", "project.kd", |k| format!("({}, 0.2, 0.2)", 0.2 + k as f64 * 1e-6)),
         ("relight_basis_ring.ron", "project_plane.s", |k| format!("{}", 5.0 + k as f64 * 1e-6)),
         ("relight_basis_cornell_bunny.ron", "project_bunny.s", |k| format!("{}", 180.0 - k as f64 * 1e-6)),

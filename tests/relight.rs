@@ -14,11 +14,13 @@ fn the_brdf_basis_graph_reports_its_pca_error_and_a_material_edit_reruns_only_th
     let mut g = load_graph("brdf_basis.ron", &[]);
     let r = e.run(&g, &RunOptions::default()).unwrap();
     let m = r.output("pca_error").unwrap().get::<Metrics>().unwrap();
-    // Six bases over s ∈ [1, 200] (measured: mean 1.18 %, max 8.85 % with solid-angle
-    // weighting; [S] 0.80 % / 6.75 %): a broken basis is tens of percent.
+    // Six bases over s ∈ [1, 200], every cell alike (measured: mean 0.89 %, max 6.77 %, over
+    // all samples 0.799 %; [S] 0.7979 % and 6.747 %; weighted by solid angle 1.18 % / 8.85 %):
+    // a broken basis is tens of percent.
     assert_eq!(m.get("bases"), Some(6.0));
     let (mean, max) = (m.get("l2_error_mean_pct").unwrap(), m.get("l2_error_max_pct").unwrap());
-    assert!(mean > 0.0 && mean < 2.0 && max < 12.0 && max >= mean, "{mean} {max}");
+    assert!(mean > 0.0 && mean < 1.0 && max < 7.5 && max >= mean, "{mean} {max}");
+    assert!(m.get("l2_error_total_pct").unwrap() < 0.85, "{m:?}");
     let c = r.output("coefficients").unwrap().get::<ObjectMaterials>().unwrap().clone();
     let names: Vec<&str> = c.0.iter().map(|m| m.name.as_str()).collect();
     assert_eq!(names, ["white-walls", "bunny"], "the floor, ceiling and back are one dynamic object, first in the scene");
@@ -200,10 +202,11 @@ fn on_pixels_one_object_covers_the_relit_image_passes_the_z_test_with_seven_base
     // the precompute (1,024 bounce rays) against the path tracer at 2,048. A pixel carries one
     // object's light (the object-id image): where its samples hit several objects, the others'
     // are dropped, so those pixels (`transfer.dropped` > 0, 9 % of them here) are the model's and
-    // are left out. On the rest, QUALITY's z-test at 99.5 %. Measured over four seed pairs:
-    // the same paths pass 99.65–99.84 %, the relit image with seven bases 99.62–99.84 %, with
-    // the thesis' six 98.5–98.9 %: the walls' Blinn-Phong s = 5 lobe, rebuilt about 1 % dark at
-    // some angles, is a bias the noise of 256 samples no longer hides.
+    // are left out. On the rest, QUALITY's z-test at 99.5 %. Measured over four seed pairs
+    // (transfer and reference seeds 1:5 … 4:8): the same paths pass 99.65–99.84 %, the relit
+    // image with seven bases 99.62–99.84 %, with the thesis' six 98.6–99.2 % (weighted by solid
+    // angle 98.5–98.9 %): the walls' Blinn-Phong s = 5 lobe, rebuilt about 1 % dark at some
+    // angles, is a bias the noise of 256 samples no longer hides.
     let reg = relume_cli::registry();
     let e = Engine::new(relume_cli::registry());
     let mut g = load_graph("relight_cornell_bunny.ron", &[]);
@@ -241,12 +244,12 @@ fn on_pixels_one_object_covers_the_relit_image_passes_the_z_test_with_seven_base
 fn on_the_ring_ten_bases_pass_the_z_test_and_the_shipped_eight_show_the_planes_lobe_in_blue() {
     // `relight_ring.ron` at 64², 256 camera samples a pixel in the precompute (1,024 bounce
     // rays) against the path tracer at 2,048, on the pixels whose samples all hit one object,
-    // as for cornell-bunny above. Measured (one seed pair): the same paths pass on 99.9 %; the
-    // relit image with eight bases (the graph's) on 96.7 %, nine 98.6 %, ten 99.84 % (with
-    // the exponents spread geometrically: eight 97.8 %, ten 99.87 %). With eight, 100 of the
-    // 122 failing pixels fail in blue alone: the ring reflects no blue, so blue is the plane's
+    // as for cornell-bunny above. Measured (seed pairs 1:5 and 2:6): the same paths pass on
+    // 99.6–99.9 %; the relit image with eight bases (the graph's) on 96.9–97.1 %, ten
+    // 99.6–99.8 % (weighted by solid angle 96.7 % and 99.6–99.8 %). With eight, 90–104 of the
+    // 110–115 failing pixels fail in blue alone: the ring reflects no blue, so blue is the plane's
     // s = 5 lobe under the lamp with little noise, and eight bases rebuild that lobe slightly
-    // dark (the basis error over the whole image is 0.10 %), as six do cornell-bunny's walls.
+    // dark (the basis error over the whole image is 0.09 %), as six do cornell-bunny's walls.
     let reg = relume_cli::registry();
     let sets =
         [("scene.width", "64"), ("scene.height", "64"), ("transfer.spp", "256"), ("transfer.bounce_rays", "4"), ("reference.spp", "2048")];
@@ -273,4 +276,38 @@ fn on_the_ring_ten_bases_pass_the_z_test_and_the_shipped_eight_show_the_planes_l
     assert!(eight < 0.99, "eight bases: the relit ring passes on {eight}");
     let blue = fails.iter().filter(|p| p[2] > 3.29 && p[0] <= 3.29 && p[1] <= 3.29).count();
     assert!(blue * 4 >= fails.len() * 3, "{blue} of {} failing pixels fail in blue alone", fails.len());
+}
+
+#[test]
+fn a_textured_dynamic_object_relights_with_its_map_and_passes_the_z_test() {
+    // `relight_cornell_spot.ron` ([S] 4.1's textured airplane, here Spot and its Kd map) at 64²,
+    // 256 camera samples a pixel in the precompute against the path tracer at 2,048, on the
+    // pixels one object covers, QUALITY's z-test at 99.5 %. Measured (seed pairs 1:5, 2:6):
+    // the relit image and the same paths both pass on 99.67 % of 3,983–3,985 pixels, the basis
+    // error 0.004 %, L2 against the path tracer 2.1–2.3 % (the reference's own noise). An edit
+    // of Kd (the map's multiplier) re-runs nothing upstream of `project` and holds up.
+    let reg = relume_cli::registry();
+    let sets =
+        [("scene.width", "64"), ("scene.height", "64"), ("transfer.spp", "256"), ("transfer.bounce_rays", "4"), ("reference.spp", "2048")];
+    let mut g = load_graph("relight_cornell_spot.ron", &sets);
+    relume_tests::add_output(&mut g, "dropped", "transfer.dropped");
+    let e = relume_tests::engine();
+    let outputs = ["z_map", "dropped", "image", "basis_error", "error"];
+    let check = |r: &relume_core::RunResult, what: &str| {
+        let img = |name: &str| r.output(name).unwrap().get::<Image>().unwrap().clone();
+        let one: Vec<bool> = img("dropped").pixels.iter().map(|p| p[0] == 0.0).collect();
+        let (pass, n) = pass_within(&img("z_map"), &one);
+        assert!(n > 4096 * 9 / 10, "{what}: {n} of 4,096 pixels see one object");
+        assert!(pass >= 0.995, "{what}: the relit image passes on {pass} of the {n} pixels one object covers");
+        let l2 = |name: &str| r.output(name).unwrap().get::<Metrics>().unwrap().get("l2_percent").unwrap();
+        assert!(l2("basis_error") < 0.05 && l2("error") < 4.0, "{what}: basis error {} %, error {} %", l2("basis_error"), l2("error"));
+        img("image")
+    };
+    let before = check(&relume_tests::run_outputs(&e, &g, &outputs), "as shipped");
+    g.set_param_text(&reg, "project.kd", "(0.35, 0.5, 0.7)").unwrap();
+    let r = relume_tests::run_outputs(&e, &g, &outputs);
+    let mut ran = r.report.ran_ids();
+    ran.sort();
+    assert_eq!(ran, ["applied", "basis_error", "error", "project", "reference", "relight", "same_seed", "z_test"]);
+    assert_ne!(before, check(&r, "Kd edited"));
 }

@@ -131,7 +131,7 @@ mod tests {
     #[test]
     fn enum_choices_are_listed_and_pipes_in_cells_are_escaped() {
         let md = page_of(&["BrdfPca"]);
-        assert!(md.contains("| `weighting` | enum | `SolidAngle` | `SolidAngle`, `Uniform` |  |  | how grid cells count"), "{md}");
+        assert!(md.contains("| `weighting` | enum | `Uniform` | `SolidAngle`, `Uniform` |  |  | how grid cells count"), "{md}");
         assert_eq!(cell("|v| = n"), "\\|v\\| = n");
         assert_eq!(code("a`b"), "`` a`b ``");
         assert_eq!(anchor("PathTrace"), "pathtrace");

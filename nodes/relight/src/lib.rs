@@ -139,6 +139,7 @@ pub(crate) mod test_support {
             specular_bases: 1,
             colour: [1.0, 0.5, 0.25],
             counts: crate::types::PathCounts { spp: 1, light_samples: 1, bounce_rays: 1, bounce_light_samples: 1, seed: 0 },
+            kd_maps: vec![None],
             stride: 8,
             class: vec![0, 1],
             data,

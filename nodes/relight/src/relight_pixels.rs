@@ -1,5 +1,5 @@
 use super::terms::{Channels, First, Second, Term};
-use crate::types::Transfer;
+use crate::types::{kd_map_digest, Transfer};
 use relume_base::render::film::with_ctx;
 use relume_base::types::{Image, ObjectMaterials};
 use relume_core::{node, NodeError, Params, RunCtx};
@@ -10,7 +10,10 @@ use relume_core::{node, NodeError, Params, RunCtx};
 /// fixed ones), per colour channel; grey images are multiplied by the light colour. The
 /// weights are folded per object class into three rows of the transfer's stride, so each pixel
 /// is three dot products over its contiguous floats: one pass over the transfer, rows in
-/// parallel, an 8-lane loop the compiler vectorises (the same bytes on any thread count).
+/// parallel, an 8-lane loop the compiler vectorises (the same bytes on any thread count). A
+/// dynamic object's Kd map is already in its diffuse basis' images (the precompute multiplied
+/// it in, [S] 4.1's textured airplane): materials whose Kd map is not that one (painted since)
+/// are refused, as are Ks and exponent maps (`SvRelight` takes those).
 #[derive(Params)]
 pub struct Relight {}
 
@@ -22,11 +25,19 @@ pub fn class_weights(t: &Transfer, m: &ObjectMaterials) -> Result<Vec<f32>, Stri
     if names != t.groups.iter().map(String::as_str).collect::<Vec<_>>() {
         return Err(format!("the materials are for the objects [{}], the transfer for [{}]", names.join(", "), t.groups.join(", ")));
     }
-    if let Some(o) = m.0.iter().find(|o| !o.maps.is_empty()) {
+    if let Some(o) = m.0.iter().find(|o| o.maps.ks.is_some() || o.maps.exponent.is_some()) {
         return Err(format!(
-            "\"{}\" has texture maps: this transfer keeps one material per object; textured materials need `SvTransferPrecompute` and `SvRelight`",
+            "\"{}\" has a Ks or exponent map: this transfer keeps one specular lobe per object; such maps need `SvTransferPrecompute` and `SvRelight`",
             o.name
         ));
+    }
+    for (o, baked) in m.0.iter().zip(&t.kd_maps) {
+        if o.maps.kd.as_ref().map(kd_map_digest) != *baked {
+            return Err(format!(
+                "\"{}\"'s Kd map is not the one the precompute multiplied into its images (painted, replaced or dropped since): run the precompute on this map, or paint with `SvTransferPrecompute` and `SvRelight`",
+                o.name
+            ));
+        }
     }
     if let Some(o) = m.0.iter().find(|o| o.coefficients.len() != nb) {
         return Err(format!(
@@ -293,6 +304,44 @@ mod tests {
         let mut short = m.clone();
         short.0[1].coefficients.pop();
         assert!(relight(&t, &short, None).unwrap_err().to_string().contains("coefficients"));
+    }
+
+    #[test]
+    fn a_kd_map_on_a_dynamic_object_multiplies_its_diffuse_images_and_a_painted_one_is_refused() {
+        // Sphere c (dynamic, with UVs) gets a map of four strong colours: the relit image equals
+        // the same paths with the textured tabulated materials to float precision, follows the
+        // analytic textured BRDF (read through `MaterialMaps::apply`) within the table error,
+        // and differs from the untextured image by far more than that.
+        use relume_base::types::Texture;
+        let (b, _) = basis(&space_of(16, 16, 32, &[20.0, 60.0]), 3);
+        let mut s = crate::test_support::sv_scene(12);
+        let colours = vec![glam::Vec3::new(1.0, 0.1, 0.1), glam::Vec3::new(0.1, 1.0, 0.1), glam::Vec3::new(0.1, 0.1, 1.0), glam::Vec3::ONE];
+        s.objects[2].maps.kd = Texture::new(2, 2, colours);
+        let (accel, m, t, _) = precompute(&s, &b, [3, 2, 3, 1]);
+        assert_eq!((t.kd_maps[0], t.kd_maps[1].is_some()), (None, true), "the map of c, none on the glossy pair");
+        let relit = relight(&t, &m, None).unwrap();
+        let same = |brdf: ReferenceBrdf| {
+            let rows = reference_rows(&s, accel.get::<Accel>().unwrap(), t.counts, &b, &m, brdf, 0..12, None).unwrap();
+            gather_rows(12, 12, 2, &[&rows]).unwrap().0.swap_remove(0)
+        };
+        let d = max_rel_diff(&relit, &same(ReferenceBrdf::Tabulated));
+        assert!(d < 1e-5, "max |Relight − tabulated| / peak = {d}");
+        let analytic = same(ReferenceBrdf::Analytic);
+        let plain = precompute(&crate::test_support::sv_scene(12), &b, [3, 2, 3, 1]);
+        let untextured = relight(&plain.2, &plain.1, None).unwrap();
+        let (e, off) = (l2(&relit, &analytic), l2(&untextured, &analytic));
+        eprintln!("|Relight − tabulated| / peak {d:e}; L2 to the textured analytic BRDF {e:e}, untextured {off:e}");
+        assert!(e < 0.05 && off > 4.0 * e, "L2 to the textured BRDF {e}, the untextured image's {off}");
+        // A map painted after the precompute, or a Ks map, is refused with its reason.
+        let mut painted = m.clone();
+        painted.0[1].maps.kd.as_mut().unwrap().texels[0] = glam::Vec3::splat(0.5);
+        assert!(relight(&t, &painted, None).unwrap_err().to_string().contains("Kd map is not the one"));
+        let mut dropped = m.clone();
+        dropped.0[1].maps.kd = None;
+        assert!(relight(&t, &dropped, None).is_err(), "the images hold the map");
+        let mut specular = m.clone();
+        specular.0[1].maps.ks = specular.0[1].maps.kd.clone();
+        assert!(relight(&t, &specular, None).unwrap_err().to_string().contains("Ks or exponent map"));
     }
 
     #[test]

@@ -37,7 +37,7 @@ pub enum ReferenceBrdf {
     Analytic,
     /// Σ c_k ρ̃_k, the material as the basis represents it
     Tabulated,
-    /// Kd/π + Ks · the lobe tabulated on the basis' grid, uncompressed ([S]'s reference)
+    /// Kd (times its map)/π + Ks · the lobe tabulated on the basis' grid, uncompressed ([S]'s reference)
     Sampled,
 }
 
@@ -61,8 +61,11 @@ pub fn reference_rows(
     if materials.0.len() != groups.len() || materials.0.iter().zip(&groups).any(|(m, g)| m.name != g.0) {
         return Err(NodeError::input("materials", "the materials are not those of the scene's dynamic objects"));
     }
-    if brdf != ReferenceBrdf::Analytic && materials.0.iter().any(|m| !m.maps.is_empty()) {
-        return Err(NodeError::input("materials", "textured materials have no tabulated form here (one table per object): use Analytic"));
+    if brdf != ReferenceBrdf::Analytic && materials.0.iter().any(|m| m.maps.ks.is_some() || m.maps.exponent.is_some()) {
+        return Err(NodeError::input(
+            "materials",
+            "Ks or exponent maps have no tabulated form here (one table per object, a Kd map times its diffuse term): use Analytic",
+        ));
     }
     if brdf == ReferenceBrdf::Tabulated && materials.0.iter().any(|m| m.coefficients.len() != basis.bases()) {
         return Err(NodeError::input("materials", "tabulated BRDFs need the materials projected on this basis (MaterialProject)"));
@@ -109,7 +112,7 @@ fn lobe(m: &ObjectMaterial) -> BrdfSample {
     }
 }
 
-#[node(category = "relight", version = 5, sharded, metrics = ["rays"])]
+#[node(category = "relight", version = 6, sharded, metrics = ["rays"])]
 impl RelightReference {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         let image = inputs[0].and_then(|s| s.dims).map(|[w, h]| relume_core::PortSize::image(w, h));
@@ -165,12 +168,15 @@ mod tests {
         let mut raw = m.clone();
         raw.0.iter_mut().for_each(|o| o.coefficients.clear());
         assert!(reference_rows(&s, a, t.counts, &b, &raw, ReferenceBrdf::Tabulated, 0..10, None).is_err());
-        // Sampled tables need no projection; textured materials have none.
+        // Sampled tables need no projection; a Kd map multiplies their diffuse term, a Ks map
+        // has no table.
         assert!(reference_rows(&s, a, t.counts, &b, &raw, ReferenceBrdf::Sampled, 0..10, None).is_ok());
         let mut textured = m.clone();
         textured.0[0].maps.kd = relume_base::types::Texture::new(1, 1, vec![glam::Vec3::splat(0.5)]);
+        assert!(reference_rows(&s, a, t.counts, &b, &textured, ReferenceBrdf::Sampled, 0..10, None).is_ok());
+        textured.0[0].maps.ks = textured.0[0].maps.kd.clone();
         let err = reference_rows(&s, a, t.counts, &b, &textured, ReferenceBrdf::Sampled, 0..10, None).unwrap_err();
-        assert!(err.to_string().contains("textured"), "{err}");
+        assert!(err.to_string().contains("Ks or exponent maps"), "{err}");
     }
 
     #[test]

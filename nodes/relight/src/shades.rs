@@ -7,7 +7,7 @@ use super::terms::{enumerate, First, SceneTraits, Second, Term, TermSet};
 use glam::Vec3;
 use relume_base::brdf;
 use relume_base::render::surface::Surface;
-use relume_base::types::{BrdfBasis, Environment, Light, Material, ObjectMaterials, Scene};
+use relume_base::types::{BrdfBasis, Environment, Light, Material, MaterialMaps, ObjectMaterials, Scene};
 use std::f64::consts::FRAC_1_PI;
 
 /// What an object is on a relighting path.
@@ -24,8 +24,9 @@ fn kinds(scene: &Scene) -> Vec<Kind> {
 }
 
 /// Checks that pixel relighting can render `scene`: no delta (dielectric) materials, no
-/// dynamic emitter, few enough bases, no textured dynamic object (the SV precompute takes
-/// those: `check_scene_sv`). Errors name the object.
+/// dynamic emitter, few enough bases, no dynamic object with a Ks or exponent map (the SV
+/// precompute takes those: `check_scene_sv`; a Kd map is multiplied into the diffuse basis'
+/// images). Errors name the object.
 pub fn check_scene(scene: &Scene, bases: usize) -> Result<(), String> {
     check_scene_with(scene, bases, false)
 }
@@ -73,9 +74,9 @@ fn check_scene_with(scene: &Scene, bases: usize, maps: bool) -> Result<(), Strin
         if o.dynamic && o.emission != Vec3::ZERO {
             return Err(format!("object \"{}\" is dynamic and emits: an emitter's material cannot be edited here", o.name));
         }
-        if o.dynamic && !maps && !o.maps.is_empty() {
+        if o.dynamic && !maps && (o.maps.ks.is_some() || o.maps.exponent.is_some()) {
             return Err(format!(
-                "object \"{}\" is dynamic and has texture maps: this precompute keeps one material per object: use `SvTransferPrecompute` and `SvRelight` (the spatially varying extension, [S] 4.2), make it fixed (its textures are then rendered) or drop the maps",
+                "object \"{}\" is dynamic and has a Ks or exponent map: this precompute multiplies only a Kd map into its images (the basis carries one specular lobe per object): use `SvTransferPrecompute` and `SvRelight` (the spatially varying extension, [S] 4.2), make it fixed (its textures are then rendered) or drop those maps",
                 o.name
             ));
         }
@@ -118,7 +119,18 @@ pub fn has_emitters(scene: &Scene) -> bool {
     scene.environment.is_some() || scene.objects.iter().any(|o| o.emission != Vec3::ZERO)
 }
 
-/// Every basis BRDF at dynamic objects, the own BRDF at fixed ones.
+/// What a dynamic object's diffuse basis is multiplied by at `at`: its Kd map there ([S] 4.1's
+/// textured airplane: the map times the basis, the edit's Kd the coefficient), 1 without a map
+/// or without UVs (as `Scene::material_on` reads it for the path tracer).
+fn diffuse_map(scene: &Scene, maps: &MaterialMaps, at: &Surface) -> Vec3 {
+    match &maps.kd {
+        Some(t) if !scene.uvs.is_empty() => t.lookup(at.uv),
+        _ => Vec3::ONE,
+    }
+}
+
+/// Every basis BRDF at dynamic objects (the diffuse one times the object's Kd map), the own
+/// BRDF at fixed ones.
 pub struct BasisShade<'a> {
     scene: &'a Scene,
     basis: &'a BrdfBasis,
@@ -166,6 +178,13 @@ impl<'a> BasisShade<'a> {
         }
         nb
     }
+
+    /// Every basis at a dynamic object's hit, the diffuse one times its Kd map.
+    fn dynamic(&self, at: &Surface, wi: Vec3, wo: Vec3, out: &mut [Vec3]) -> usize {
+        let n = self.bases(wi, wo, out);
+        out[0] *= diffuse_map(self.scene, &self.scene.objects[at.object as usize].maps, at);
+        n
+    }
 }
 
 impl Shade for BasisShade<'_> {
@@ -175,7 +194,7 @@ impl Shade for BasisShade<'_> {
                 out[0] = brdf::eval(&at.material(self.scene), wo, wi);
                 1
             }
-            Kind::Dynamic(_) => self.bases(wi, wo, out),
+            Kind::Dynamic(_) => self.dynamic(at, wi, wo, out),
         }
     }
     fn second(&self, at: &Surface, wi: Vec3, wo: Vec3, out: &mut [Vec3]) -> (usize, usize) {
@@ -184,7 +203,7 @@ impl Shade for BasisShade<'_> {
                 out[0] = brdf::eval(&at.material(self.scene), wo, wi);
                 (0, 1)
             }
-            Kind::Dynamic(g) => (self.dynamic_offset + g as usize * self.basis.bases(), self.bases(wi, wo, out)),
+            Kind::Dynamic(g) => (self.dynamic_offset + g as usize * self.basis.bases(), self.dynamic(at, wi, wo, out)),
         }
     }
 }
@@ -193,11 +212,12 @@ impl Shade for BasisShade<'_> {
 pub enum MaterialBrdf<'a> {
     /// The analytic Blinn-Phong of (Kd, Ks, s): what the basis approximates.
     Analytic,
-    /// The projected material Σ_k c_k ρ̃_k on this basis (per channel): what `Relight` shows.
+    /// The projected material Σ_k c_k ρ̃_k on this basis (per channel; the diffuse term times
+    /// the Kd map): what `Relight` shows.
     Tabulated(&'a BrdfBasis),
     /// Each dynamic object's own specular lobe (ks = 1) tabulated on the basis' grid, one table
     /// per object in `ObjectMaterials` order, interpolated as the bases are, uncompressed:
-    /// Kd/π + Ks · lobe.
+    /// Kd · map/π + Ks · lobe.
     Sampled(&'a BrdfBasis, Vec<Vec<f32>>),
 }
 
@@ -229,10 +249,12 @@ impl<'a> MaterialShade<'a> {
                         let nb = basis.bases();
                         let mut v = [0.0f32; MAX_SLOTS];
                         basis.eval_all(wi, wo, &mut v[..nb]);
+                        let map = diffuse_map(self.scene, &m.maps, at).to_array();
                         let mut sum = [0.0f64; 3];
-                        for (c, vk) in m.coefficients.iter().zip(&v[..nb]) {
-                            for (s, ck) in sum.iter_mut().zip(c) {
-                                *s += ck * *vk as f64;
+                        for (k, (c, vk)) in m.coefficients.iter().zip(&v[..nb]).enumerate() {
+                            for (ch, (s, ck)) in sum.iter_mut().zip(c).enumerate() {
+                                let tex = if k == 0 { map[ch] as f64 } else { 1.0 };
+                                *s += ck * *vk as f64 * tex;
                             }
                         }
                         Vec3::new(sum[0] as f32, sum[1] as f32, sum[2] as f32)
@@ -240,7 +262,10 @@ impl<'a> MaterialShade<'a> {
                     MaterialBrdf::Sampled(basis, lobes) => match basis.grid.trilinear(wi, wo) {
                         Some(t) => {
                             let lobe = t.apply(&lobes[g as usize]);
-                            Vec3::from_array(std::array::from_fn(|c| (m.kd[c] as f64 * FRAC_1_PI + m.ks[c] as f64 * lobe) as f32))
+                            let map = diffuse_map(self.scene, &m.maps, at);
+                            Vec3::from_array(std::array::from_fn(|c| {
+                                (m.kd[c] as f64 * map[c] as f64 * FRAC_1_PI + m.ks[c] as f64 * lobe) as f32
+                            }))
                         }
                         None => Vec3::ZERO,
                     },

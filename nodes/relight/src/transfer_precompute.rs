@@ -1,7 +1,7 @@
 use super::paths::{Paths, Slots};
 use super::shades::{check_scene, light_colour, scene_terms, BasisShade};
 use super::terms::{Channels, TermSet};
-use crate::types::{floats_and_stride, PathCounts, Transfer, TransferRows, MAX_TRANSFER_BYTES};
+use crate::types::{floats_and_stride, kd_map_digest, PathCounts, Transfer, TransferRows, MAX_TRANSFER_BYTES};
 use relume_base::render::film::with_ctx;
 use relume_base::types::accel::Accel;
 use relume_base::types::{row_spec, BrdfBasis, Image, Scene};
@@ -14,7 +14,9 @@ params! {
     /// fills every transfer image the scene needs — direct light at the first hit x′ with each basis
     /// BRDF (I(P0, ρ′)) and one bounce through uniform hemisphere rays to x″ with direct light there,
     /// with each basis at x″ and at x′ (I(P1, ρ′, R1, ρ1)); fixed-material objects use their own
-    /// BRDF. Which images exist, and which are grey, follows the scene (`relight::terms`; the report
+    /// BRDF. A dynamic object's Kd map multiplies its diffuse basis at each hit, as [S] 4.1 renders
+    /// its textured airplane (the edit's Kd stays the coefficient; Ks and exponent maps need the
+    /// spatially varying extension). Which images exist, and which are grey, follows the scene (`relight::terms`; the report
     /// counts them and says what was left out). Basis BRDFs are signed: nothing is clamped,
     /// rouletted or importance-sampled by them. Camera samples are jittered over the pixel (the
     /// reference's box filter); a pixel takes the object most of its samples hit (the object-id
@@ -168,6 +170,11 @@ pub fn gather_transfer(
         specular_bases: basis.bases() as u32 - 1,
         colour: light_colour(scene).unwrap_or([1.0; 3]),
         counts,
+        kd_maps: scene
+            .dynamic_groups()
+            .iter()
+            .map(|(_, members)| scene.objects[members[0] as usize].maps.kd.as_ref().map(kd_map_digest))
+            .collect(),
         stride: stride as u32,
         class,
         data,
@@ -175,7 +182,7 @@ pub fn gather_transfer(
     Ok((transfer, dropped, counters))
 }
 
-#[node(category = "relight", version = 5, sharded, metrics = ["images", "images_grey", "images_rgb", "images_emitted", "dynamic_objects", "bytes", "rays", "hemisphere_rays_per_pixel", "dropped_samples", "mixed_pixels"])]
+#[node(category = "relight", version = 6, sharded, metrics = ["images", "images_grey", "images_rgb", "images_emitted", "dynamic_objects", "bytes", "rays", "hemisphere_rays_per_pixel", "dropped_samples", "mixed_pixels"])]
 impl TransferPrecompute {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The images' count depends on the scene's objects and lights: the node checks the
@@ -371,14 +378,17 @@ mod tests {
         let lamp = s.objects.iter().position(|o| o.name == "lamp").unwrap();
         s.objects[lamp].dynamic = true;
         assert!(terms_checked(&s, &b, u64::MAX).unwrap_err().to_string().contains("\"lamp\" is dynamic and emits"));
-        // Textured dynamic objects need the spatially varying extension's nodes; a textured
-        // fixed object is rendered with its texture.
+        // A dynamic object's Kd map is taken (multiplied into its diffuse images); a Ks or
+        // exponent map needs the spatially varying extension's nodes; a textured fixed object
+        // is rendered with its texture.
         let mut s = scene(8);
         s.uvs = vec![glam::Vec2::ZERO; s.positions.len()];
         let grey = relume_base::types::Texture::new(1, 1, vec![glam::Vec3::splat(0.5)]).unwrap();
         s.objects[2].maps.kd = Some(grey.clone());
+        assert!(terms_checked(&s, &b, u64::MAX).is_ok());
+        s.objects[2].maps.exponent = Some(grey.clone());
         let e = terms_checked(&s, &b, u64::MAX).unwrap_err().to_string();
-        assert!(e.contains("\"c\" is dynamic and has texture maps") && e.contains("SvTransferPrecompute"), "{e}");
+        assert!(e.contains("\"c\" is dynamic and has a Ks or exponent map") && e.contains("SvTransferPrecompute"), "{e}");
         *s.objects[2].maps = Default::default();
         s.objects[3].maps.kd = Some(grey);
         assert!(terms_checked(&s, &b, u64::MAX).is_ok());

@@ -5,4 +5,4 @@ mod sv_transfer;
 mod transfer;
 
 pub use sv_transfer::{SparsePlane, SvBlock, SvTransfer};
-pub use transfer::{floats_and_stride, PathCounts, Transfer, TransferRows, MAX_TRANSFER_BYTES};
+pub use transfer::{floats_and_stride, kd_map_digest, PathCounts, Transfer, TransferRows, MAX_TRANSFER_BYTES};

@@ -3,6 +3,7 @@
 //! partial result of the precompute sharded over rows).
 
 use crate::terms::{Channels, Term};
+use relume_base::types::Texture;
 use relume_core::codec::pod_vec;
 use relume_core::{params, PortValue};
 use serde::{Deserialize, Serialize};
@@ -60,11 +61,20 @@ pub struct Transfer {
     pub specular_bases: u32,
     pub colour: [f32; 3],
     pub counts: PathCounts,
+    /// Per dynamic object, the digest of the Kd map multiplied into its diffuse basis' images
+    /// (`kd_map_digest`), or `None` where it has none: the combine refuses materials whose map
+    /// differs (painted after the precompute).
+    pub kd_maps: Vec<Option<[u8; 32]>>,
     pub stride: u32,
     #[serde(with = "pod_vec")]
     pub class: Vec<u32>,
     #[serde(with = "pod_vec")]
     pub data: Vec<f32>,
+}
+
+/// The digest a `Transfer` keeps of a Kd map: the hash of its encoding.
+pub fn kd_map_digest(map: &Texture) -> [u8; 32] {
+    relume_core::codec::fingerprint("Texture", map).0
 }
 
 /// Floats per pixel of `terms`, and that rounded up to a multiple of 8.
@@ -107,6 +117,7 @@ impl Transfer {
             && self.class.len() == n
             && self.data.len() == n * stride
             && self.class.iter().all(|&c| c as usize <= self.groups.len())
+            && self.kd_maps.len() == self.groups.len()
     }
 }
 
