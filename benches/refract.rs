@@ -216,8 +216,13 @@ fn render_256_fixed(bencher: divan::Bencher) {
 
 /// refract_glass.ron at 256², one ray a pixel, asking for the image only.
 fn edit_graph() -> Graph {
+    edit_graph_of("refract_glass.ron")
+}
+
+/// `name` at 256², one camera ray a pixel.
+fn edit_graph_of(name: &str) -> Graph {
     let reg = relume_cli::registry();
-    let mut g = bench_graph("refract_glass.ron");
+    let mut g = bench_graph(name);
     for (k, v) in [("scene.width", sized("256", "32")), ("scene.height", sized("256", "32")), ("paths.samples", "1")] {
         g.set_param_text(&reg, k, v).unwrap();
     }
@@ -241,6 +246,22 @@ fn edit_256(bencher: divan::Bencher, param: &str) {
             _ => format!("{}", x * 100.0),
         };
         g.set_param_text(e.registry(), param, &v).unwrap();
+        e.run(&g, &opts).unwrap().report.ran
+    });
+}
+
+/// The deformation edit ([S] table 6-1's geometry edit): `refract_deform.ron`'s bend changed,
+/// which re-runs everything from the deformed mesh on (the image only).
+#[divan::bench(sample_count = 10, sample_size = 1)]
+fn edit_256_deform(bencher: divan::Bencher) {
+    let mut g = edit_graph_of("refract_deform.ron");
+    let e = Engine::new(relume_cli::registry());
+    let opts = RunOptions { outputs: Some(vec!["image".into()]), ..Default::default() };
+    e.run(&g, &opts).unwrap();
+    let k = AtomicU64::new(1);
+    bencher.bench_local(|| {
+        let v = format!("{}", 40.0 + k.fetch_add(1, Ordering::Relaxed) as f64 * 1e-3);
+        g.set_param_text(e.registry(), "deform.amount", &v).unwrap();
         e.run(&g, &opts).unwrap().report.ran
     });
 }

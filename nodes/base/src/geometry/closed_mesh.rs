@@ -2,32 +2,46 @@
 //! after welding vertices that coincide within a tolerance) and the volume it encloses.
 
 use glam::Vec3;
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 /// Edges not shared by exactly two faces after welding vertices within `tol` (degenerate faces
-/// skipped): 0 for a closed (watertight, edge-manifold) mesh.
+/// skipped): 0 for a closed (watertight, edge-manifold) mesh. A corner at a position already
+/// welded (bit for bit: the corners an indexed mesh's triangles share) takes that weld's
+/// vertex without searching again; hashing is Fx (keys are integers, not attacker-chosen).
 pub fn open_edges(tris: &[[Vec3; 3]], tol: f32) -> usize {
-    let mut cells: HashMap<[i64; 3], Vec<(Vec3, u32)>> = HashMap::new();
+    let mut cells: FxHashMap<[i64; 3], Vec<(Vec3, u32)>> = FxHashMap::default();
+    let mut seen: FxHashMap<[u32; 3], u32> = FxHashMap::default();
     let mut next = 0u32;
     let mut weld = |p: Vec3| -> u32 {
+        let bits = p.to_array().map(f32::to_bits);
+        if let Some(&id) = seen.get(&bits) {
+            return id;
+        }
         let c = (p / tol).floor();
         let key = [c.x as i64, c.y as i64, c.z as i64];
-        for dz in -1..=1 {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    if let Some(list) = cells.get(&[key[0] + dx, key[1] + dy, key[2] + dz]) {
-                        if let Some((_, id)) = list.iter().find(|(q, _)| q.distance(p) <= tol) {
-                            return *id;
+        let found = (|| {
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        if let Some(list) = cells.get(&[key[0] + dx, key[1] + dy, key[2] + dz]) {
+                            if let Some((_, id)) = list.iter().find(|(q, _)| q.distance(p) <= tol) {
+                                return Some(*id);
+                            }
                         }
                     }
                 }
             }
-        }
-        next += 1;
-        cells.entry(key).or_default().push((p, next - 1));
-        next - 1
+            None
+        })();
+        let id = found.unwrap_or_else(|| {
+            next += 1;
+            cells.entry(key).or_default().push((p, next - 1));
+            next - 1
+        });
+        seen.insert(bits, id);
+        id
     };
-    let mut edges: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut edges: FxHashMap<(u32, u32), u32> = FxHashMap::default();
     for t in tris {
         let v = t.map(&mut weld);
         if v[0] == v[1] || v[1] == v[2] || v[0] == v[2] {
