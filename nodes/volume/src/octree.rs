@@ -52,7 +52,15 @@ pub fn build(v: &Volume, o: &Octree, budget: u64) -> Result<(Volume, [u64; 3]), 
     let h = v.voxel();
     let d = v.dims.map(|x| x as usize);
     let ch = CHANNELS as usize;
+    let vc = v.channels as usize;
     let slab = d[0] * d[1] * ch;
+    let flat = |r: (f32, f32)| r.1 - r.0 < o.flat;
+    // The leaf level of the cells of level 1 (their voxels' leaf unless level 0 is flat only
+    // alone): ranges only grow with the level, so the largest flat level over a cell is its
+    // parent's when that is flat, else its own when flat, found from the top down.
+    let above = leaf_levels(&p, 1, flat);
+    let (d1x, d1y) = p.levels.get(1).map_or((0, 0), |l| (l.dims[0], l.dims[1]));
+    let (gx, gy, gz) = (2.0 * h.x, 2.0 * h.y, 2.0 * h.z);
     // One z slab a task; each voxel is computed alone, so any thread count gives the same bytes.
     let counts = out
         .data
@@ -60,35 +68,33 @@ pub fn build(v: &Volume, o: &Octree, budget: u64) -> Result<(Volume, [u64; 3]), 
         .enumerate()
         .map(|(z, slab)| {
             let mut counts = [0u64; 3];
+            let (zm, zp) = (z.saturating_sub(1), (z + 1).min(d[2] - 1));
             for y in 0..d[1] {
+                let (ym, yp) = (y.saturating_sub(1), (y + 1).min(d[1] - 1));
+                let row = |yy: usize, zz: usize| &v.data[(zz * d[1] + yy) * d[0] * vc..][..d[0] * vc];
+                let (here, down, up, back, front) = (row(y, z), row(ym, z), row(yp, z), row(y, zm), row(y, zp));
                 for x in 0..d[0] {
-                    let span = |k: usize| {
-                        let (lo, hi) = p.range_at(k, x, y, z);
-                        hi - lo
-                    };
-                    let at = |dx: isize, dy: isize, dz: isize| {
-                        let c = |q: usize, d: isize, n: usize| (q as isize + d).clamp(0, n as isize - 1) as usize;
-                        v.get(c(x, dx, d[0]), c(y, dy, d[1]), c(z, dz, d[2]), 0)
-                    };
-                    let g = [
-                        (at(1, 0, 0) - at(-1, 0, 0)) / (2.0 * h.x),
-                        (at(0, 1, 0) - at(0, -1, 0)) / (2.0 * h.y),
-                        (at(0, 0, 1) - at(0, 0, -1)) / (2.0 * h.z),
-                    ];
-                    let clear = |k: usize| kappa.as_ref().is_none_or(|kp| kp.range_at(k, x, y, z).1 <= 0.0);
-                    let (level, step, class) = if span(0).partial_cmp(&o.flat) != Some(std::cmp::Ordering::Less) {
+                    let (xm, xp) = (x.saturating_sub(1), (x + 1).min(d[0] - 1));
+                    let n = |r: &[f32], x: usize| r[x * vc];
+                    let g = [(n(here, xp) - n(here, xm)) / gx, (n(up, x) - n(down, x)) / gy, (n(front, x) - n(back, x)) / gz];
+                    let own = p.range_at(0, x, y, z);
+                    let (level, step, class) = if !flat(own) {
                         (0, 0.0, 2)
                     } else {
-                        // Ranges only grow with the level: the largest level still below ε′.
-                        let level = (0..p.levels.len()).take_while(|&k| span(k) < o.flat).last().unwrap_or(0);
-                        if span(level) < o.uniform {
+                        let level = match above.get((((z >> 1) * d1y) + (y >> 1)) * d1x + (x >> 1)) {
+                            Some(&l) if l != NOT_FLAT => l as usize,
+                            _ => 0,
+                        };
+                        let (lo, hi) = if level == 0 { own } else { p.range_at(level, x, y, z) };
+                        if hi - lo < o.uniform {
                             (level, f32::INFINITY, 0)
                         } else {
                             (level, o.step, 1)
                         }
                     };
+                    let clear = kappa.as_ref().is_none_or(|kp| kp.range_at(level, x, y, z).1 <= 0.0);
                     let i = (y * d[0] + x) * ch;
-                    slab[i..i + ch].copy_from_slice(&[level as f32, step, clear(level) as u8 as f32, 0.0, at(0, 0, 0), g[0], g[1], g[2]]);
+                    slab[i..i + ch].copy_from_slice(&[level as f32, step, clear as u8 as f32, 0.0, n(here, x), g[0], g[1], g[2]]);
                     counts[class] += 1;
                 }
             }
@@ -97,6 +103,41 @@ pub fn build(v: &Volume, o: &Octree, budget: u64) -> Result<(Volume, [u64; 3]), 
         .reduce(|| [0u64; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]);
     mark_clearance(&mut out);
     Ok((out, counts))
+}
+
+/// A cell no level of which, from its own up, is flat.
+const NOT_FLAT: u8 = u8::MAX;
+
+/// Per cell of level `from` of `p`, the largest level ≥ `from` whose cell over it is `flat`,
+/// or `NOT_FLAT`: from the top level down, a cell takes its parent's when that is flat (ranges
+/// only grow with the level, so a flat parent has flat children), else its own level when its
+/// own range is flat. The same as counting up from `from` while the cells stay flat.
+fn leaf_levels(p: &MinMaxPyramid, from: usize, flat: impl Fn((f32, f32)) -> bool) -> Vec<u8> {
+    let mut parent: Option<(Vec<u8>, [usize; 3])> = None;
+    for k in (from..p.levels.len()).rev() {
+        let l = &p.levels[k];
+        let [nx, ny, _] = l.dims;
+        let here: Vec<u8> = l
+            .range
+            .iter()
+            .enumerate()
+            .map(|(i, &r)| {
+                let up = parent.as_ref().map_or(NOT_FLAT, |(pl, pd)| {
+                    let (x, y, z) = (i % nx, i / nx % ny, i / (nx * ny));
+                    pl[((z >> 1) * pd[1] + (y >> 1)) * pd[0] + (x >> 1)]
+                });
+                if up != NOT_FLAT {
+                    up
+                } else if flat(r) {
+                    k as u8
+                } else {
+                    NOT_FLAT
+                }
+            })
+            .collect();
+        parent = Some((here, l.dims));
+    }
+    parent.map_or_else(Vec::new, |(v, _)| v)
 }
 
 /// Sets `CLEARANCE`: the L∞ distance in voxels to the nearest voxel whose own or a neighbour's

@@ -35,31 +35,38 @@ impl MinMaxPyramid {
     /// The pyramid of channel `c` of `v`.
     pub fn build(v: &Volume, c: usize) -> MinMaxPyramid {
         let d = v.dims.map(|x| x as usize);
-        // Separable, one z slab a task: the range over x ± 1, then y ± 1, of each plane
-        // z − 1, z, z + 1, merged.
-        let near = |i: usize, n: usize| i.saturating_sub(1)..=(i + 1).min(n - 1);
-        let plane = d[0] * d[1];
-        let values: Vec<f32> = v.data.iter().skip(c).step_by(v.channels as usize).copied().collect();
-        let mut range = vec![(f32::INFINITY, f32::NEG_INFINITY); v.voxels()];
-        range.par_chunks_mut(plane).enumerate().for_each(|(z, slab)| {
-            let mut rows = vec![(0f32, 0f32); plane];
-            for zz in near(z, d[2]) {
-                let p = &values[zz * plane..(zz + 1) * plane];
-                for (row, out) in p.chunks(d[0]).zip(rows.chunks_mut(d[0])) {
-                    for (x, o) in out.iter_mut().enumerate() {
-                        *o = row[near(x, d[0])].iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &s| (a.min(s), b.max(s)));
-                    }
-                }
-                for y in 0..d[1] {
-                    for yy in near(y, d[1]) {
-                        let (dst, src) = (&mut slab[y * d[0]..(y + 1) * d[0]], &rows[yy * d[0]..(yy + 1) * d[0]]);
-                        for (r, o) in dst.iter_mut().zip(src) {
-                            *r = (r.0.min(o.0), r.1.max(o.1));
-                        }
-                    }
-                }
+        // Separable, one z slab (or row) a task: the range over x ± 1, then y ± 1, then z ± 1
+        // (clipped to the grid), least and largest apart, then paired.
+        let (row, plane) = (d[0], d[0] * d[1]);
+        let vc = v.channels as usize;
+        let (mut lo, mut hi) = (vec![0f32; v.voxels()], vec![0f32; v.voxels()]);
+        lo.par_chunks_mut(row).zip(hi.par_chunks_mut(row)).zip(v.data.par_chunks(row * vc)).for_each(|((lo, hi), r)| {
+            let at = |x: usize| r[x * vc + c];
+            for x in 0..row {
+                let (o, a, b) = (at(x), at(x.saturating_sub(1)), at((x + 1).min(row - 1)));
+                (lo[x], hi[x]) = (o.min(a).min(b), o.max(a).max(b));
             }
         });
+        // Each row (along y) or plane (along z) of `out` from its own and its clipped
+        // neighbours' in `lo`, `hi`.
+        let across = |(lo, hi): (&[f32], &[f32]), out: (&mut [f32], &mut [f32]), along_y: bool| {
+            let (unit, n) = if along_y { (row, d[1]) } else { (plane, d[2]) };
+            out.0.par_chunks_mut(unit).zip(out.1.par_chunks_mut(unit)).enumerate().for_each(|(i, (l, h))| {
+                let (p, first) = if along_y { (i % d[1], i / d[1] * plane) } else { (i, 0) };
+                let at = |q: usize| first + q * unit..first + (q + 1) * unit;
+                let [own, before, after] = [at(p), at(p.saturating_sub(1)), at((p + 1).min(n - 1))];
+                for (((l, &o), &b), &a) in l.iter_mut().zip(&lo[own.clone()]).zip(&lo[before.clone()]).zip(&lo[after.clone()]) {
+                    *l = o.min(b).min(a);
+                }
+                for (((h, &o), &b), &a) in h.iter_mut().zip(&hi[own]).zip(&hi[before]).zip(&hi[after]) {
+                    *h = o.max(b).max(a);
+                }
+            });
+        };
+        let (mut l2, mut h2) = (vec![0f32; lo.len()], vec![0f32; lo.len()]);
+        across((&lo, &hi), (&mut l2, &mut h2), true);
+        across((&l2, &h2), (&mut lo, &mut hi), false);
+        let range: Vec<(f32, f32)> = lo.into_par_iter().zip(hi).collect();
         let mut levels = vec![Level { dims: d, range }];
         while levels.last().is_some_and(|l| l.dims.iter().any(|&n| n > 1)) {
             let below = levels.last().expect("a level");
