@@ -90,6 +90,35 @@ fn each_edit_of_the_refraction_graph_reruns_only_what_it_reaches() {
 }
 
 #[test]
+fn a_deformation_reruns_the_voxelisation_onward_and_never_a_bvh() {
+    // `refract_deform.ron`: only the voxelisation and the reference read the bent mesh, so a
+    // bend re-runs the medium's readers and not the BVHs, which leave the glass out.
+    let reg = relume_cli::registry();
+    let e = Engine::new(relume_cli::registry());
+    let set = [
+        ("scene.width", "32"),
+        ("scene.height", "32"),
+        ("voxelize.resolution", "32"),
+        ("emit.resolution", "64"),
+        ("march.map_resolution", "64"),
+        ("reference.spp", "16"),
+    ];
+    let mut g = load_graph("refract_deform.ron", &set);
+    let r = e.run(&g, &RunOptions::default()).unwrap();
+    let before = r.output("image").unwrap().get::<Image>().unwrap().clone();
+    g.set_param_text(&reg, "deform.amount", "20").unwrap();
+    let r = e.run(&g, &RunOptions::default()).unwrap();
+    let mut ran = r.report.ran_ids();
+    ran.sort();
+    assert_eq!(
+        ran,
+        ["deform", "emit", "error", "full_bvh", "march", "octree", "paint", "paths", "reference", "render", "voxelize"],
+        "a bend reaches the medium and the reference only"
+    );
+    assert_ne!(&before, r.output("image").unwrap().get::<Image>().unwrap(), "the bend shows");
+}
+
+#[test]
 fn each_refraction_graph_keeps_to_the_path_tracer_of_its_own_light_model() {
     // Each graph at its own grid and photons, a 64² image, against its path tracer with the
     // glass's reflection left out (the render's light model) at 256 spp. Region means, not
