@@ -2,7 +2,7 @@ use super::types::lobe_side;
 use super::types::{EnvLight, PrefilteredEnv};
 use glam::Vec3;
 use relume_base::math::cube_haar::CubeHaar;
-use relume_base::math::cubemap::CubeMap;
+use relume_base::math::cubemap::{sub_texel_bytes, CubeMap};
 use relume_base::types::{Environment, Metrics, Scene};
 use relume_core::memory::fmt_bytes;
 use relume_core::{node, params, MemoryEstimate, NodeError, PortSize, RunCtx};
@@ -39,7 +39,7 @@ params! {
 }
 
 /// The most sub-texels along a cube face that the map's resolution adds beyond `supersample`
-/// (their solid angles, 8 bytes each, are held: 32 MiB).
+/// (their coordinates and solid angles, 56 bytes a sub-texel of one face, are held: 224 MiB).
 const MAX_SUB: usize = 2048;
 
 impl EnvLighting {
@@ -65,7 +65,8 @@ impl EnvLighting {
     pub fn cube(&self, scene: &Scene) -> CubeMap {
         match &scene.environment {
             Some(Environment::Constant(c)) => CubeMap::constant(self.side, *c),
-            _ => CubeMap::from_fn(self.side, self.sub_texels(scene), |d| scene.environment_radiance(d)),
+            Some(Environment::Map(m)) => CubeMap::from_latlong(self.side, self.sub_texels(scene), |uv| m.lookup(uv)),
+            None => CubeMap::constant(self.side, Vec3::ZERO),
         }
     }
 }
@@ -75,8 +76,8 @@ impl EnvLighting {
     fn memory(&self, _inputs: &[Option<PortSize>]) -> MemoryEstimate {
         MemoryEstimate {
             outputs: vec![Some(PortSize::bytes(self.bytes())), Some(PortSize::bytes(1024))],
-            // The sub-texels' solid angles: a face's worth at the finest the map may ask for.
-            working: CubeMap::bytes_for(self.side) + ((self.side * self.supersample).max(MAX_SUB).pow(2) * 8) as u64,
+            // The sub-texels' coordinates and solid angles at the finest the map may ask for.
+            working: CubeMap::bytes_for(self.side) + sub_texel_bytes((self.side * self.supersample).max(MAX_SUB)) as u64,
         }
     }
 

@@ -8,10 +8,11 @@
 //! (the integral of dω = du dv / (1 + u² + v²)^{3/2} over its square, a closed form), so sums
 //! over texels are integrals over the sphere.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use std::borrow::Cow;
 use std::f64::consts::PI;
 use std::sync::OnceLock;
+use std::sync::{Arc, Mutex};
 
 /// The solid angle of the rectangle [x0, x1] × [y0, y1] on the plane at distance 1 from the
 /// eye, seen from the eye (exact; also the texels of a light's shadow map).
@@ -93,6 +94,56 @@ pub fn face_solid_angles(n: usize) -> Vec<f64> {
     use rayon::prelude::*;
     let e = |t: usize| -1.0 + 2.0 * t as f64 / n as f64;
     (0..n * n).into_par_iter().map(|k| rect_solid_angle(e(k % n), e(k % n + 1), e(k / n), e(k / n + 1))).collect()
+}
+
+/// The sub-texels of a side-`n` map split `s` × `s` a texel (side m = n s): each centre's
+/// lat-long coordinates (`latlong::dir_to_uv`), face after face, sub-row after sub-row, and the
+/// solid angles of one face's sub-texels (the same on every face).
+struct SubTexels {
+    uv: Vec<Vec2>,
+    dws: Vec<f64>,
+}
+
+/// Pairs (n, s) whose sub-texels are kept (8.3 MiB each at 64 × 6).
+const SUB_TEXELS_KEPT: usize = 4;
+
+/// The most bytes of sub-texels kept for one pair; larger ones are made for the call alone.
+const SUB_TEXELS_KEEP_BYTES: usize = 64 << 20;
+
+/// Bytes of the sub-texels of a side-`m` split (lat-long coordinates of six faces, solid angles
+/// of one).
+pub fn sub_texel_bytes(m: usize) -> usize {
+    6 * m * m * std::mem::size_of::<Vec2>() + m * m * std::mem::size_of::<f64>()
+}
+
+/// The sub-texels of (`n`, `s`), made on first use and kept (the last `SUB_TEXELS_KEPT` pairs
+/// of at most `SUB_TEXELS_KEEP_BYTES` each).
+fn sub_texels(n: usize, s: usize) -> Arc<SubTexels> {
+    use rayon::prelude::*;
+    static KEPT: Mutex<Vec<((usize, usize), Arc<SubTexels>)>> = Mutex::new(Vec::new());
+    if let Some((_, t)) = KEPT.lock().unwrap_or_else(|e| e.into_inner()).iter().find(|(k, _)| *k == (n, s)) {
+        return t.clone();
+    }
+    let m = n * s;
+    let e = |t: usize| -1.0 + 2.0 * t as f64 / m as f64;
+    let uv = (0..6 * m * m)
+        .into_par_iter()
+        .map(|k| {
+            let (face, b, a) = (k / (m * m), k / m % m, k % m);
+            let (u, v) = (((e(a) + e(a + 1)) / 2.0) as f32, ((e(b) + e(b + 1)) / 2.0) as f32);
+            super::latlong::dir_to_uv(face_point(face, u, v).normalize())
+        })
+        .collect();
+    let t = Arc::new(SubTexels { uv, dws: face_solid_angles(m) });
+    if sub_texel_bytes(m) > SUB_TEXELS_KEEP_BYTES {
+        return t;
+    }
+    let mut kept = KEPT.lock().unwrap_or_else(|e| e.into_inner());
+    if kept.len() == SUB_TEXELS_KEPT {
+        kept.remove(0);
+    }
+    kept.push(((n, s), t.clone()));
+    t
 }
 
 /// The texel of a map of side `n` that direction `d` falls in.
@@ -258,6 +309,33 @@ impl CubeMap {
                         let dw = dws[b * m + a];
                         let (u, v) = (((e(a) + e(a + 1)) / 2.0) as f32, ((e(b) + e(b + 1)) / 2.0) as f32);
                         sum += f(face_point(face, u, v).normalize()) * dw as f32;
+                        w += dw;
+                    }
+                }
+                sum / w as f32
+            })
+            .collect();
+        CubeMap { n, texels }
+    }
+
+    /// `from_fn` of a latitude-longitude map read at lat-long coordinates by `lookup`: `f(d)`
+    /// being `lookup(latlong::dir_to_uv(d))`, the same texels, bit for bit. The sub-texels'
+    /// coordinates and solid angles depend on `n` and `s` alone: they are found once per
+    /// process (the last few pairs kept), so a new or turned map costs only the lookups.
+    pub fn from_latlong(n: usize, s: usize, lookup: impl Fn(Vec2) -> Vec3 + Sync) -> CubeMap {
+        use rayon::prelude::*;
+        let s = s.max(1);
+        let m = n * s;
+        let sub = sub_texels(n, s);
+        let texels = (0..6 * n * n)
+            .into_par_iter()
+            .map(|k| {
+                let (face, i, j) = (k / (n * n), k % n, k / n % n);
+                let (mut sum, mut w) = (Vec3::ZERO, 0.0f64);
+                for b in j * s..(j + 1) * s {
+                    for a in i * s..(i + 1) * s {
+                        let dw = sub.dws[b * m + a];
+                        sum += lookup(sub.uv[(face * m + b) * m + a]) * dw as f32;
                         w += dw;
                     }
                 }
@@ -439,6 +517,16 @@ impl GaussKernel {
 mod tests {
     use super::*;
     use crate::math::rng::uniform;
+
+    #[test]
+    fn a_lat_long_map_gives_from_fns_texels_to_the_bit_each_time() {
+        // A lat-long field with detail in u and v, read through kept and fresh sub-texels.
+        let field = |uv: Vec2| Vec3::new((uv.x * 40.0).sin() + 1.5, (uv.y * 17.0).cos() + 2.0, uv.x * uv.y);
+        for (n, s) in [(8, 3), (4, 5), (8, 3)] {
+            let direct = CubeMap::from_fn(n, s, |d| field(crate::math::latlong::dir_to_uv(d)));
+            assert_eq!(CubeMap::from_latlong(n, s, field), direct, "side {n}, {s} sub-texels");
+        }
+    }
 
     #[test]
     fn the_kept_texel_directions_are_the_maps_to_the_bit() {
