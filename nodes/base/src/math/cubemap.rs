@@ -292,13 +292,34 @@ impl CubeMap {
     /// The map of side `n` whose texels are the solid-angle-weighted means of `f` over
     /// `s` × `s` sub-texels each (a box filter over the texel's piece of sphere).
     pub fn from_fn(n: usize, s: usize, f: impl Fn(Vec3) -> Vec3 + Sync) -> CubeMap {
-        use rayon::prelude::*;
         let s = s.max(1);
         let m = n * s;
         let e = |t: usize| -1.0 + 2.0 * t as f64 / m as f64;
         // The sub-texels' solid angles are the same on every face: computed once (four arc
         // tangents each), not six times.
         let dws = face_solid_angles(m);
+        CubeMap::box_filtered(n, s, &dws, |face, a, b| {
+            let (u, v) = (((e(a) + e(a + 1)) / 2.0) as f32, ((e(b) + e(b + 1)) / 2.0) as f32);
+            f(face_point(face, u, v).normalize())
+        })
+    }
+
+    /// `from_fn` of a latitude-longitude map read at lat-long coordinates by `lookup`: `f(d)`
+    /// being `lookup(latlong::dir_to_uv(d))`, the same texels, bit for bit. The sub-texels'
+    /// coordinates and solid angles depend on `n` and `s` alone: they are found once per
+    /// process (the last few pairs kept), so a new or turned map costs only the lookups.
+    pub fn from_latlong(n: usize, s: usize, lookup: impl Fn(Vec2) -> Vec3 + Sync) -> CubeMap {
+        let s = s.max(1);
+        let m = n * s;
+        let sub = sub_texels(n, s);
+        CubeMap::box_filtered(n, s, &sub.dws, |face, a, b| lookup(sub.uv[(face * m + b) * m + a]))
+    }
+
+    /// Each texel the mean of `sample(face, a, b)` over its `s` × `s` sub-texels (a, b along the
+    /// face's side of n s), weighted by their solid angles `dws` (one face's, row-major).
+    fn box_filtered(n: usize, s: usize, dws: &[f64], sample: impl Fn(usize, usize, usize) -> Vec3 + Sync) -> CubeMap {
+        use rayon::prelude::*;
+        let m = n * s;
         let texels = (0..6 * n * n)
             .into_par_iter()
             .map(|k| {
@@ -307,35 +328,7 @@ impl CubeMap {
                 for b in j * s..(j + 1) * s {
                     for a in i * s..(i + 1) * s {
                         let dw = dws[b * m + a];
-                        let (u, v) = (((e(a) + e(a + 1)) / 2.0) as f32, ((e(b) + e(b + 1)) / 2.0) as f32);
-                        sum += f(face_point(face, u, v).normalize()) * dw as f32;
-                        w += dw;
-                    }
-                }
-                sum / w as f32
-            })
-            .collect();
-        CubeMap { n, texels }
-    }
-
-    /// `from_fn` of a latitude-longitude map read at lat-long coordinates by `lookup`: `f(d)`
-    /// being `lookup(latlong::dir_to_uv(d))`, the same texels, bit for bit. The sub-texels'
-    /// coordinates and solid angles depend on `n` and `s` alone: they are found once per
-    /// process (the last few pairs kept), so a new or turned map costs only the lookups.
-    pub fn from_latlong(n: usize, s: usize, lookup: impl Fn(Vec2) -> Vec3 + Sync) -> CubeMap {
-        use rayon::prelude::*;
-        let s = s.max(1);
-        let m = n * s;
-        let sub = sub_texels(n, s);
-        let texels = (0..6 * n * n)
-            .into_par_iter()
-            .map(|k| {
-                let (face, i, j) = (k / (n * n), k % n, k / n % n);
-                let (mut sum, mut w) = (Vec3::ZERO, 0.0f64);
-                for b in j * s..(j + 1) * s {
-                    for a in i * s..(i + 1) * s {
-                        let dw = sub.dws[b * m + a];
-                        sum += lookup(sub.uv[(face * m + b) * m + a]) * dw as f32;
+                        sum += sample(face, a, b) * dw as f32;
                         w += dw;
                     }
                 }
