@@ -16,9 +16,9 @@ params! {
     /// with each basis at x″ and at x′ (I(P1, ρ′, R1, ρ1)); fixed-material objects use their own
     /// BRDF. A dynamic object's Kd map multiplies its diffuse basis at each hit, as [S] 4.1 renders
     /// its textured airplane (the edit's Kd stays the coefficient; Ks and exponent maps need the
-    /// spatially varying extension). Which images exist, and which are grey, follows the scene (`relight::terms`; the report
-    /// counts them and says what was left out). Basis BRDFs are signed: nothing is clamped,
-    /// rouletted or importance-sampled by them. Camera samples are jittered over the pixel (the
+    /// spatially varying extension). Which images exist, and which are grey, follows the scene
+    /// (`relight::terms`; the report counts them and says what was left out). Basis BRDFs are
+    /// signed: nothing is clamped, rouletted or importance-sampled by them. Camera samples are jittered over the pixel (the
     /// reference's box filter); a pixel takes the object most of its samples hit (the object-id
     /// image) and drops the reflected light of the others (counted: `dropped_samples`,
     /// `mixed_pixels`; the `dropped` image holds each pixel's share of dropped samples, 0 where
