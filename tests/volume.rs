@@ -31,6 +31,11 @@ fn a_paint_stroke_reruns_the_octree_onward_and_not_the_voxelisation() {
 
 /// `refract_glass.ron` at test size.
 fn small_refract(extra: &[(&str, &str)]) -> relume_core::Graph {
+    small_refract_graph("refract_glass.ron", extra)
+}
+
+/// A refraction graph at test size: 32², a 32³ grid, few photons, a 16-spp reference.
+fn small_refract_graph(name: &str, extra: &[(&str, &str)]) -> relume_core::Graph {
     let mut set = vec![
         ("scene.width", "32"),
         ("scene.height", "32"),
@@ -40,7 +45,7 @@ fn small_refract(extra: &[(&str, &str)]) -> relume_core::Graph {
         ("reference.spp", "16"),
     ];
     set.extend_from_slice(extra);
-    load_graph("refract_glass.ron", &set)
+    load_graph(name, &set)
 }
 
 #[test]
@@ -95,15 +100,7 @@ fn a_deformation_reruns_the_voxelisation_onward_and_never_a_bvh() {
     // bend re-runs the medium's readers and not the BVHs, which leave the glass out.
     let reg = relume_cli::registry();
     let e = Engine::new(relume_cli::registry());
-    let set = [
-        ("scene.width", "32"),
-        ("scene.height", "32"),
-        ("voxelize.resolution", "32"),
-        ("emit.resolution", "64"),
-        ("march.map_resolution", "64"),
-        ("reference.spp", "16"),
-    ];
-    let mut g = load_graph("refract_deform.ron", &set);
+    let mut g = small_refract_graph("refract_deform.ron", &[]);
     let r = e.run(&g, &RunOptions::default()).unwrap();
     let before = r.output("image").unwrap().get::<Image>().unwrap().clone();
     g.set_param_text(&reg, "deform.amount", "20").unwrap();
