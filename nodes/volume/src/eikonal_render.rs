@@ -1,4 +1,4 @@
-use super::optics::{box_interval, lamp_point, luminance, optical_depth, photon_lights, Clearance, PhotonLight};
+use super::optics::{box_interval, lamp_segment, luminance, optical_depth, photon_lights, Clearance, PhotonLight};
 use crate::types::view_paths::Gather;
 use crate::types::{CausticMap, ViewPaths, Volume};
 use glam::Vec3;
@@ -125,9 +125,7 @@ impl Render<'_> {
                 } else {
                     // Stratified over the disk's area, seeded by the point and the light.
                     let u = ((j as f32 + uniform(k as u64, id, 0)) / n as f32, (uniform(k as u64, id, 1) + j as f32 * GOLDEN).fract());
-                    let to = lamp_point(s.p + wi * dist, l.radius, -wi, u) - origin;
-                    let len = to.length();
-                    (to / len, (len - l.radius * 1.001) * (1.0 - 1e-4))
+                    lamp_segment(origin, s.p + wi * dist, l.radius, -wi, u)
                 };
                 // Light whose straight line crosses voxels where rays bend arrives as photons
                 // (the caustic map), never here.

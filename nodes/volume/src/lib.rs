@@ -1,7 +1,8 @@
 //! Pipeline 3, dynamic refractive and scattering objects ([S] chapter 6; docs/PIPELINES.md
 //! "Pipeline 3"): the shared volume code — the min/max pyramid the octree reads
 //! (`pyramid`), the separable 3-D Gaussian blur (`blur`), inside fractions of closed meshes
-//! by scanlines (`scanline`) — with the `Volume` port type in
+//! by scanlines (`scanline`), the caustic map's blur that keeps to its side of a shadow's
+//! edge (`caustic_blur`) — with the `Volume` port type in
 //! `types::volume`. The optics photon marching and
 //! rendering share are in `optics`. The stage nodes, one file each: `Voxelize`,
 //! `VolumeSource`, `VolumePaint`, `Octree`, `EmitPhotons`, `MarchPhotons`, `EikonalPaths`,
@@ -19,6 +20,7 @@
 //! ```
 
 pub mod blur;
+pub mod caustic_blur;
 pub mod eikonal_paths;
 pub mod eikonal_render;
 pub mod emit_photons;

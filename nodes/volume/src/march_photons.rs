@@ -1,6 +1,9 @@
 use super::blur::{blur, kernel};
+use super::caustic_blur::{blur_caustics, working_bytes};
 use super::octree_layout::{CLEARANCE, LEVEL, MAX_STEP};
-use super::optics::{box_interval, for_each_voxel, leaf_exit, luminance, planar_frame, ray_step, voxel_of, Clearance, Integrator, Ray};
+use super::optics::{
+    box_interval, for_each_voxel, leaf_exit, luminance, photon_lights, planar_frame, ray_step, voxel_of, Clearance, Integrator, Ray,
+};
 use crate::types::{CausticMap, PhotonDeposits, Photons, Sampler, Volume};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -39,7 +42,9 @@ params! {
     /// is not marched at all where nothing absorbs or scatters). Every other photon is marched
     /// and adds its power where it lands on the planar `receiver`, where the render's shadow rays
     /// — crossing the same voxels — give no direct light. The map is in W/unit²,
-    /// blurred by a Gaussian of `map_blur` texels. Sums are fixed-point integers (2⁻⁴⁰ of the
+    /// blurred by a Gaussian of `map_blur` texels that keeps to its side of the shadow's edge
+    /// (a texel's photons go to neighbours as dark as it under the shadow-ray test, the map's
+    /// power kept). Sums are fixed-point integers (2⁻⁴⁰ of the
     /// largest deposit), so threads and shards give the same bytes in any order. Sharded over
     /// photons in chunks of 2¹⁸; the 1/1000 rule applies per chunk. Output `radiance`: 6 channels
     /// (fluence RGB, light direction xyz) on the medium's grid, or one empty voxel when nothing
@@ -61,7 +66,8 @@ params! {
         pub map_resolution: u32 = 256, range = 1..=8192, unit = "texels";
         /// standard deviation of the 3³ Gaussian on the stored radiance (0: none)
         pub blur_sigma: f32 = 1.0, range = 0.0..=4.0, unit = "voxels";
-        /// radius of the Gaussian on the caustic map (σ = radius; 0: none)
+        /// radius of the Gaussian on the caustic map (σ = radius; 0: none), not crossing the
+        /// shadow's edge
         pub map_blur: u32 = 1, range = 0..=8, unit = "texels";
     }
 }
@@ -176,6 +182,7 @@ impl<'a> Setup<'a> {
         };
         let chunk = CHUNK.min(i.photons.len() as u64);
         let need = (n_slots as u64 * 6 + map.width as u64 * map.height as u64 * 3) * 8 * 2
+            + working_bytes(map.width as u64 * map.height as u64)
             + chunk * std::mem::size_of::<Photon>() as u64
             + if n_slots > 0 { Volume::bytes_for(m.dims, 6) * 2 } else { 0 }
             + m.voxels() as u64 * 5;
@@ -476,19 +483,16 @@ impl<'a> Setup<'a> {
             caustics = CausticMap::none();
         } else {
             let inv = 1.0 / (self.map_scale * caustics.texel_area() as f64);
-            let mut grid = Volume::try_new([caustics.width, caustics.height, 1], 3, Vec3::ZERO, Vec3::ONE, 0.0, cx.memory_budget())?;
-            for (g, q) in grid.data.iter_mut().zip(&map) {
-                *g = (*q as f64 * inv) as f32;
-            }
-            let r = self.p.map_blur as usize;
-            let grid = blur(&grid, &kernel(r, r as f32), cx)?;
-            caustics.texels = grid.data.chunks(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+            let at = |q: &i64| (*q as f64 * inv) as f32;
+            let raw: Vec<Vec3> = map.chunks(3).map(|c| Vec3::new(at(&c[0]), at(&c[1]), at(&c[2]))).collect();
+            let lights = photon_lights(self.scene);
+            caustics.texels = blur_caustics(&raw, &caustics, &lights, self.clearance(), self.p.map_blur as usize, cx)?;
         }
         Ok((radiance, caustics, counters))
     }
 }
 
-#[node(category = "volume", version = 5, sharded, metrics = ["photons", "photon_steps", "steps_per_photon", "landed_pct", "left_pct", "absorbed_pct", "stopped_pct", "straight_pct"])]
+#[node(category = "volume", version = 6, sharded, metrics = ["photons", "photon_steps", "steps_per_photon", "landed_pct", "left_pct", "absorbed_pct", "stopped_pct", "straight_pct"])]
 impl MarchPhotons {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The radiance on the medium's grid (6 channels where it has 3) and its blur.
@@ -496,7 +500,7 @@ impl MarchPhotons {
         let map = (self.map_resolution as u64).pow(2) * 12;
         relume_core::MemoryEstimate {
             outputs: vec![r, Some(relume_core::PortSize::bytes(map))],
-            working: inputs[2].map_or(0, |s| s.bytes * 4),
+            working: inputs[2].map_or(0, |s| s.bytes * 4) + working_bytes((self.map_resolution as u64).pow(2)),
         }
     }
 

@@ -60,6 +60,15 @@ pub fn lamp_point(centre: Vec3, radius: f32, w: Vec3, u: (f32, f32)) -> Vec3 {
     centre + e1 * (r * phi.cos()) + e2 * (r * phi.sin())
 }
 
+/// The shadow segment from `from` to the point of the lamp (centre `centre`, radius `radius`,
+/// seen along `w`) at uniform numbers `u`: its unit direction and a length that stops short
+/// of the lamp's disk.
+pub fn lamp_segment(from: Vec3, centre: Vec3, radius: f32, w: Vec3, u: (f32, f32)) -> (Vec3, f32) {
+    let to = lamp_point(centre, radius, w, u) - from;
+    let len = to.length();
+    (to / len, (len - radius * 1.001) * (1.0 - 1e-4))
+}
+
 /// Two unit vectors completing unit `w` to an orthonormal frame.
 pub fn across(w: Vec3) -> (Vec3, Vec3) {
     let a = if w.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
