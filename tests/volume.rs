@@ -135,7 +135,11 @@ fn each_refraction_graph_keeps_to_the_path_tracer_of_its_own_light_model() {
     //   sphere 0.947–0.963 (0.958 against 4,096 spp), the whole image 0.91–0.99, the caustic
     //   0.46–0.84 (0.57 against 4,096 spp: the shells focus the lamp into a tighter spot, which
     //   the photon map at its grid blurs over the whole shadow, and at 256 spp the reference's
-    //   caustic is a few fireflies).
+    //   caustic is a few fireflies);
+    // - `refract_paint`, against its strokes as the path tracer can render them
+    //   (`glass-painted-shells.ron`: the ball stroke as 16 dielectric shells, the box stroke as a
+    //   box mesh): the lit floor within 0.7 %, the sphere 1.055–1.080 (the ball's profile in
+    //   steps against its trilinear field), the caustic 0.97–1.16, the whole image 0.956–0.995.
     let regions = [
         ("lit floor", [0.586, 1.0], [0.84, 1.0]),
         ("sphere", [0.3125, 0.703], [0.156, 0.39]),
@@ -147,10 +151,11 @@ fn each_refraction_graph_keeps_to_the_path_tracer_of_its_own_light_model() {
         ("refract_glass_medium.ron", [0.02, 0.2, 0.35, 0.15]),
         ("refract_deform.ron", [0.02, 0.15, 0.2, 0.05]),
         ("refract_grin.ron", [0.02, 0.1, 0.6, 0.15]),
+        ("refract_paint.ron", [0.02, 0.12, 0.3, 0.08]),
     ] {
         let mut sets =
             vec![("scene.width", "64"), ("scene.height", "64"), ("reference.spp", "256"), ("reference.fresnel_reflection", "false")];
-        if graph == "refract_grin.ron" {
+        if graph == "refract_grin.ron" || graph == "refract_paint.ron" {
             sets.extend([("shells.width", "64"), ("shells.height", "64")]);
         }
         let r = relume_tests::run_outputs(&relume_tests::engine(), &load_graph(graph, &sets), &["image", "reference"]);

@@ -182,6 +182,41 @@ mod tests {
     }
 
     #[test]
+    fn a_bubble_of_index_below_one_bends_light_as_the_inner_face_of_a_glass_shell() {
+        // A glass ball holding a bubble of relative index 1 / 1.5 (air inside glass) is a
+        // glass shell: the same picture as the ball with an inward-facing inner sphere of
+        // index 1.5 (its inside the glass around it), up to rounding; a small lamp behind
+        // makes the bending show, and without the bubble the picture differs.
+        use crate::scene::builder::SceneBuilder;
+        use crate::types::Material;
+        use glam::Vec3;
+        let glass = Material::Dielectric { ior: 1.5, medium: None };
+        let black = Material::Lambert { albedo: Vec3::ZERO };
+        let image = |inner: Option<(f32, bool)>| {
+            let mut b = SceneBuilder::new(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, 30.0, 8, 8).sphere(
+                "glass",
+                Vec3::ZERO,
+                1.0,
+                glass,
+                Vec3::ZERO,
+                false,
+            );
+            if let Some((ior, inward)) = inner {
+                b = b.sphere("inner", Vec3::ZERO, 0.5, Material::Dielectric { ior, medium: None }, Vec3::ZERO, inward);
+            }
+            let scene =
+                b.quad("lamp", Vec3::new(-1.0, -1.0, -5.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 2.0, 0.0), black, Vec3::ONE).build();
+            let accel = Accel::build(&scene, BuildQuality::Fast);
+            let p = PathTrace { fresnel_reflection: false, ..params(16, -1) };
+            render(&scene, &accel, &p, None).unwrap().0.as_floats().to_vec()
+        };
+        let (bubble, shell, ball) = (image(Some((1.0 / 1.5, false))), image(Some((1.5, true))), image(None));
+        let diff = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
+        assert!(diff(&bubble, &shell) < 1e-3, "bubble against shell: {}", diff(&bubble, &shell));
+        assert!(diff(&bubble, &ball) > 0.1, "the bubble changes the picture: {}", diff(&bubble, &ball));
+    }
+
+    #[test]
     fn min_depth_three_is_the_one_bounce_light_of_the_same_paths() {
         let scene = test_scene::spheres();
         let accel = Accel::build(&scene, BuildQuality::Fast);

@@ -524,7 +524,9 @@ fn read_material(v: &Ron) -> Result<(Material, [Option<&Ron>; 3]), LoadError> {
             }
         }
         _ => {
-            let ior = f64_in(f.req("ior")?, "ior", 1.0, 4.0)? as f32;
+            // The index inside over the index around: below 1 for an object of lower index
+            // nested in a denser one (a bubble in glass).
+            let ior = f64_in(f.req("ior")?, "ior", 0.25, 4.0)? as f32;
             let sa = f.opt("sigma_a").map(|x| rgb(x, "sigma_a", 1e6)).transpose()?;
             let ss = f.opt("sigma_s").map(|x| rgb(x, "sigma_s", 1e6)).transpose()?;
             let medium =
@@ -626,6 +628,22 @@ mod tests {
         let Some(Environment::Map(m)) = &s.scene.environment else { panic!("a baked sky") };
         let brightest = m.texels.iter().map(|t| t.x).fold(0.0, f32::max);
         assert!(brightest > 10.0, "the sun is baked in even when smaller than a texel: {brightest}");
+    }
+
+    #[test]
+    fn a_dielectric_nested_in_a_denser_one_has_an_index_below_one_down_to_a_quarter() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = |ior: &str| {
+            let text = format!(
+                "Scene(camera: (origin: (0, 0, 3), target: (0, 0, 0), up: (0, 1, 0), fov: 40, width: 8, height: 8), materials: {{ \"glass\": Dielectric(ior: 1.5), \"bubble\": Dielectric(ior: {ior}) }}, shapes: [Sphere(center: (0, 0, 0), radius: 1, material: \"glass\"), Sphere(center: (0, 0, 0), radius: 0.5, material: \"bubble\")])"
+            );
+            std::fs::write(dir.path().join("a.ron"), text).unwrap();
+            load_scene_file(&dir.path().join("a.ron")).map(|s| s.scene)
+        };
+        let s = scene("0.6667").unwrap();
+        assert!(s.objects.iter().any(|o| matches!(o.material, Material::Dielectric { ior, .. } if (ior - 0.6667).abs() < 1e-6)));
+        let err = scene("0.2").unwrap_err();
+        assert!(err.contains("ior"), "{err}");
     }
 }
 

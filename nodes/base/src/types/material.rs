@@ -21,7 +21,7 @@ pub enum Material {
     /// Cook-Torrance ([S] 2-12): kd/π + ks · D F G / (4 cos θi cos θo) with Beckmann D of
     /// roughness m, Schlick F with normal-incidence reflectance f0, Torrance-Sparrow G.
     CookTorrance { kd: Vec3, ks: Vec3, roughness: f32, f0: f32 },
-    /// Smooth dielectric interface of relative index `ior` (inside / outside), optionally
-    /// filled with a homogeneous medium.
+    /// Smooth dielectric interface of relative index `ior` (inside / outside; below 1 for an
+    /// object nested in a denser one), optionally filled with a homogeneous medium.
     Dielectric { ior: f32, medium: Option<Medium> },
 }
