@@ -94,6 +94,7 @@ pub fn graph_edits() -> Vec<GraphEdit> {
         ("refract_grin.ron", "source.index", |k| format!("{}", 1.5 + k as f64 * 1e-6)),
         ("refract_paint.ron", "paint.weight", |k| format!("{}", 0.4 + k as f64 * 1e-6)),
         ("refract_deform.ron", "deform.amount", |k| format!("{}", 40.0 + k as f64 * 1e-6)),
+        ("refract_spot.ron", "light.translation", |k| format!("({}, 0, 0)", k as f64 * 1e-6)),
         ("relight_sv_spot.ron", "project.kd", |k| format!("({}, 0.7, 0.7)", 0.7 + k as f64 * 1e-6)),
         ("image_error.ron", "error_denoised.epsilon", |k| format!("{}", 0.01 + k as f64 * 1e-9)),
         ("reference_cornell.ron", "reference.seed", |k| format!("{}", 1000 + k)),

@@ -58,6 +58,7 @@ fn march_params() -> MarchPhotons {
         map_resolution: 256,
         blur_sigma: 1.0,
         map_blur: 1,
+        surface_radius: 4.0,
     }
 }
 

@@ -188,7 +188,16 @@ mod tests {
         let s = glass();
         let floor = s.objects.iter().position(|o| o.name == "floor").unwrap();
         let (origin, u, v) = planar_frame(&s, floor).unwrap();
-        let map = CausticMap { object: floor as u32, origin, u, v, width: texels, height: texels, texels: Vec::new() };
+        let map = CausticMap {
+            object: floor as u32,
+            origin,
+            u,
+            v,
+            width: texels,
+            height: texels,
+            texels: Vec::new(),
+            surface: Default::default(),
+        };
         let oct = octree_of(&voxelize(&s, "glass", 32));
         (map, photon_lights(&s), Clearance::shared(&oct))
     }

@@ -135,7 +135,7 @@ impl Render<'_> {
             }
             out += f * li * (seen / n as f32);
         }
-        out + brdf::diffuse_albedo(&material) / PI * self.caustics.lookup(s.object, s.p)
+        out + brdf::diffuse_albedo(&material) / PI * self.caustics.irradiance(s.object, s.p, s.ng)
     }
 
     /// The light along the straight segment `o + t u`, t ∈ (0, tmax) (starting a hair behind
@@ -241,7 +241,7 @@ pub fn render(i: &EikonalRenderIn, p: &EikonalRender, cx: &RunCtx) -> Result<(Im
     })
 }
 
-#[node(category = "volume", version = 8, metrics = ["rays"])]
+#[node(category = "volume", version = 9, metrics = ["rays"])]
 impl EikonalRender {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The image at the paths' pixels, the octree's clearance as a byte a voxel (its 8

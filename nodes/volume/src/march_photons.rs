@@ -4,7 +4,7 @@ use super::octree_layout::{CLEARANCE, LEVEL, MAX_STEP};
 use super::optics::{
     box_interval, for_each_voxel, leaf_exit, luminance, photon_lights, planar_frame, ray_step, voxel_of, Clearance, Integrator, Ray,
 };
-use crate::types::{CausticMap, PhotonDeposits, Photons, Sampler, Volume};
+use crate::types::{CausticMap, Landing, PhotonDeposits, Photons, Sampler, SurfacePhotons, Volume};
 use glam::Vec3;
 use rayon::prelude::*;
 use relume_base::math::morton::morton3;
@@ -13,7 +13,7 @@ use relume_core::memory::fmt_bytes;
 use relume_core::{inputs, node, outputs, params, NodeError, RunCtx, ShardSpec};
 use std::ops::Range;
 use std::sync::atomic::{AtomicI64, Ordering};
-use std::sync::OnceLock;
+use std::sync::{Mutex, OnceLock};
 
 params! {
     /// Photons through a refractive, absorbing and scattering medium ([S] 6.3.4, 6-1 … 6-6):
@@ -60,7 +60,8 @@ params! {
         pub stop_fraction: f32 = 0.001, range = 0.0..=1.0;
         /// the most steps a photon takes
         pub max_steps: u32 = 20000, range = 1..=10000000;
-        /// the planar object caustics land on ("": none)
+        /// the planar object whose caustics go into a texel map ("": none; the photons landing
+        /// on every other surface are kept as points)
         pub receiver: String = "floor";
         /// caustic-map texels along the receiver's longer side
         pub map_resolution: u32 = 256, range = 1..=8192, unit = "texels";
@@ -69,6 +70,8 @@ params! {
         /// radius of the Gaussian on the caustic map (σ = radius; 0: none), not crossing the
         /// shadow's edge
         pub map_blur: u32 = 1, range = 0..=8, unit = "texels";
+        /// radius of the density estimate of the photons landed off the receiver
+        pub surface_radius: f32 = 4.0, range = 0.05..=64.0, unit = "voxels";
     }
 }
 
@@ -102,8 +105,20 @@ enum Fate {
     Blocked,
 }
 
+/// What a photon's straight segment meets: nothing, a surface from behind (or the receiver
+/// off its map), a texel of the receiver's map, or another surface (point, normal, object).
+#[derive(Clone, Copy)]
+enum Spot {
+    Away,
+    Back,
+    Texel(usize),
+    Surface(Vec3, Vec3, u32),
+}
+
 #[derive(Clone, Copy)]
 struct Photon {
+    /// Its number among the node's photons.
+    id: u32,
     ray: Ray,
     power: Vec3,
     floor: f32,
@@ -177,12 +192,13 @@ impl<'a> Setup<'a> {
                 let (lu, lv) = (u.length(), v.length());
                 let (w, h) = if lu >= lv { (r, (r * lv / lu).ceil()) } else { ((r * lu / lv).ceil(), r) };
                 let (w, h) = (w.max(1.0) as u32, h.max(1.0) as u32);
-                CausticMap { object: o as u32, origin, u, v, width: w, height: h, texels: Vec::new() }
+                CausticMap { object: o as u32, origin, u, v, width: w, height: h, texels: Vec::new(), surface: SurfacePhotons::default() }
             }
         };
         let chunk = CHUNK.min(i.photons.len() as u64);
         let need = (n_slots as u64 * 6 + map.width as u64 * map.height as u64 * 3) * 8 * 2
             + working_bytes(map.width as u64 * map.height as u64)
+            + crate::types::surface_photons::bytes_for(i.photons.len() as u64)
             + chunk * std::mem::size_of::<Photon>() as u64
             + if n_slots > 0 { Volume::bytes_for(m.dims, 6) * 2 } else { 0 }
             + m.voxels() as u64 * 5;
@@ -234,19 +250,21 @@ impl<'a> Setup<'a> {
         }
     }
 
-    /// Where the ray `o + t u`, t > 0, first meets the scene: on the receiver's front (its
-    /// texel), elsewhere, or nowhere. Starts a hair behind `o` (the box face may lie in the
-    /// receiver's plane).
-    fn land(&self, o: Vec3, u: Vec3, tmax: f32) -> (Option<f32>, Option<usize>) {
+    /// Where the ray `o + t u`, t > 0, first meets the scene (the distance, or none), and
+    /// what it meets there. Starts a hair behind `o` (the box face may lie in the receiver's
+    /// plane).
+    fn land(&self, o: Vec3, u: Vec3, tmax: f32) -> (Option<f32>, Spot) {
         let o = o - u * self.eps;
-        let Some(hit) = self.accel.intersect(o, u, 0.0, tmax + self.eps) else { return (None, None) };
+        let Some(hit) = self.accel.intersect(o, u, 0.0, tmax + self.eps) else { return (None, Spot::Away) };
         let t = (hit.t - self.eps).max(0.0);
-        if self.scene.tri_object[hit.tri as usize] != self.map.object || self.texels() == 0 {
-            return (Some(t), None);
+        let (object, ng, at) = (self.scene.tri_object[hit.tri as usize], hit.ng, o + u * hit.t);
+        if ng.dot(u) >= 0.0 {
+            return (Some(t), Spot::Back);
         }
-        let ng = hit.ng;
-        let texel = if ng.dot(u) < 0.0 { self.map.texel(o + u * hit.t) } else { None };
-        (Some(t), texel)
+        if object == self.map.object && self.texels() > 0 {
+            return (Some(t), self.map.texel(at).map_or(Spot::Back, Spot::Texel));
+        }
+        (Some(t), Spot::Surface(at, ng, object))
     }
 
     fn add_map(&self, acc: &[AtomicI64], texel: usize, power: Vec3) {
@@ -258,8 +276,9 @@ impl<'a> Setup<'a> {
         }
     }
 
-    /// One step of photon `ph` (see the node's doc); deposits into `vol` and `map`.
-    fn advance(&self, ph: &mut Photon, vol: &[AtomicI64], map: &[AtomicI64]) -> Fate {
+    /// One step of photon `ph` (see the node's doc); deposits into `vol`, `map` and `landed`
+    /// (with the photon's number).
+    fn advance(&self, ph: &mut Photon, vol: &[AtomicI64], map: &[AtomicI64], landed: &Mutex<Vec<(u32, Landing)>>) -> Fate {
         let (m, oct) = (self.m, self.oct);
         let h = m.voxel();
         let hmin = h.min_element();
@@ -312,13 +331,13 @@ impl<'a> Setup<'a> {
         });
         let mut end = None;
         if leaving || near {
-            let (t, texel) = self.land(x, u, if leaving { f32::INFINITY } else { reach });
+            let (t, spot) = self.land(x, u, if leaving { f32::INFINITY } else { reach });
             match t {
                 Some(t) if t < reach => {
                     ds = t;
-                    end = Some(texel);
+                    end = Some(spot);
                 }
-                _ if leaving => end = Some(texel),
+                _ if leaving => end = Some(spot),
                 _ => {}
             }
         }
@@ -345,14 +364,19 @@ impl<'a> Setup<'a> {
             });
             ph.power = power;
         }
-        if let Some(texel) = end {
-            if let (true, Some(texel)) = (ph.bent, texel) {
-                self.add_map(map, texel, ph.power);
+        if let Some(spot) = end {
+            match spot {
+                Spot::Texel(texel) if ph.bent => self.add_map(map, texel, ph.power),
+                Spot::Surface(position, normal, object) if ph.bent => {
+                    let l = Landing { position, normal, power: ph.power, object };
+                    landed.lock().expect("no panics while held").push((ph.id, l));
+                }
+                _ => {}
             }
-            return match (texel, leaving) {
-                (Some(_), _) => Fate::Landed,
-                (None, true) => Fate::Left,
-                (None, false) => Fate::Blocked,
+            return match (spot, leaving) {
+                (Spot::Texel(_) | Spot::Surface(..), _) => Fate::Landed,
+                (_, true) => Fate::Left,
+                (_, false) => Fate::Blocked,
             };
         }
         if ph.power.max_element() < ph.floor {
@@ -378,6 +402,7 @@ impl<'a> Setup<'a> {
     fn march(&self, items: Range<u64>, cx: &RunCtx) -> Result<PhotonDeposits, NodeError> {
         let vol: Vec<AtomicI64> = (0..self.n_slots * 6).map(|_| AtomicI64::new(0)).collect();
         let map: Vec<AtomicI64> = (0..self.texels() * 3).map(|_| AtomicI64::new(0)).collect();
+        let landed = Mutex::new(Vec::new());
         let keep_straight = self.has_kappa || self.n_slots > 0;
         let start: Vec<Option<Photon>> = items
             .clone()
@@ -393,6 +418,7 @@ impl<'a> Setup<'a> {
                     .map_or(f32::INFINITY, |(t0, t1)| t0 + self.clearance().straight_run(x + d * t0, d, t1 - t0));
                 let bent = run.is_finite();
                 (bent || keep_straight).then(|| Photon {
+                    id: k as u32,
                     ray: Ray::new(&self.oct_s, x, d),
                     power,
                     floor: power.max_element() * self.p.cutoff,
@@ -424,7 +450,7 @@ impl<'a> Setup<'a> {
                     let mut n = 0u64;
                     for _ in 0..batch {
                         for ph in c.iter_mut().filter(|p| p.fate == Fate::Alive) {
-                            ph.fate = self.advance(ph, &vol, &map);
+                            ph.fate = self.advance(ph, &vol, &map, &landed);
                             n += 1;
                         }
                     }
@@ -447,7 +473,18 @@ impl<'a> Setup<'a> {
         // Photons still marching when the 1/1000 rule (or the step limit) stops the chunk.
         counters[STOPPED] = alive.len() as u64;
         let take = |v: Vec<AtomicI64>| v.into_iter().map(AtomicI64::into_inner).collect();
-        Ok(PhotonDeposits { volume: take(vol), map: take(map), counters })
+        // In the photons' order, whatever the threads' (each photon lands once at most).
+        let mut landed = landed.into_inner().expect("no panics while held");
+        landed.sort_unstable_by_key(|(id, _)| *id);
+        Ok(PhotonDeposits {
+            volume: take(vol),
+            map: take(map),
+            counters,
+            landed_position: landed.iter().map(|(_, l)| l.position).collect(),
+            landed_normal: landed.iter().map(|(_, l)| l.normal).collect(),
+            landed_power: landed.iter().map(|(_, l)| l.power).collect(),
+            landed_object: landed.iter().map(|(_, l)| l.object).collect(),
+        })
     }
 
     /// The outputs from the chunks' sums.
@@ -488,18 +525,24 @@ impl<'a> Setup<'a> {
             let lights = photon_lights(self.scene);
             caustics.texels = blur_caustics(&raw, &caustics, &lights, self.clearance(), self.p.map_blur as usize, cx)?;
         }
+        let landed: Vec<Landing> = parts.iter().flat_map(|p| p.landings()).collect();
+        caustics.surface = SurfacePhotons::new(&landed, self.p.surface_radius * m.voxel().min_element());
         Ok((radiance, caustics, counters))
     }
 }
 
-#[node(category = "volume", version = 6, sharded, metrics = ["photons", "photon_steps", "steps_per_photon", "landed_pct", "left_pct", "absorbed_pct", "stopped_pct", "straight_pct"])]
+#[node(category = "volume", version = 7, sharded, metrics = ["photons", "photon_steps", "steps_per_photon", "landed_pct", "left_pct", "absorbed_pct", "stopped_pct", "straight_pct"])]
 impl MarchPhotons {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The radiance on the medium's grid (6 channels where it has 3) and its blur.
         let r = inputs[2].map(|s| relume_core::PortSize::bytes(s.bytes * 2));
         let map = (self.map_resolution as u64).pow(2) * 12;
         relume_core::MemoryEstimate {
-            outputs: vec![r, Some(relume_core::PortSize::bytes(map))],
+            // The landed photons: at most one a photon.
+            outputs: vec![
+                r,
+                Some(relume_core::PortSize::bytes(map + inputs[4].map_or(0, |s| crate::types::surface_photons::bytes_for(s.bytes / 36)))),
+            ],
             working: inputs[2].map_or(0, |s| s.bytes * 4) + working_bytes((self.map_resolution as u64).pow(2)),
         }
     }
@@ -614,6 +657,36 @@ mod tests {
     }
 
     #[test]
+    fn photons_off_the_receiver_bring_the_floor_the_light_its_map_would() {
+        // The glass scene at 48³ with no receiver named: the photons that land on the floor
+        // are kept as points. The power they hold is the map's, and the irradiance they give
+        // over the floor under the sphere sums to the map's within the two estimates' blur.
+        use crate::test_support::*;
+        let (s, m, oct, a, ph) = glass_stages(48, 128);
+        let (_, with_map) = march(&s, &a, &m, &oct, &ph, &march_params(96));
+        let (_, points) = march(&s, &a, &m, &oct, &ph, &MarchPhotons { receiver: "".into(), ..march_params(96) });
+        assert!(with_map.surface.is_empty(), "every landed photon on the receiver's map");
+        assert_eq!(points.object, u32::MAX);
+        let floor = s.objects.iter().position(|o| o.name == "floor").unwrap() as u32;
+        assert!(points.surface.len() > 1000 && points.surface.object.iter().all(|&o| o == floor), "{}", points.surface.len());
+        let map_power: f64 = with_map.texels.iter().map(|t| t.x as f64).sum::<f64>() * with_map.texel_area() as f64;
+        let point_power = points.surface.total_power().x as f64;
+        assert!((point_power / map_power - 1.0).abs() < 0.02, "{point_power} W as points, {map_power} W on the map");
+        // Riemann sums over a 0.02 grid of the floor's square under the sphere (y = 0).
+        let (mut a_sum, mut b_sum) = (0.0f64, 0.0f64);
+        for i in 0..100 {
+            for j in 0..100 {
+                let p = Vec3::new(-1.0 + 0.02 * (i as f32 + 0.5), 0.0, -1.0 + 0.02 * (j as f32 + 0.5));
+                a_sum += with_map.irradiance(floor, p, Vec3::Y).x as f64 * 4e-4;
+                b_sum += points.irradiance(floor, p, Vec3::Y).x as f64 * 4e-4;
+            }
+        }
+        assert!(a_sum > 0.3 * map_power, "the square holds most of the caustic: {a_sum} of {map_power}");
+        assert!((b_sum / a_sum - 1.0).abs() < 0.02, "points {b_sum}, map {a_sum}");
+        assert_eq!(points.irradiance(floor, Vec3::new(0.0, 0.0, 0.0), -Vec3::Y), Vec3::ZERO, "the floor's underside");
+    }
+
+    #[test]
     fn a_luneburg_lens_focuses_a_parallel_beam_on_its_far_side() {
         // n = √(2 − r²/R²): a parallel beam along −y meets at the sphere's bottom point
         // (0, −R, 0) (Luneburg 1944); the floor touches it there.
@@ -675,6 +748,11 @@ mod tests {
         assert_eq!(one.0.data, many.0.data);
         assert_eq!(one.1.texels, many.1.texels);
         assert!(one.1.texels.iter().any(|t| t.x > 0.0), "a caustic");
+        let run = || march(&s, &a, &m, &oct, &ph, &MarchPhotons { receiver: "".into(), ..march_params(48) }).1.surface;
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(run);
+        let many = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap().install(run);
+        assert!(!one.is_empty());
+        assert_eq!(one, many, "the landed photons, in any thread count");
     }
 
     #[test]

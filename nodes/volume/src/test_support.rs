@@ -70,6 +70,7 @@ pub fn march_params(map: u32) -> MarchPhotons {
         map_resolution: map,
         blur_sigma: 1.0,
         map_blur: 1,
+        surface_radius: 4.0,
     }
 }
 

@@ -1,7 +1,8 @@
 //! Pipeline 3's photon types ([S] 6.3.3–6.3.4): `Photons`, the beams a light shoots at a
 //! medium's box (entry point, direction, RGB power), and `CausticMap`, the irradiance
-//! photons bring to a planar receiver.
+//! photons bring to a planar receiver and the photons landed on every other surface.
 
+use super::surface_photons::{Landing, SurfacePhotons};
 use glam::{Vec2, Vec3};
 use relume_core::codec::pod_vec;
 use relume_core::PortValue;
@@ -52,7 +53,8 @@ impl PortValue for Photons {
 
 /// Irradiance (W/unit², RGB) on a rectangle of a planar receiver: texel (i, j) covers
 /// `origin + u · [i, i+1]/width + v · [j, j+1]/height`; lookups are bilinear between texel
-/// centres. `object` is the receiver's scene object (`u32::MAX`: none, an empty map).
+/// centres. `object` is the receiver's scene object (`u32::MAX`: none, an empty map). The
+/// photons that landed on any other surface are in `surface`, read by density estimation.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CausticMap {
     pub object: u32,
@@ -63,12 +65,32 @@ pub struct CausticMap {
     pub height: u32,
     #[serde(with = "pod_vec")]
     pub texels: Vec<Vec3>,
+    pub surface: SurfacePhotons,
 }
 
 impl CausticMap {
-    /// A map of no receiver (one black texel).
+    /// A map of no receiver (one black texel) and no photons.
     pub fn none() -> CausticMap {
-        CausticMap { object: u32::MAX, origin: Vec3::ZERO, u: Vec3::X, v: Vec3::Z, width: 1, height: 1, texels: vec![Vec3::ZERO] }
+        CausticMap {
+            object: u32::MAX,
+            origin: Vec3::ZERO,
+            u: Vec3::X,
+            v: Vec3::Z,
+            width: 1,
+            height: 1,
+            texels: vec![Vec3::ZERO],
+            surface: SurfacePhotons::default(),
+        }
+    }
+
+    /// The irradiance photons bring to point `p` of scene object `object`, whose geometric
+    /// normal on the lit side is `n`: the map's on the receiver, the landed photons' elsewhere.
+    pub fn irradiance(&self, object: u32, p: Vec3, n: Vec3) -> Vec3 {
+        if object == self.object {
+            self.lookup(object, p)
+        } else {
+            self.surface.irradiance(object, p, n)
+        }
     }
 
     /// The (s, t) ∈ [0, 1]² coordinates of `p` on the rectangle (unclamped).
@@ -119,15 +141,17 @@ impl CausticMap {
             && (self.width as u64 * self.height as u64) == self.texels.len() as u64
             && [self.origin, self.u, self.v].iter().all(|v| v.is_finite())
             && self.u.cross(self.v).length() > 0.0
+            && self.surface.is_consistent()
     }
 }
 
 impl PortValue for CausticMap {
     const NAME: &'static str = "CausticMap";
     const COLOR: [u8; 3] = [240, 170, 60];
-    const DOC: &'static str = "irradiance photons bring to a planar receiver, over a rectangle of it";
+    const DOC: &'static str =
+        "irradiance photons bring to a planar receiver, over a rectangle of it, and the photons landed on other surfaces";
     fn byte_size(&self) -> usize {
-        self.texels.len() * 12 + 96
+        self.texels.len() * 12 + 96 + super::surface_photons::bytes_for(self.surface.len() as u64) as usize
     }
     relume_core::serde_codec!(check CausticMap::is_consistent);
 }
@@ -135,12 +159,35 @@ impl PortValue for CausticMap {
 /// A chunk of photon marching's result (`MarchPhotons`' partial): fixed-point sums, so that
 /// chunks and threads add up to the same bytes in any order — per scattering voxel (slot) the
 /// length-weighted power (RGB) and the luminance-weighted direction (xyz), per caustic-map
-/// texel the power landed (RGB), and counters.
+/// texel the power landed (RGB), and counters — and the photons landed on other surfaces, in
+/// the order of the photons.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct PhotonDeposits {
     pub volume: Vec<i64>,
     pub map: Vec<i64>,
     pub counters: Vec<u64>,
+    #[serde(with = "pod_vec")]
+    pub landed_position: Vec<Vec3>,
+    #[serde(with = "pod_vec")]
+    pub landed_normal: Vec<Vec3>,
+    #[serde(with = "pod_vec")]
+    pub landed_power: Vec<Vec3>,
+    #[serde(with = "pod_vec")]
+    pub landed_object: Vec<u32>,
+}
+
+impl PhotonDeposits {
+    /// The landed photons, in order.
+    pub fn landings(&self) -> impl Iterator<Item = Landing> + '_ {
+        (0..self.landed_position.len().min(self.landed_normal.len()).min(self.landed_power.len()).min(self.landed_object.len())).map(|k| {
+            Landing {
+                position: self.landed_position[k],
+                normal: self.landed_normal[k],
+                power: self.landed_power[k],
+                object: self.landed_object[k],
+            }
+        })
+    }
 }
 
 impl PortValue for PhotonDeposits {
@@ -148,7 +195,7 @@ impl PortValue for PhotonDeposits {
     const COLOR: [u8; 3] = [230, 190, 110];
     const DOC: &'static str = "fixed-point sums of a chunk of marched photons (a sharded partial result)";
     fn byte_size(&self) -> usize {
-        (self.volume.len() + self.map.len() + self.counters.len()) * 8 + 48
+        (self.volume.len() + self.map.len() + self.counters.len()) * 8 + self.landed_position.len() * 40 + 48
     }
     relume_core::serde_codec!();
 }
@@ -167,6 +214,7 @@ mod tests {
             width: 4,
             height: 3,
             texels,
+            surface: SurfacePhotons::default(),
         }
     }
 
