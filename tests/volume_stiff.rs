@@ -63,6 +63,19 @@ fn photons(scene: &Scene, accel: &Accel, m: &Volume, resolution: u32) -> Photons
 /// scene's BVH less object `without` (the BVH is not `Clone`: built again for the node): the
 /// radiance, the caustic map and the node's metrics.
 fn march(scene: &Scene, without: &str, m: &Volume, oct: &Volume, ph: &Photons, map: i64) -> (Volume, CausticMap, Vec<(String, f64)>) {
+    march_onto(scene, without, m, oct, ph, map, "floor")
+}
+
+/// `march` with the caustic map on `receiver` ("": none, every landed photon kept as a point).
+fn march_onto(
+    scene: &Scene,
+    without: &str,
+    m: &Volume,
+    oct: &Volume,
+    ph: &Photons,
+    map: i64,
+    receiver: &str,
+) -> (Volume, CausticMap, Vec<(String, f64)>) {
     let inputs = [
         Value::new(scene.clone()),
         Value::new(accel_without(scene, without)),
@@ -70,7 +83,7 @@ fn march(scene: &Scene, without: &str, m: &Volume, oct: &Volume, ph: &Photons, m
         Value::new(oct.clone()),
         Value::new(ph.clone()),
     ];
-    let e = run_standalone::<MarchPhotons>(&[("receiver", t("floor")), ("map_resolution", i(map))], Path::new("."), &inputs).unwrap();
+    let e = run_standalone::<MarchPhotons>(&[("receiver", t(receiver)), ("map_resolution", i(map))], Path::new("."), &inputs).unwrap();
     let radiance = e.outputs[0].get::<Volume>().unwrap().clone();
     let caustics = e.outputs[1].get::<CausticMap>().unwrap().clone();
     (radiance, caustics, e.metrics)
@@ -438,8 +451,9 @@ fn glass_scene(s: f32) -> Scene {
 }
 
 /// The glass scene at scale `s` through voxelisation (32), the octree, photons (512²),
-/// marching and the render (24²): the image and MarchPhotons' metrics.
-fn glass_at_scale(s: f32) -> (Image, Vec<(String, f64)>) {
+/// marching onto `receiver`'s map (or, "", as landed points) and the render (24²): the image
+/// and MarchPhotons' metrics.
+fn glass_at_scale(s: f32, receiver: &str) -> (Image, Vec<(String, f64)>) {
     let scene = glass_scene(s);
     let out =
         run_standalone::<Voxelize>(&[("object", t("glass")), ("resolution", i(32))], Path::new("."), &[Value::new(scene.clone())]).unwrap();
@@ -447,7 +461,7 @@ fn glass_at_scale(s: f32) -> (Image, Vec<(String, f64)>) {
     let oct = octree_of(&m);
     let a = accel_without(&scene, "glass");
     let ph = photons(&scene, &a, &m, 512);
-    let (r, map, metrics) = march(&scene, "glass", &m, &oct, &ph, 64);
+    let (r, map, metrics) = march_onto(&scene, "glass", &m, &oct, &ph, 64, receiver);
     let img = render(&scene, &a, &m, &oct, &r, &map, 24);
     (img, metrics)
 }
@@ -459,7 +473,15 @@ fn the_glass_scene_a_thousandth_and_a_thousand_units_across_gives_the_same_pictu
     // 30.9 % of the photons against 71.5 %; `Accel` now scales coordinates by a power of
     // two); and shadow rays left surfaces by an offset growing as s² (`Surface::spawn`'s
     // offset × a scene-relative ε), lifting them about 3 voxels at s = 10³.
-    let (reference, ref_metrics) = glass_at_scale(1.0);
+    for receiver in ["floor", ""] {
+        same_glass_at_scales(receiver);
+    }
+}
+
+/// The glass scene at 10⁻³ and 10³ against 1, its caustic on `receiver`'s map or ("") as
+/// landed points.
+fn same_glass_at_scales(receiver: &str) {
+    let (reference, ref_metrics) = glass_at_scale(1.0, receiver);
     assert_eq!(reference.nonfinite_pixels(), 0);
     let lum = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
     let top = reference.pixels.iter().map(lum).fold(0.0f32, f32::max);
@@ -468,7 +490,7 @@ fn the_glass_scene_a_thousandth_and_a_thousand_units_across_gives_the_same_pictu
     assert!(landed > 10.0, "{ref_metrics:?}");
     let mut failures = Vec::new();
     for s in [1e-3f32, 1e3] {
-        let (img, metrics) = glass_at_scale(s);
+        let (img, metrics) = glass_at_scale(s, receiver);
         assert_eq!(img.nonfinite_pixels(), 0, "scale {s}");
         // Per pixel, on the pixels above 1 % of the brightest: the largest relative difference
         // of any channel.
@@ -498,7 +520,7 @@ fn the_glass_scene_a_thousandth_and_a_thousand_units_across_gives_the_same_pictu
         let sum = |im: &Image| im.pixels.iter().map(lum).sum::<f32>();
         let (total, ref_total) = (sum(&img), sum(&reference));
         let line = format!(
-            "scale {s}: sum {total} vs {ref_total}; {compared} pixels compared, max relative difference {worst:.4} at pixel {at} ({:?} vs {:?}), {} pixels off by > 3 %, {} by > 30 %; landed {other:.3} % vs {landed:.3} %; dark pixels gone bright {dark_gone_bright}; metrics {metrics:?}",
+            "receiver \"{receiver}\", scale {s}: sum {total} vs {ref_total}; {compared} pixels compared, max relative difference {worst:.4} at pixel {at} ({:?} vs {:?}), {} pixels off by > 3 %, {} by > 30 %; landed {other:.3} % vs {landed:.3} %; dark pixels gone bright {dark_gone_bright}; metrics {metrics:?}",
             reference.pixels[at],
             img.pixels[at],
             over(0.03),
