@@ -396,12 +396,22 @@ impl CubeMap {
                 (axis, if all { f32::NEG_INFINITY } else { (reach + h).cos() })
             })
             .collect();
-        let texels = (0..out.texels.len())
+        // Eight outputs at a time (neighbours along a row, near the same tiles): each keeps its
+        // own sum in the same texel order as alone, so the bytes are those of one output at a
+        // time; a lane adds nothing from a tile only its neighbours are near, where no texel
+        // is within its reach (the tiles' cones are wider than their texels by a texel's
+        // half-diagonal). Eight independent sums keep the adder busy where one waited on
+        // each addition before the next.
+        const LANES: usize = 8;
+        let all = reach >= std::f32::consts::PI;
+        let groups: Vec<[Vec3; LANES]> = (0..out.texels.len().div_ceil(LANES))
             .into_par_iter()
-            .map(|k| {
-                let d = out.direction(k);
-                let (mut sum, mut w) = (Vec3::ZERO, 0.0f64);
-                let near: Vec<bool> = cones.iter().map(|(a, least)| d.dot(*a) >= *least).collect();
+            .map(|g| {
+                let first = g * LANES;
+                let lanes = LANES.min(out.texels.len() - first);
+                let d: [Vec3; LANES] = std::array::from_fn(|l| out.direction(first + l.min(lanes - 1)));
+                let near: Vec<bool> = cones.iter().map(|(a, least)| d[..lanes].iter().any(|d| d.dot(*a) >= *least)).collect();
+                let (mut sum, mut w) = ([Vec3::ZERO; LANES], [0.0f64; LANES]);
                 for face in 0..6 {
                     for j in 0..self.n {
                         for ti in 0..tiles {
@@ -410,23 +420,23 @@ impl CubeMap {
                             }
                             for i in ti * b..((ti + 1) * b).min(self.n) {
                                 let t = (face * self.n + j) * self.n + i;
-                                let c = d.dot(dirs[t]);
-                                if c >= cos_reach || reach >= std::f32::consts::PI {
-                                    let g = kernel.at(c) * omega[t];
-                                    sum += self.texels[t] * g;
-                                    w += g as f64;
+                                let (dir, texel, om) = (dirs[t], self.texels[t], omega[t]);
+                                for l in 0..LANES {
+                                    let c = d[l].dot(dir);
+                                    if c >= cos_reach || all {
+                                        let g = kernel.at(c) * om;
+                                        sum[l] += texel * g;
+                                        w[l] += g as f64;
+                                    }
                                 }
                             }
                         }
                     }
                 }
-                if w > 0.0 {
-                    sum / w as f32
-                } else {
-                    self.texels[self.texel_of(d)]
-                }
+                std::array::from_fn(|l| if w[l] > 0.0 { sum[l] / w[l] as f32 } else { self.texels[self.texel_of(d[l])] })
             })
             .collect();
+        let texels = groups.into_iter().flatten().take(out.texels.len()).collect();
         CubeMap { n, texels }
     }
 
@@ -674,6 +684,36 @@ mod tests {
         assert!((e / sun_energy - 1.0).abs() < 0.02, "{e} vs {sun_energy}");
         // σ = 0 is a resampling.
         assert_eq!(m.gaussian_prefilter(0.0, 64), m);
+    }
+
+    #[test]
+    fn the_prefilter_is_the_plain_sum_over_every_texel_within_reach() {
+        // Against a sum over every input texel with no tiles and one output at a time, at
+        // output sides whose texel count is not a multiple of the eight outputs done together
+        // (6 × 3² = 54, 6 × 5² = 150), and with a reach past the whole sphere (σ 50°).
+        let m = CubeMap::from_fn(8, 1, |d| Vec3::new(1.0 + d.x, d.y * d.y, (4.0 * d.z).sin() + 2.0));
+        for (sigma_deg, side) in [(7.0f32, 3usize), (20.0, 5), (50.0, 3)] {
+            let sigma = sigma_deg.to_radians();
+            let out = m.gaussian_prefilter(sigma, side);
+            let reach = (4.0 * sigma).min(std::f32::consts::PI);
+            for (k, got) in out.texels.iter().enumerate() {
+                let d = out.direction(k);
+                let (mut sum, mut w) = (glam::DVec3::ZERO, 0.0f64);
+                for t in 0..m.texels.len() {
+                    let theta = d.dot(m.direction(t)).clamp(-1.0, 1.0).acos();
+                    if theta <= reach {
+                        let g = (-(theta as f64).powi(2) / (2.0 * (sigma as f64).powi(2))).exp() * m.solid_angle(t) as f64;
+                        sum += m.texels[t].as_dvec3() * g;
+                        w += g;
+                    }
+                }
+                let want = (sum / w).as_vec3();
+                assert!(
+                    (*got - want).abs().max_element() < 2e-3 * want.max_element(),
+                    "σ {sigma_deg}°, side {side}, texel {k}: {got} against {want}"
+                );
+            }
+        }
     }
 
     #[test]
