@@ -27,8 +27,12 @@ pub fn blur(v: &Volume, kernel: &[f32], cx: &RunCtx) -> Result<Volume, NodeError
     if kernel.len() / 2 == 0 {
         return Ok(v.clone());
     }
-    let d = v.dims.map(|x| x as usize);
     let ch = v.channels as usize;
+    let live = live_channels(v);
+    if live.len() < ch {
+        return blur_live(v, &live, kernel, cx);
+    }
+    let d = v.dims.map(|x| x as usize);
     let row = d[0] * ch;
     let slice = d[1] * row;
     let mut src = v.data.clone();
@@ -47,6 +51,50 @@ pub fn blur(v: &Volume, kernel: &[f32], cx: &RunCtx) -> Result<Volume, NodeError
         std::mem::swap(&mut src, &mut dst);
     }
     Ok(Volume { dims: v.dims, channels: v.channels, min: v.min, max: v.max, data: src, derived: Default::default() })
+}
+
+/// The channels of `v` holding a value other than zero somewhere, ascending.
+fn live_channels(v: &Volume) -> Vec<usize> {
+    let ch = v.channels as usize;
+    let mut live = vec![false; ch];
+    for voxel in v.data.chunks_exact(ch) {
+        for (l, &x) in live.iter_mut().zip(voxel) {
+            *l |= x != 0.0;
+        }
+        if live.iter().all(|&l| l) {
+            break;
+        }
+    }
+    (0..ch).filter(|&c| live[c]).collect()
+}
+
+/// `blur` where only the channels `live` hold anything but zeros: each output of a zero
+/// channel is a sum of w × 0 (+0 whatever the sign of the zeros), so only the live channels
+/// are blurred, gathered into a volume of their own; every voxel's sum is the one the whole
+/// volume's blur makes, in the same tap order (the same bytes, in a third of the time for an
+/// index-only medium).
+fn blur_live(v: &Volume, live: &[usize], kernel: &[f32], cx: &RunCtx) -> Result<Volume, NodeError> {
+    let ch = v.channels as usize;
+    let mut data = vec![0.0f32; v.data.len()];
+    if !live.is_empty() {
+        let k = live.len();
+        let mut part = Volume {
+            dims: v.dims,
+            channels: k as u32,
+            min: v.min,
+            max: v.max,
+            data: Vec::with_capacity(v.voxels() * k),
+            derived: Default::default(),
+        };
+        part.data.extend(v.data.chunks_exact(ch).flat_map(|voxel| live.iter().map(|&c| voxel[c])));
+        let part = blur(&part, kernel, cx)?;
+        for (out, voxel) in data.chunks_exact_mut(ch).zip(part.data.chunks_exact(k)) {
+            for (&c, &x) in live.iter().zip(voxel) {
+                out[c] = x;
+            }
+        }
+    }
+    Ok(Volume { dims: v.dims, channels: v.channels, min: v.min, max: v.max, data, derived: Default::default() })
 }
 
 /// One output row blurred across rows: `row_at(q)` is the source row at position q of `n`
@@ -135,5 +183,56 @@ mod tests {
         assert!((b.get(5, 4, 3, 1) - b.get(3, 4, 3, 1)).abs() < 1e-7 && (b.get(4, 5, 3, 1) - b.get(4, 3, 3, 1)).abs() < 1e-7);
         let on = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap().install(|| run(&v, &k));
         assert_eq!(on(1), on(3));
+    }
+
+    /// The blur of every channel, one sum per voxel and channel in tap order, faces
+    /// replicated: what `blur` must give to the bit.
+    fn plain(v: &Volume, k: &[f32]) -> Vec<f32> {
+        let d = v.dims.map(|x| x as i64);
+        let ch = v.channels as usize;
+        let r = (k.len() / 2) as i64;
+        let mut src = v.data.clone();
+        for axis in 0..3 {
+            let mut dst = vec![0.0f32; src.len()];
+            for z in 0..d[2] {
+                for y in 0..d[1] {
+                    for x in 0..d[0] {
+                        for c in 0..ch {
+                            let mut acc = 0.0f32;
+                            for (j, &w) in k.iter().enumerate() {
+                                let mut p = [x, y, z];
+                                p[axis] = (p[axis] + j as i64 - r).clamp(0, d[axis] - 1);
+                                acc += w * src[((p[2] * d[1] + p[1]) * d[0] + p[0]) as usize * ch + c];
+                            }
+                            dst[((z * d[1] + y) * d[0] + x) as usize * ch + c] = acc;
+                        }
+                    }
+                }
+            }
+            src = dst;
+        }
+        src
+    }
+
+    #[test]
+    fn channels_of_zeros_are_left_out_and_the_rest_come_out_to_the_bit() {
+        // Three channels as Voxelize writes them for glass without a medium (n, then κ = σ =
+        // 0, some of them −0), one with a medium, and all zeros.
+        let mut v = Volume::try_new([11, 9, 6], 3, Vec3::ZERO, Vec3::ONE, 0.0, u64::MAX).unwrap();
+        for (i, voxel) in v.data.chunks_exact_mut(3).enumerate() {
+            voxel[0] = 1.0 + 0.5 * ((i * 7919 % 13) as f32 / 13.0);
+            voxel[1] = if i % 5 == 0 { -0.0 } else { 0.0 };
+        }
+        let k = kernel(3, 1.0);
+        let want = plain(&v, &k);
+        let got = run(&v, &k);
+        assert_eq!(live_channels(&v), vec![0]);
+        assert_eq!(got.data.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), want.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+        v.data.iter_mut().skip(2).step_by(3).enumerate().for_each(|(i, x)| *x = (i % 3) as f32 * 0.25);
+        assert_eq!(live_channels(&v), vec![0, 2]);
+        let (want, got) = (plain(&v, &k), run(&v, &k));
+        assert_eq!(got.data.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), want.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+        v.data.iter_mut().for_each(|x| *x = -0.0);
+        assert!(run(&v, &k).data.iter().all(|x| x.to_bits() == 0), "zeros blur to +0");
     }
 }
