@@ -68,8 +68,21 @@ fn top_left(a: DVec3, b: DVec3) -> bool {
 /// inside, given the line's crossings (sorted in place; an odd last one is dropped), times
 /// `weight`.
 pub fn add_coverage(crossings: &mut [f64], x0: f64, h: f64, weight: f64, cover: &mut [f64]) {
+    add_coverage_where(crossings, x0, h, weight, None, cover);
+}
+
+/// As `add_coverage`, to the voxels `only` (ascending) where given, the others left as they
+/// are: each of those gets the same additions in the same order, so the same value.
+pub fn add_coverage_where(crossings: &mut [f64], x0: f64, h: f64, weight: f64, only: Option<&[usize]>, cover: &mut [f64]) {
     crossings.sort_by(f64::total_cmp);
     let n = cover.len();
+    let mut add = |i: usize, a: f64, b: f64| {
+        let lo = a.max(i as f64);
+        let hi = b.min(i as f64 + 1.0);
+        if hi > lo {
+            cover[i] += (hi - lo) * weight;
+        }
+    };
     for pair in crossings.chunks_exact(2) {
         let (a, b) = ((pair[0] - x0) / h, (pair[1] - x0) / h);
         let (a, b) = (a.clamp(0.0, n as f64), b.clamp(0.0, n as f64));
@@ -77,12 +90,9 @@ pub fn add_coverage(crossings: &mut [f64], x0: f64, h: f64, weight: f64, cover: 
             continue;
         }
         let (i0, i1) = (a.floor() as usize, (b.ceil() as usize).min(n));
-        for (i, c) in cover.iter_mut().enumerate().take(i1).skip(i0) {
-            let lo = a.max(i as f64);
-            let hi = b.min(i as f64 + 1.0);
-            if hi > lo {
-                *c += (hi - lo) * weight;
-            }
+        match only {
+            None => (i0..i1).for_each(|i| add(i, a, b)),
+            Some(only) => only[only.partition_point(|&i| i < i0)..].iter().take_while(|&&i| i < i1).for_each(|&i| add(i, a, b)),
         }
     }
 }
@@ -118,5 +128,25 @@ mod tests {
         assert_eq!(cover, [0.75, 1.0, 0.5, 0.0]);
         add_coverage(&mut [-3.0, 9.0, 3.5], 0.0, 1.0, 0.5, &mut cover);
         assert_eq!(cover, [1.25, 1.5, 1.0, 0.25], "clamped to the grid; the odd crossing dropped");
+    }
+
+    #[test]
+    fn coverage_of_some_voxels_is_theirs_to_the_bit_and_leaves_the_rest() {
+        let lines: [&[f64]; 3] = [&[0.3, 7.7], &[1.1, 2.9, 4.05, 6.2], &[9.5, -1.0]];
+        let (mut all, mut some) = (vec![0.0; 8], vec![-1.0; 8]);
+        some.iter_mut().step_by(3).for_each(|c| *c = 0.0);
+        let only = [0, 3, 6];
+        for xs in lines {
+            add_coverage(&mut xs.to_vec(), 0.1, 0.9, 1.0 / 3.0, &mut all);
+            add_coverage_where(&mut xs.to_vec(), 0.1, 0.9, 1.0 / 3.0, Some(&only), &mut some);
+        }
+        for i in 0..8 {
+            if only.contains(&i) {
+                assert_eq!(some[i].to_bits(), all[i].to_bits(), "voxel {i}");
+            } else {
+                assert_eq!(some[i], -1.0, "voxel {i} untouched");
+            }
+        }
+        assert!(all.iter().all(|&c| c > 0.0));
     }
 }

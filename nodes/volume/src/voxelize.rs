@@ -1,5 +1,5 @@
 use super::blur::{blur, kernel};
-use super::scanline::{add_coverage, Projected};
+use super::scanline::{add_coverage_where, Projected};
 use crate::types::Volume;
 use glam::{UVec3, Vec3};
 use relume_base::geometry::closed_mesh::{enclosed_volume, open_edges};
@@ -68,21 +68,22 @@ fn fractions(tris: &[[Vec3; 3]], min: Vec3, h: f32, dims: [usize; 3], ss: usize,
             }
         }
     }
-    let row = |y: usize, z: usize, offsets: &[(f64, f64)]| -> Vec<f64> {
+    // The coverage of row (y, z) by the lines at `offsets`, of the voxels `only` where given.
+    let row = |y: usize, z: usize, offsets: &[(f64, f64)], only: Option<&[usize]>| -> Vec<f64> {
         let mut cover = vec![0.0f64; dims[0]];
         let mut xs = Vec::new();
         for &(oy, oz) in offsets {
             let (py, pz) = (min.y as f64 + (y as f64 + oy) * h as f64, min.z as f64 + (z as f64 + oz) * h as f64);
             xs.clear();
             xs.extend(bins[z * ny + y].iter().filter_map(|&i| proj[i as usize].crossing(py, pz)));
-            add_coverage(&mut xs, min.x as f64, h as f64, 1.0 / offsets.len() as f64, &mut cover);
+            add_coverage_where(&mut xs, min.x as f64, h as f64, 1.0 / offsets.len() as f64, only, &mut cover);
         }
         cover
     };
     // Pass 1: one line through each row's centre.
     let centre = [(0.5, 0.5)];
     cx.phase(0.0, 0.5);
-    let rows = cx.par_map(ny * nz, |r| row(r % ny, r / ny, &centre))?;
+    let rows = cx.par_map(ny * nz, |r| row(r % ny, r / ny, &centre, None))?;
     let mut f: Vec<f32> = rows.into_iter().flatten().map(|v| v.clamp(0.0, 1.0) as f32).collect();
     // Boundary voxels: a 3³ neighbourhood that is not uniform, or a mesh vertex inside.
     let idx = |x: usize, y: usize, z: usize| (z * ny + y) * dims[0] + x;
@@ -97,14 +98,15 @@ fn fractions(tris: &[[Vec3; 3]], min: Vec3, h: f32, dims: [usize; 3], ss: usize,
     }
     let mixed = mixed_voxels(&f, dims);
     boundary.iter_mut().zip(&mixed).for_each(|(b, m)| *b |= m);
-    // Pass 2: `ss`² lines through each row holding a boundary voxel.
+    // Pass 2: `ss`² lines through each row holding a boundary voxel, summed at those voxels
+    // only (the rest keep pass 1's value).
     let offsets: Vec<(f64, f64)> =
         (0..ss * ss).map(|k| (((k % ss) as f64 + 0.5) / ss as f64, ((k / ss) as f64 + 0.5) / ss as f64)).collect();
     cx.phase(0.5, 1.0);
     let fine = cx.par_map(ny * nz, |r| {
         let (y, z) = (r % ny, r / ny);
-        let any = (0..dims[0]).any(|x| boundary[idx(x, y, z)]);
-        any.then(|| row(y, z, &offsets))
+        let only: Vec<usize> = (0..dims[0]).filter(|&x| boundary[idx(x, y, z)]).collect();
+        (!only.is_empty()).then(|| row(y, z, &offsets, Some(&only)))
     })?;
     for (r, cover) in fine.into_iter().enumerate() {
         if let Some(cover) = cover {
