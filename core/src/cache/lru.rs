@@ -12,6 +12,16 @@ use std::sync::Arc;
 /// pages for every one until the budget is full.
 pub const RESULTS_PER_NODE: usize = 8;
 
+/// Results of one graph node kept whatever their size: the newest and the one before, so that
+/// an edit undone or toggled finds both values.
+pub const RESULTS_KEPT_WHATEVER_SIZE: usize = 2;
+
+/// The share of the budget one node's results may hold beyond `RESULTS_KEPT_WHATEVER_SIZE`
+/// (one part in this many): a node that writes tens of megabytes (a voxel volume, an octree,
+/// a point tree) keeps its two latest results, so from the third edit on its memory is freed
+/// and reused instead of taking fresh pages until `RESULTS_PER_NODE` results are held.
+pub const NODE_BUDGET_SHARE: usize = 64;
+
 pub struct MemoryCache {
     budget: usize,
     used: usize,
@@ -39,8 +49,10 @@ impl MemoryCache {
         Some(found)
     }
 
-    /// As `put`, for a result of graph node `node`: its oldest result goes when it has more
-    /// than `RESULTS_PER_NODE` (the same result twice counts once, as the newest).
+    /// As `put`, for a result of graph node `node`: its oldest results go while it has more
+    /// than `RESULTS_PER_NODE`, or more than `RESULTS_KEPT_WHATEVER_SIZE` holding together
+    /// over 1/`NODE_BUDGET_SHARE` of the budget (the same result twice counts once, as the
+    /// newest).
     pub fn put_for(&mut self, node: &str, key: Hash, entry: Arc<CacheEntry>) {
         self.put(key, entry);
         let keys = self.per_node.entry(node.to_string()).or_default();
@@ -49,7 +61,10 @@ impl MemoryCache {
         // Keys the budget evicted meanwhile are dropped here too.
         let map = &self.map;
         keys.retain(|k| map.contains_key(k));
-        while keys.len() > RESULTS_PER_NODE {
+        let share = self.budget / NODE_BUDGET_SHARE;
+        let held =
+            |keys: &VecDeque<Hash>, map: &HashMap<Hash, (Arc<CacheEntry>, u64)>| keys.iter().map(|k| map[k].0.bytes()).sum::<usize>();
+        while keys.len() > RESULTS_PER_NODE || (keys.len() > RESULTS_KEPT_WHATEVER_SIZE && held(keys, &self.map) > share) {
             let old = keys.pop_front().expect("more than the bound");
             if let Some((e, t)) = self.map.remove(&old) {
                 self.used -= e.bytes();
@@ -179,5 +194,30 @@ mod tests {
         c.put_for("tiny", k(201), entry(10));
         c.put_for("tiny", k(201), entry(10));
         assert_eq!(c.len(), RESULTS_PER_NODE + 2, "the same result twice is one");
+    }
+
+    #[test]
+    fn a_node_of_large_results_keeps_its_latest_two() {
+        let budget = 64 * 1000;
+        let mut c = MemoryCache::new(budget);
+        let k = |i: u8| Hash([i; 32]);
+        // 400 bytes a result: the node's share (1,000 bytes) holds two and a half of them.
+        for i in 0..6 {
+            c.put_for("volume", k(i), entry(400));
+        }
+        let kept: Vec<u8> = (0..6).filter(|&i| c.contains(&k(i)).is_some()).collect();
+        assert_eq!(kept, vec![4, 5], "the newest two, though over the node's share together");
+        // Small results fill up to the count bound as before.
+        for i in 10..30 {
+            c.put_for("camera", k(i), entry(100));
+        }
+        assert_eq!((10..30).filter(|&i| c.contains(&k(i)).is_some()).count(), 8.min(budget / NODE_BUDGET_SHARE / 100));
+        // Two results larger than the share each are both kept.
+        c.put_for("octree", k(40), entry(3000));
+        c.put_for("octree", k(41), entry(3000));
+        assert!(c.contains(&k(40)).is_some() && c.contains(&k(41)).is_some());
+        c.put_for("octree", k(42), entry(3000));
+        assert!(c.contains(&k(40)).is_none() && c.contains(&k(42)).is_some());
+        assert_eq!(c.used_bytes(), 2 * 400 + 8 * 100 + 2 * 3000);
     }
 }
