@@ -210,7 +210,14 @@ impl Voxelize {
         let sa = if self.absorption >= 0.0 { self.absorption } else { medium.map_or(0.0, |m| grey(m.sigma_a)) };
         let ss = if self.scattering >= 0.0 { self.scattering } else { medium.map_or(0.0, |m| grey(m.sigma_s)) };
         let (min, max, dims) = fit_grid(lo, hi, self.resolution, self.padding);
-        let mut vol = Volume::try_new(dims, 3, min, max, 0.0, cx.memory_budget())?;
+        // The medium's three channels, refused over the budget before anything is computed.
+        let full = Volume::try_new(dims, 3, min, max, 0.0, cx.memory_budget())?;
+        // Without absorption or scattering κ and σ are +0 everywhere, before the blur and
+        // after it: the index is computed and blurred as a volume of its own and put in place
+        // (the same bytes as blurring all three, in a third of the work).
+        let index_only = sa.to_bits() == 0 && ss.to_bits() == 0;
+        let (mut vol, out) =
+            if index_only { (Volume::try_new(dims, 1, min, max, 0.0, cx.memory_budget())?, Some(full)) } else { (full, None) };
         let h = vol.voxel().x;
         let mut f = fractions(&tris, min, h, dims.map(|d| d as usize), self.supersample as usize, cx)?;
         // A mesh every line missed (smaller than the lines' spacing) still has its volume: all
@@ -218,15 +225,26 @@ impl Voxelize {
         let exact = enclosed_volume(&tris);
         if f.iter().all(|v| *v == 0.0) && exact > 0.0 {
             let g = (((lo + hi) / 2.0 - min) / h).floor().as_uvec3().min(UVec3::from(dims) - 1);
-            let k = vol.index(g.x as usize, g.y as usize, g.z as usize) / 3;
+            let k = vol.index(g.x as usize, g.y as usize, g.z as usize) / vol.channels as usize;
             f[k] = (exact / (h as f64).powi(3)).min(1.0) as f32;
             cx.note(format!("object \"{}\" is smaller than the lines through its voxel: its volume goes to one voxel", o.name));
         }
-        for (v, f) in vol.data.chunks_exact_mut(3).zip(&f) {
-            v.copy_from_slice(&[1.0 + (index - 1.0) * f, (sa + ss) * f, ss * f]);
+        if index_only {
+            vol.data.iter_mut().zip(&f).for_each(|(v, f)| *v = 1.0 + (index - 1.0) * f);
+        } else {
+            for (v, f) in vol.data.chunks_exact_mut(3).zip(&f) {
+                v.copy_from_slice(&[1.0 + (index - 1.0) * f, (sa + ss) * f, ss * f]);
+            }
         }
         let inside: f64 = f.iter().map(|v| *v as f64).sum::<f64>() * (h as f64).powi(3);
         let vol = blur(&vol, &kernel(self.blur_radius as usize, self.blur_sigma), cx)?;
+        let vol = match out {
+            Some(mut out) => {
+                out.data.chunks_exact_mut(3).zip(&vol.data).for_each(|(o, &n)| o[0] = n);
+                out
+            }
+            None => vol,
+        };
         cx.metric("voxels", vol.voxels() as f64);
         cx.metric("inside_volume", inside);
         cx.metric("volume_error_pct", if exact > 0.0 { 100.0 * (inside - exact) / exact } else { 0.0 });
