@@ -192,7 +192,7 @@ fn mark_clearance(o: &mut Volume) {
     o.data.par_chunks_mut(ch).zip(dist.par_iter()).for_each(|(c, &x)| c[CLEARANCE] = x.saturating_sub(1).min(CLEARANCE_CAP) as f32);
 }
 
-#[node(category = "volume", version = 6, metrics = ["unbounded_pct", "stepped_pct", "minimum_step_pct"], outputs = [octree])]
+#[node(category = "volume", version = 6, caching = Keyed, metrics = ["unbounded_pct", "stepped_pct", "minimum_step_pct"], outputs = [octree])]
 impl Octree {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // Eight channels per voxel where the medium has three (its usual layout), and two pyramids (8 bytes a

@@ -47,32 +47,36 @@ impl MinMaxPyramid {
                 (lo[x], hi[x]) = (o.min(a).min(b), o.max(a).max(b));
             }
         });
-        // Each row (along y) or plane (along z) of `out` from its own and its clipped
-        // neighbours' in `lo`, `hi`.
-        let across = |(lo, hi): (&[f32], &[f32]), out: (&mut [f32], &mut [f32]), along_y: bool| {
-            let (unit, n) = if along_y { (row, d[1]) } else { (plane, d[2]) };
-            out.0.par_chunks_mut(unit).zip(out.1.par_chunks_mut(unit)).enumerate().for_each(|(i, (l, h))| {
-                let (p, first) = if along_y { (i % d[1], i / d[1] * plane) } else { (i, 0) };
-                let at = |q: usize| first + q * unit..first + (q + 1) * unit;
-                let [own, before, after] = [at(p), at(p.saturating_sub(1)), at((p + 1).min(n - 1))];
-                for (((l, &o), &b), &a) in l.iter_mut().zip(&lo[own.clone()]).zip(&lo[before.clone()]).zip(&lo[after.clone()]) {
-                    *l = o.min(b).min(a);
-                }
-                for (((h, &o), &b), &a) in h.iter_mut().zip(&hi[own]).zip(&hi[before]).zip(&hi[after]) {
-                    *h = o.max(b).max(a);
-                }
-            });
-        };
+        // Along y, each row from its own and its clipped neighbours' in `lo`, `hi`.
         let (mut l2, mut h2) = (vec![0f32; lo.len()], vec![0f32; lo.len()]);
-        across((&lo, &hi), (&mut l2, &mut h2), true);
-        across((&l2, &h2), (&mut lo, &mut hi), false);
-        let range: Vec<(f32, f32)> = lo.into_par_iter().zip(hi).collect();
+        l2.par_chunks_mut(row).zip(h2.par_chunks_mut(row)).enumerate().for_each(|(i, (l, h))| {
+            let (p, first) = (i % d[1], i / d[1] * plane);
+            let at = |q: usize| first + q * row..first + (q + 1) * row;
+            let [own, before, after] = [at(p), at(p.saturating_sub(1)), at((p + 1).min(d[1] - 1))];
+            for (((l, &o), &b), &a) in l.iter_mut().zip(&lo[own.clone()]).zip(&lo[before.clone()]).zip(&lo[after.clone()]) {
+                *l = o.min(b).min(a);
+            }
+            for (((h, &o), &b), &a) in h.iter_mut().zip(&hi[own]).zip(&hi[before]).zip(&hi[after]) {
+                *h = o.max(b).max(a);
+            }
+        });
+        // Along z, each plane straight into the level's (least, largest) pairs.
+        let mut range = vec![(0f32, 0f32); lo.len()];
+        range.par_chunks_mut(plane).enumerate().for_each(|(p, out)| {
+            let at = |q: usize| q * plane..(q + 1) * plane;
+            let [own, before, after] = [at(p), at(p.saturating_sub(1)), at((p + 1).min(d[2] - 1))];
+            let (lo, hi) = ((&l2[own.clone()], &l2[before.clone()], &l2[after.clone()]), (&h2[own], &h2[before], &h2[after]));
+            for (i, r) in out.iter_mut().enumerate() {
+                *r = (lo.0[i].min(lo.1[i]).min(lo.2[i]), hi.0[i].max(hi.1[i]).max(hi.2[i]));
+            }
+        });
         let mut levels = vec![Level { dims: d, range }];
         while levels.last().is_some_and(|l| l.dims.iter().any(|&n| n > 1)) {
             let below = levels.last().expect("a level");
             let dims = below.dims.map(|n| n.div_ceil(2));
-            let mut range = Vec::with_capacity(dims.iter().product());
-            for z in 0..dims[2] {
+            // One z slab of the new level a task; each cell the same fold over its 8 children.
+            let mut range = vec![(0f32, 0f32); dims.iter().product()];
+            range.par_chunks_mut(dims[0] * dims[1]).enumerate().for_each(|(z, slab)| {
                 for y in 0..dims[1] {
                     for x in 0..dims[0] {
                         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
@@ -83,10 +87,10 @@ impl MinMaxPyramid {
                                 (lo, hi) = (lo.min(a), hi.max(b));
                             }
                         }
-                        range.push((lo, hi));
+                        slab[y * dims[0] + x] = (lo, hi);
                     }
                 }
-            }
+            });
             levels.push(Level { dims, range });
         }
         MinMaxPyramid { levels }
