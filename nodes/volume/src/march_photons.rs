@@ -171,15 +171,8 @@ impl<'a> Setup<'a> {
             )));
         }
         let ch = m.channels as usize;
-        // Whether anything absorbs, and the voxels that scatter: one pass, in parallel.
-        let (has_kappa, n_slots) = if ch > 1 {
-            m.data
-                .par_chunks(ch)
-                .map(|c| (c[1] > 0.0, usize::from(ch > 2 && c[2] > 0.0)))
-                .reduce(|| (false, 0), |a, b| (a.0 || b.0, a.1 + b.1))
-        } else {
-            (false, 0)
-        };
+        // Whether anything absorbs, and the voxels that scatter: found once per medium.
+        let (has_kappa, n_slots) = (m.absorbs(), m.scatterers());
         let map = match p.receiver.as_str() {
             "" => CausticMap::none(),
             name => {

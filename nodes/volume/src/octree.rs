@@ -47,7 +47,7 @@ pub fn build(v: &Volume, o: &Octree, budget: u64) -> Result<(Volume, [u64; 3]), 
     let mut out = Volume::try_new(v.dims, CHANNELS, v.min, v.max, 0.0, budget)?;
     let p = MinMaxPyramid::build(v, 0);
     // Where nothing absorbs anywhere every leaf is clear: no pyramid of κ needed.
-    let absorbs = v.channels > 1 && v.data.iter().skip(1).step_by(v.channels as usize).any(|&k| k > 0.0);
+    let absorbs = v.absorbs();
     let kappa = absorbs.then(|| MinMaxPyramid::build(v, 1));
     let h = v.voxel();
     let d = v.dims.map(|x| x as usize);

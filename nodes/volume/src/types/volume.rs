@@ -105,9 +105,18 @@ impl Volume {
     }
 
     /// Whether channel 1 (the extinction κ of a medium) is positive anywhere; worked out once
-    /// per value.
+    /// per value, for every node that reads it.
     pub fn absorbs(&self) -> bool {
-        *self.derived.get("absorbs", || self.channels > 1 && self.data.chunks(self.channels as usize).any(|c| c[1] > 0.0))
+        use rayon::prelude::*;
+        *self.derived.get("absorbs", || self.channels > 1 && self.data.par_chunks(self.channels as usize).any(|c| c[1] > 0.0))
+    }
+
+    /// How many voxels have a positive channel 2 (the scattering σ of a medium); worked out once
+    /// per value.
+    pub fn scatterers(&self) -> usize {
+        use rayon::prelude::*;
+        let ch = self.channels as usize;
+        *self.derived.get("scatterers", || if ch > 2 { self.data.par_chunks(ch).filter(|c| c[2] > 0.0).count() } else { 0 })
     }
 
     pub fn voxels(&self) -> usize {
