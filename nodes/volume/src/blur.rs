@@ -88,13 +88,19 @@ fn blur_live(v: &Volume, live: &[usize], kernel: &[f32], cx: &RunCtx) -> Result<
         };
         part.data.extend(v.data.chunks_exact(ch).flat_map(|voxel| live.iter().map(|&c| voxel[c])));
         let part = blur(&part, kernel, cx)?;
-        for (out, voxel) in data.chunks_exact_mut(ch).zip(part.data.chunks_exact(k)) {
-            for (&c, &x) in live.iter().zip(voxel) {
-                out[c] = x;
-            }
-        }
+        put_channels(&part, live, &mut data, ch);
     }
     Ok(Volume { dims: v.dims, channels: v.channels, min: v.min, max: v.max, data, derived: Default::default() })
+}
+
+/// Writes the channels of `part` (one per entry of `live`) into channels `live` of `data`, a
+/// grid of the same voxels with `ch` channels each; the other channels are left as they are.
+pub fn put_channels(part: &Volume, live: &[usize], data: &mut [f32], ch: usize) {
+    for (out, voxel) in data.chunks_exact_mut(ch).zip(part.data.chunks_exact(live.len())) {
+        for (&c, &x) in live.iter().zip(voxel) {
+            out[c] = x;
+        }
+    }
 }
 
 /// One output row blurred across rows: `row_at(q)` is the source row at position q of `n`

@@ -1,4 +1,4 @@
-use super::blur::{blur, kernel};
+use super::blur::{blur, kernel, put_channels};
 use super::scanline::{add_coverage_where, Projected};
 use crate::types::Volume;
 use glam::{UVec3, Vec3};
@@ -240,7 +240,7 @@ impl Voxelize {
         let vol = blur(&vol, &kernel(self.blur_radius as usize, self.blur_sigma), cx)?;
         let vol = match out {
             Some(mut out) => {
-                out.data.chunks_exact_mut(3).zip(&vol.data).for_each(|(o, &n)| o[0] = n);
+                put_channels(&vol, &[0], &mut out.data, 3);
                 out
             }
             None => vol,
