@@ -333,7 +333,7 @@ fn asking_only_for_the_direct_image_builds_no_points_tree_or_gather() {
 }
 
 #[test]
-fn a_second_process_that_changes_the_microbuffer_loads_points_shading_tree_and_direct_light_from_disk() {
+fn a_second_process_that_changes_the_microbuffer_loads_from_disk_what_costs_more_to_build_than_to_read() {
     // `relume run graphs/pbgi_cornell.ron` twice on one `--cache`, the second with
     // `--set gather.resolution=8`: two engines sharing one cache folder.
     let dir = tempfile::tempdir().unwrap();
@@ -345,8 +345,16 @@ fn a_second_process_that_changes_the_microbuffer_loads_points_shading_tree_and_d
     g2.set_param_text(&relume_cli::registry(), "gather.resolution", "8").unwrap();
     let second = Engine::new(relume_cli::registry()).with_disk_cache(dir.path());
     let r2 = run(&second, &g2);
-    for id in ["points", "shade", "tree", "direct"] {
+    // Shading and direct light cost 18× and 100× their loading here; the points and the tree
+    // 2–3×, close enough that a fast host may build them sooner than it reads them back, which
+    // the rule below then checks instead.
+    for id in ["shade", "direct"] {
         assert_eq!(r2.node(id).unwrap().cache, Some("disk"), "{id} comes from disk");
+    }
+    for id in ["points", "tree"] {
+        let before = r1.node(id).unwrap();
+        let stored = before.compute_ms > relume_core::cache::load_cost_ms(before.bytes);
+        assert_eq!(r2.node(id).unwrap().cache == Some("disk"), stored, "{id}: from disk exactly when worth storing");
     }
     for n in r2.nodes.iter().filter(|n| n.status == "ran" && n.id != "gather" && n.id != "combine") {
         let before = r1.node(&n.id).unwrap();
