@@ -152,7 +152,7 @@ fn mark_clearance(o: &mut Volume) {
     let far = CLEARANCE_CAP + 1;
     let mut dist: Vec<u8> = o
         .data
-        .chunks(ch)
+        .par_chunks(ch)
         .map(|c| if (Vec3::new(c[GRADIENT], c[GRADIENT + 1], c[GRADIENT + 2]) * h).abs().max_element() > 1e-6 { 0 } else { far })
         .collect();
     dist.par_chunks_mut(d[0]).for_each(|row| {
@@ -189,7 +189,12 @@ fn mark_clearance(o: &mut Volume) {
     };
     let dist = along(&dist, d[0], d[1]);
     let dist = along(&dist, d[0] * d[1], d[2]);
-    o.data.par_chunks_mut(ch).zip(dist.par_iter()).for_each(|(c, &x)| c[CLEARANCE] = x.saturating_sub(1).min(CLEARANCE_CAP) as f32);
+    let clearance = |x: u8| x.saturating_sub(1).min(CLEARANCE_CAP);
+    o.data.par_chunks_mut(ch).zip(dist.par_iter()).for_each(|(c, &x)| c[CLEARANCE] = clearance(x) as f32);
+    // The straight runs' bricks, made here from the bytes rather than read back from the
+    // channel by the first node that marches (the same bytes as `Clearance::of`).
+    let bricks = crate::optics::Clearance::from_rows(o, |i| clearance(dist[i]));
+    o.derived.get("clearance", || bricks);
 }
 
 #[node(category = "volume", version = 6, caching = Keyed, metrics = ["unbounded_pct", "stepped_pct", "minimum_step_pct"], outputs = [octree])]
@@ -319,6 +324,14 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn the_octree_comes_with_the_straight_runs_bricks_read_back_from_its_channel() {
+        let v = field(20, |x, y, z| if (x + 2 * y + 3 * z) % 17 == 0 { 1.3 } else { 1.0 });
+        let (o, _) = build(&v, &defaults(), u64::MAX).unwrap();
+        let kept = o.derived.get("clearance", || -> crate::optics::Clearance { panic!("made by the node") });
+        assert_eq!(*kept, crate::optics::Clearance::of(&o));
     }
 
     #[test]

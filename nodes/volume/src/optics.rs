@@ -207,13 +207,14 @@ pub fn ray_step(octree: &Sampler, r: &Ray, ds: f32, integrator: Integrator) -> R
 }
 
 /// A 4 × 4 × 4 block of voxels' bytes, one cache line.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, PartialEq, Debug)]
 #[repr(align(64))]
 struct Brick([u8; 64]);
 
 /// The octree's clearance channel as one byte a voxel (2 MiB at 128³, where the octree holds
 /// 64 MiB), in 4³ bricks of one cache line each: straight runs read a voxel's byte from a grid
 /// that stays in cache, and a walk's next voxels mostly from the line it already has.
+#[derive(PartialEq, Debug)]
 pub struct Clearance {
     bricks: Vec<Brick>,
     /// Bricks along each axis.
@@ -230,19 +231,24 @@ pub struct Clearance {
 impl Clearance {
     /// The clearance of `octree` (`Octree`'s output).
     pub fn of(octree: &Volume) -> Clearance {
+        let ch = octree.channels as usize;
+        Clearance::from_rows(octree, |i| octree.data[i * ch + CLEARANCE].clamp(0.0, 255.0) as u8)
+    }
+
+    /// The clearance of `octree` from each voxel's clearance byte, `byte(voxel index)` (what
+    /// `Octree` computes before it writes the channel, so that it need not read it back).
+    pub fn from_rows(octree: &Volume, byte: impl Fn(usize) -> u8 + Sync) -> Clearance {
         use rayon::prelude::*;
         let dims = octree.dims.map(|d| d as usize);
         let bdims = dims.map(|d| d.div_ceil(4));
-        let ch = octree.channels as usize;
         let mut bricks = vec![Brick([0; 64]); bdims.iter().product()];
         // A slab of bricks (4 slices of voxels, read in order) a task.
         bricks.par_chunks_mut(bdims[0] * bdims[1]).enumerate().for_each(|(bz, slab)| {
             for z in bz * 4..(bz * 4 + 4).min(dims[2]) {
                 for y in 0..dims[1] {
-                    let row = &octree.data[octree.index(0, y, z)..][..dims[0] * ch];
-                    for (x, c) in row.chunks_exact(ch).enumerate() {
-                        slab[(y >> 2) * bdims[0] + (x >> 2)].0[(z & 3) << 4 | (y & 3) << 2 | (x & 3)] =
-                            c[CLEARANCE].clamp(0.0, 255.0) as u8;
+                    let row = (z * dims[1] + y) * dims[0];
+                    for x in 0..dims[0] {
+                        slab[(y >> 2) * bdims[0] + (x >> 2)].0[(z & 3) << 4 | (y & 3) << 2 | (x & 3)] = byte(row + x);
                     }
                 }
             }
