@@ -637,6 +637,36 @@ mod tests {
     }
 
     #[test]
+    fn a_hemisphere_of_small_splats_keeps_its_energy_up_to_the_rim() {
+        // 50,000 splats of one layer, uniform over the projected disk, each of projected solid
+        // angle π / 50,000, radiance 1: a Lambert receiver of albedo 1 reflects 1. A splat
+        // shares itself among the four pixel centres around it, drops the shares off the disk
+        // and weighs each by its pixel's cosine rather than its own; at the rim the two nearly
+        // cancel, leaving the energy high by 1.8 % at 8², 0.8 % at 16² and 0.4 % at 32² (this
+        // draw; a model of the rule over 200,000 draws: 1.7, 0.7 and 0.3 %).
+        for (n, tol) in [(8, 0.025), (16, 0.012), (32, 0.006)] {
+            let mut next = uniforms(0x2545_f491);
+            let mut mb = Microbuffer::new(n);
+            let count = 50_000;
+            let area = std::f32::consts::PI / count as f32;
+            let mut drawn = 0;
+            while drawn < count {
+                let (x, y) = (2.0 * next() - 1.0, 2.0 * next() - 1.0);
+                let r2 = x * x + y * y;
+                if r2 >= 1.0 {
+                    continue;
+                }
+                let z = (1.0 - r2).sqrt().max(1e-4);
+                mb.splat(Vec3::new(x, y, z), 1.0, area / z, Vec3::ONE, None);
+                drawn += 1;
+            }
+            mb.resolve();
+            let out = mb.convolve(&Material::Lambert { albedo: Vec3::ONE }, Vec3::Z).x;
+            assert!((out - 1.0).abs() < tol, "n = {n}: {out}");
+        }
+    }
+
+    #[test]
     fn a_large_splat_covers_exactly_the_pixels_within_its_angular_radius() {
         // Against every pixel tested: the box the splat searches must hold all of them, for
         // nodes from a few pixels to a quarter of the hemisphere, near the zenith and the rim.
