@@ -25,9 +25,9 @@ fn graph() -> relume_core::Graph {
     load_graph(
         "pbgi_vs_reference.ron",
         &[
-            ("scene.width", "64"),
-            ("scene.height", "64"),
-            ("points.count", "40000"),
+            ("scene.width", "32"),
+            ("scene.height", "32"),
+            ("points.count", "10000"),
             ("shade.samples", "4"),
             ("direct.pixel_samples", "4"),
             ("reference.spp", "16"),
