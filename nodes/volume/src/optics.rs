@@ -263,6 +263,11 @@ impl Clearance {
         octree.derived.get("clearance", || Clearance::of(octree))
     }
 
+    /// The bytes its bricks hold.
+    pub fn bytes(&self) -> u64 {
+        (self.bricks.len() * std::mem::size_of::<Brick>()) as u64
+    }
+
     /// The clearance of voxel `c` (inside the grid).
     #[inline]
     fn at(&self, c: [usize; 3]) -> u8 {
