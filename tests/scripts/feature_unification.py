@@ -50,7 +50,7 @@ def main():
         print("so `pip install ./python` would compile them, and every crate above them, again. Turn on in "
               "python/Cargo.toml the features the workspace's line for each crate has (`cargo tree --workspace "
               f"-e normal,build,dev --prefix none -f '{FORMAT}'`), under [build-dependencies] for crates of the "
-              "proc-macros' side.")
+              "proc-macros' side; clap's in nodes/cli/Cargo.toml, since only relume-cli may depend on it.")
         sys.exit(1)
     print(f"feature_unification: relume-python's {len(package)} crates resolve as in the workspace's test build")
 
