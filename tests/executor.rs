@@ -128,3 +128,34 @@ fn each_output_is_announced_once_as_soon_as_its_node_finishes() {
     let events = rec.events.lock().unwrap().clone();
     assert_eq!(events, ["planned 2", "started a", "finished a ran", "output early", "output again", "started slow", "progress slow"]);
 }
+
+/// Records the order in which nodes start and finish (no cancelling).
+#[derive(Default)]
+struct Order(Mutex<Vec<String>>);
+
+impl Observer for Order {
+    fn event(&self, e: &Event<'_>) {
+        let line = match e {
+            Event::Started { id, .. } => format!("started {id}"),
+            Event::Finished { id, .. } => format!("finished {id}"),
+            _ => return,
+        };
+        self.0.lock().unwrap().push(line);
+    }
+}
+
+#[test]
+fn of_two_ready_renders_the_one_with_a_sixteenth_of_the_samples_runs_first_and_alone() {
+    // The README's graph at 8 × 8: the 64-spp render and the ground truth become ready together.
+    let reg = relume_cli::registry();
+    let mut g = Graph::load(&relume_tests::graphs_dir().join("reference_cornell.ron"), &reg).unwrap();
+    for (a, v) in [("scene.width", "8"), ("scene.height", "8"), ("reference.spp", "16"), ("truth.spp", "256")] {
+        g.set_param_text(&reg, a, v).unwrap();
+    }
+    let order = Order::default();
+    let opts = RunOptions { observer: Some(&order), ..Default::default() };
+    Engine::new(reg).with_parallelism(2).without_disk_cache().run(&g, &opts).unwrap();
+    let events = order.0.lock().unwrap().clone();
+    let at = |e: &str| events.iter().position(|x| x == e).unwrap_or_else(|| panic!("no \"{e}\" in {events:?}"));
+    assert!(at("finished reference") < at("started truth"), "{events:?}");
+}

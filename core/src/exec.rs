@@ -309,8 +309,10 @@ impl Engine {
         // The loop that hands ready nodes to `spawn` and gathers what they finish.
         let mut drive = with_spawner(|spawn| {
             let mut ready: VecDeque<usize> = plan.order.iter().copied().filter(|&i| plan.sources[i].is_empty()).collect();
-            let mut to_run: VecDeque<(usize, Prepared)> = VecDeque::new();
+            // Found in no cache: (node, its preparation, its work against its kind's other runs).
+            let mut to_run: VecDeque<(usize, Prepared, Option<f64>)> = VecDeque::new();
             let mut running = 0usize;
+            let mut running_work: Vec<Option<f64>> = vec![None; graph.nodes.len()];
             // Bytes reserved by running nodes (their estimate with actual input sizes).
             let (mut reserved, mut reservation) = (0u64, vec![0u64; graph.nodes.len()]);
             loop {
@@ -341,11 +343,25 @@ impl Engine {
                             }
                             ready.extend(state.complete(i, entry, status, prepared.key, ms, None));
                         }
-                        None => to_run.push_back((i, prepared)),
+                        None => {
+                            let sizes: Vec<Option<crate::memory::PortSize>> =
+                                plan.sources[i].iter().map(|&(s, o)| Some(state.values[s].as_ref().unwrap().outputs[o].size())).collect();
+                            let work = kind.work(&prepared.params, &sizes);
+                            to_run.push_back((i, prepared, work));
+                        }
                     }
                 }
                 while running < self.max_parallel && first_error.is_none() && !opts.cancel.is_cancelled() {
-                    let Some((i, prepared)) = to_run.pop_front() else { break };
+                    // The first waiting node that no smaller run of its kind holds back.
+                    let held_back = |a: usize| {
+                        let (i, _, work) = &to_run[a];
+                        let kind = graph.nodes[*i].kind.as_str();
+                        let waiting = to_run.iter().enumerate().filter(|&(b, _)| b != a).map(|(_, (j, _, w))| (*j, *w));
+                        let started = running_work.iter().enumerate().map(|(j, w)| (j, *w));
+                        waiting.chain(started).any(|(j, w)| graph.nodes[j].kind == kind && much_smaller(w, *work))
+                    };
+                    let Some(at) = (0..to_run.len()).find(|&a| !held_back(a)) else { break };
+                    let (i, prepared, work) = to_run.remove(at).expect("an index of to_run");
                     let inputs: Vec<Value> =
                         plan.sources[i].iter().map(|&(s, o)| state.values[s].as_ref().unwrap().outputs[o].clone()).collect();
                     // The node's estimate with its actual input sizes, against what is held.
@@ -355,7 +371,7 @@ impl Engine {
                     if held + need > self.run_budget {
                         if running > 0 {
                             // Wait for a running node to finish and free what it holds.
-                            to_run.push_front((i, prepared));
+                            to_run.insert(at, (i, prepared, work));
                             break;
                         }
                         let n = &graph.nodes[i];
@@ -369,6 +385,7 @@ impl Engine {
                     }
                     (reserved, reservation[i]) = (reserved + need, need);
                     running += 1;
+                    running_work[i] = work;
                     state.keys[i] = prepared.key;
                     let kind = self.kind_of(graph, i).clone();
                     let id = graph.nodes[i].id.as_str();
@@ -394,6 +411,7 @@ impl Engine {
                 let (i, result, ms) = rx.recv().expect("node threads hold a sender");
                 running -= 1;
                 reserved -= std::mem::take(&mut reservation[i]);
+                running_work[i] = None;
                 let kind = self.kind_of(graph, i);
                 let id = &graph.nodes[i].id;
                 match result {
@@ -478,6 +496,14 @@ impl Engine {
 }
 
 /// Tells `o` of each requested graph output that node `i` produced (`Event::Output`).
+/// Whether a run of work `small` holds back one of `large` of the same kind: at most a quarter
+/// of it (both known). Running the small one first and alone puts its result out in about its
+/// own time instead of twice that beside the large one, and delays the large one by that much
+/// at most (nothing where both use every core).
+fn much_smaller(small: Option<f64>, large: Option<f64>) -> bool {
+    matches!((small, large), (Some(s), Some(l)) if s * 4.0 <= l && s < l)
+}
+
 fn announce_outputs(o: &dyn Observer, plan: &Plan, i: usize, entry: &CacheEntry) {
     for (name, _, port) in plan.outputs.iter().filter(|(_, n, _)| *n == i) {
         if let Some(value) = entry.outputs.get(*port) {
@@ -669,5 +695,20 @@ impl<'g> RunState<'g> {
             }
         }
         now_ready
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::much_smaller;
+
+    #[test]
+    fn a_run_waits_only_for_one_of_a_quarter_of_its_work_or_less() {
+        assert!(much_smaller(Some(1.0), Some(4.0)));
+        assert!(much_smaller(Some(0.0), Some(1.0)));
+        assert!(!much_smaller(Some(1.0), Some(3.9)));
+        assert!(!much_smaller(Some(0.0), Some(0.0)), "equal runs never wait for each other");
+        assert!(!much_smaller(None, Some(100.0)));
+        assert!(!much_smaller(Some(1.0), None));
     }
 }

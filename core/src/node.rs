@@ -60,6 +60,14 @@ pub trait Node: Params + Documented + Send + Sync + 'static {
         let _ = inputs;
         MemoryEstimate::unknown(Self::Outputs::decls().len())
     }
+    /// The run's work against other runs of the same kind, from the parameters and the input
+    /// sizes (a renderer: the samples it traces): of two ready runs of one kind, one needing at
+    /// most a quarter of the other's work runs first and alone, so that its result (a preview
+    /// beside its ground truth) comes out sooner. `None` (the default): not known.
+    fn work(&self, inputs: &[Option<PortSize>]) -> Option<f64> {
+        let _ = inputs;
+        None
+    }
     /// The node's shard contract when it has one (`#[node(…, sharded)]`, see `shard.rs`).
     fn sharded() -> Option<Arc<dyn DynSharded>> {
         None
@@ -98,6 +106,11 @@ pub trait DynNode: Send + Sync {
     fn memory(&self, params: &ParamValues, inputs: &[Option<PortSize>]) -> Result<MemoryEstimate, NodeError> {
         let _ = (params, inputs);
         Ok(MemoryEstimate::unknown(self.ports().outputs.len()))
+    }
+    /// The run's work against other runs of its kind (`Node::work`); `None` where not known.
+    fn work(&self, params: &ParamValues, inputs: &[Option<PortSize>]) -> Option<f64> {
+        let _ = (params, inputs);
+        None
     }
     /// The shard contract of a node whose work splits over items; `None` for most nodes.
     fn sharded(&self) -> Option<&dyn DynSharded> {
@@ -156,6 +169,9 @@ impl<N: Node> DynNode for NodeEntry<N> {
     }
     fn memory(&self, params: &ParamValues, inputs: &[Option<PortSize>]) -> Result<MemoryEstimate, NodeError> {
         Ok(N::from_values(params)?.memory(inputs))
+    }
+    fn work(&self, params: &ParamValues, inputs: &[Option<PortSize>]) -> Option<f64> {
+        N::from_values(params).ok()?.work(inputs)
     }
     fn sharded(&self) -> Option<&dyn DynSharded> {
         self.sharded.as_deref()

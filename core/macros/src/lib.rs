@@ -413,8 +413,9 @@ struct NodeArgs {
 /// `impl X { fn run(&self, inputs: In, cx: &RunCtx) -> Result<Out, NodeError> { … } … }`:
 /// implements `Node` for `X` (kind defaults to the type's name, version to 1, caching to
 /// `Auto`); `Inputs` and `Outputs` come from `run`'s signature; an optional
-/// `fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate` goes into the trait
-/// too; other items stay in `impl X`.
+/// `fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate` and an optional
+/// `fn work(&self, inputs: &[Option<PortSize>]) -> Option<f64>` go into the trait too; other
+/// items stay in `impl X`.
 ///
 /// With `sharded`, the `impl` has `fn shard`, `fn run_items` and `fn gather` instead of
 /// `fn run` (relume-core's `Sharded`): they go into `impl Sharded for X`, `Inputs` and
@@ -486,7 +487,7 @@ fn node_impl(args: NodeArgs, imp: ItemImpl) -> syn::Result<Tokens> {
     for item in imp.items {
         match item {
             ImplItem::Fn(f) if f.sig.ident == "run" => run = Some(f),
-            ImplItem::Fn(f) if f.sig.ident == "memory" => trait_fns.push(f),
+            ImplItem::Fn(f) if f.sig.ident == "memory" || f.sig.ident == "work" => trait_fns.push(f),
             ImplItem::Fn(f) if args.sharded && ["shard", "run_items", "gather"].contains(&f.sig.ident.to_string().as_str()) => {
                 let at = ["shard", "run_items", "gather"].iter().position(|n| f.sig.ident == n).unwrap();
                 shard_fns[at] = Some(f);

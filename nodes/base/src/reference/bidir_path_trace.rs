@@ -162,6 +162,10 @@ pub fn render(
 
 #[node(category = "reference", sharded, metrics = ["spp", "rays", "nonfinite_samples"])]
 impl BidirPathTrace {
+    fn work(&self, inputs: &[Option<relume_core::PortSize>]) -> Option<f64> {
+        super::samples_traced(inputs[0], self.spp)
+    }
+
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // A band's film (72 bytes a pixel of its rows), its splat sums (48 bytes a pixel of the
         // whole image, f64) and every band's two whole-image layers (24 bytes a pixel each).

@@ -98,6 +98,10 @@ pub fn render(scene: &Scene, accel: &Accel, p: &PathTrace, cx: Option<&RunCtx>) 
 
 #[node(category = "reference", version = 2, sharded, metrics = ["spp", "rays", "nonfinite_samples"])]
 impl PathTrace {
+    fn work(&self, inputs: &[Option<relume_core::PortSize>]) -> Option<f64> {
+        super::samples_traced(inputs[0], self.spp)
+    }
+
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
         // The film of a band (a sum and a sum of squares, f64 RGB, per pixel), the bands of
         // the chunks (mean and variance) and the gathered images.
