@@ -190,6 +190,19 @@ pub fn cluster_receivers(rx: &Receivers, p: &ClusterReceivers, cx: &RunCtx) -> R
 
 #[node(category = "pbgi", metrics = ["clusters", "tiles", "mean_cluster_size", "max_iterations_used"], outputs = [clusters])]
 impl ClusterReceivers {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        // The clusters (at most one a receiver, and k a tile), each receiver's cluster and its
+        // place among a cluster's members; while it runs, the tiles' lists of receivers and one
+        // tile's k-means points a thread.
+        let Some(s) = inputs[0] else { return relume_core::MemoryEstimate::unknown(1) };
+        let n = s.bytes / Receivers::BYTES_PER_RECEIVER as u64;
+        let tiles = s.dims.map_or(n, |[w, h]| (w.div_ceil(self.tile) * h.div_ceil(self.tile)) as u64);
+        let clusters = n.min(tiles * self.k as u64);
+        let bytes = clusters * std::mem::size_of::<Cluster>() as u64 + n * 12;
+        let working = n * 4 + tiles * std::mem::size_of::<Vec<u32>>() as u64 + (self.tile * self.tile) as u64 * 64;
+        relume_core::MemoryEstimate { outputs: vec![Some(relume_core::PortSize::bytes(bytes))], working }
+    }
+
     fn run(&self, receivers: &Receivers, cx: &RunCtx) -> Result<Clusters, NodeError> {
         let rx = receivers;
         let (clusters, stats) = cluster_receivers(rx, self, cx)?;
@@ -274,6 +287,23 @@ mod tests {
             normal.push(n);
         }
         receivers(width, height, pixel, position, normal)
+    }
+
+    #[test]
+    fn the_memory_estimate_bounds_the_clusters_from_the_receivers_size_alone() {
+        use relume_core::{Node, PortSize};
+        for (w, h, density, tile, k) in [(64, 48, 0.9, 16, 20), (40, 40, 0.3, 8, 100), (33, 17, 1.0, 32, 1)] {
+            let rx = random_receivers(w, h, density, 0, 7);
+            let p = params(tile, k, 10, 1);
+            let e = p.memory(&[Some(PortSize { bytes: rx.byte_size() as u64, dims: Some([w, h]) })]);
+            let (c, _) = cluster(&rx, &p).unwrap();
+            let members: usize = c.clusters.iter().map(|cl| cl.members.len() * 4).sum();
+            let held = (c.byte_size() + members) as u64;
+            let out = e.outputs[0].expect("known from the receivers' size").bytes;
+            assert!(out >= held && out <= 4 * held.max(1), "{w}×{h}: estimate {out}, held {held}");
+            assert!(e.working > 0);
+        }
+        assert_eq!(params(32, 100, 10, 0).memory(&[None]).outputs, vec![None], "unknown without the receivers' size");
     }
 
     fn params(tile: usize, k: usize, iterations: usize, seed: u64) -> ClusterReceivers {

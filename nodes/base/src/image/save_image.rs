@@ -15,6 +15,12 @@ params! {
 
 #[node(category = "image", caching = Never, outputs = [image])]
 impl SaveImage {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        // The image passed on, and the file's bytes while they are encoded (at most as many as
+        // the image's floats: 8-bit PNG, half or float EXR).
+        relume_core::MemoryEstimate { outputs: vec![inputs[0]], working: inputs[0].map_or(0, |s| s.bytes) }
+    }
+
     fn run(&self, image: &Image, cx: &RunCtx) -> Result<Image, NodeError> {
         cx.check_write_path("path", &self.path)?;
         if let Some(dir) = self.path.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -42,5 +48,17 @@ mod tests {
         assert_eq!(crate::image::io::read_image(&dir.path().join("sub/a.exr")).unwrap(), img);
         let err = run_node::<SaveImage>(&[("path", ParamValue::Text("c.tiff".into()))], dir.path(), vec![Value::new(img)]).unwrap_err();
         assert!(err.to_string().contains("\"c.tiff\" has the extension .tiff; this parameter takes a .exr or .png file"), "{err}");
+    }
+
+    #[test]
+    fn the_memory_estimate_is_the_image_passed_on_and_its_encoding() {
+        use relume_core::{Node, PortValue};
+        let img = Image::from_fn(5, 3, |x, y| [x as f32, y as f32, 1.0]);
+        let size = img.size();
+        let p = SaveImage { path: "a.png".into() };
+        let e = p.memory(&[Some(size)]);
+        assert_eq!(e.outputs, vec![Some(size)]);
+        assert_eq!(e.working, size.bytes);
+        assert!(size.bytes >= img.byte_size() as u64);
     }
 }
