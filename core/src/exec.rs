@@ -309,8 +309,9 @@ impl Engine {
         // The loop that hands ready nodes to `spawn` and gathers what they finish.
         let mut drive = with_spawner(|spawn| {
             let mut ready: VecDeque<usize> = plan.order.iter().copied().filter(|&i| plan.sources[i].is_empty()).collect();
-            // Found in no cache: (node, its preparation, its work against its kind's other runs).
-            let mut to_run: VecDeque<(usize, Prepared, Option<f64>)> = VecDeque::new();
+            // Found in no cache: (node, its preparation, the bytes it will hold and its work
+            // against its kind's other runs, both from its actual input sizes).
+            let mut to_run: VecDeque<(usize, Prepared, u64, Option<f64>)> = VecDeque::new();
             let mut running = 0usize;
             let mut running_work: Vec<Option<f64>> = vec![None; graph.nodes.len()];
             // Bytes reserved by running nodes (their estimate with actual input sizes).
@@ -346,32 +347,31 @@ impl Engine {
                         None => {
                             let sizes: Vec<Option<crate::memory::PortSize>> =
                                 plan.sources[i].iter().map(|&(s, o)| Some(state.values[s].as_ref().unwrap().outputs[o].size())).collect();
+                            let need = kind.memory(&prepared.params, &sizes).map(|e| e.working + e.output_bytes()).unwrap_or(0);
                             let work = kind.work(&prepared.params, &sizes);
-                            to_run.push_back((i, prepared, work));
+                            to_run.push_back((i, prepared, need, work));
                         }
                     }
                 }
                 while running < self.max_parallel && first_error.is_none() && !opts.cancel.is_cancelled() {
                     // The first waiting node that no smaller run of its kind holds back.
                     let held_back = |a: usize| {
-                        let (i, _, work) = &to_run[a];
+                        let (i, _, _, work) = &to_run[a];
                         let kind = graph.nodes[*i].kind.as_str();
-                        let waiting = to_run.iter().enumerate().filter(|&(b, _)| b != a).map(|(_, (j, _, w))| (*j, *w));
+                        let waiting = to_run.iter().enumerate().filter(|&(b, _)| b != a).map(|(_, (j, _, _, w))| (*j, *w));
                         let started = running_work.iter().enumerate().map(|(j, w)| (j, *w));
-                        waiting.chain(started).any(|(j, w)| graph.nodes[j].kind == kind && much_smaller(w, *work))
+                        waiting.chain(started).any(|(j, w)| much_smaller(w, *work) && graph.nodes[j].kind == kind)
                     };
                     let Some(at) = (0..to_run.len()).find(|&a| !held_back(a)) else { break };
-                    let (i, prepared, work) = to_run.remove(at).expect("an index of to_run");
+                    let (i, prepared, need, work) = to_run.remove(at).expect("an index of to_run");
                     let inputs: Vec<Value> =
                         plan.sources[i].iter().map(|&(s, o)| state.values[s].as_ref().unwrap().outputs[o].clone()).collect();
                     // The node's estimate with its actual input sizes, against what is held.
-                    let sizes: Vec<Option<crate::memory::PortSize>> = inputs.iter().map(|v| Some(v.size())).collect();
-                    let need = self.kind_of(graph, i).memory(&prepared.params, &sizes).map(|e| e.working + e.output_bytes()).unwrap_or(0);
                     let held = state.held_bytes() + reserved;
                     if held + need > self.run_budget {
                         if running > 0 {
                             // Wait for a running node to finish and free what it holds.
-                            to_run.insert(at, (i, prepared, work));
+                            to_run.insert(at, (i, prepared, need, work));
                             break;
                         }
                         let n = &graph.nodes[i];
@@ -495,7 +495,6 @@ impl Engine {
     }
 }
 
-/// Tells `o` of each requested graph output that node `i` produced (`Event::Output`).
 /// Whether a run of work `small` holds back one of `large` of the same kind: at most a quarter
 /// of it (both known). Running the small one first and alone puts its result out in about its
 /// own time instead of twice that beside the large one, and delays the large one by that much
@@ -504,6 +503,7 @@ fn much_smaller(small: Option<f64>, large: Option<f64>) -> bool {
     matches!((small, large), (Some(s), Some(l)) if s * 4.0 <= l && s < l)
 }
 
+/// Tells `o` of each requested graph output that node `i` produced (`Event::Output`).
 fn announce_outputs(o: &dyn Observer, plan: &Plan, i: usize, entry: &CacheEntry) {
     for (name, _, port) in plan.outputs.iter().filter(|(_, n, _)| *n == i) {
         if let Some(value) = entry.outputs.get(*port) {
