@@ -2,8 +2,11 @@
 //! reaches, asserted from the run report.
 
 use relume_base::types::Image;
-use relume_core::{Engine, Graph, RunOptions};
+use relume_core::{DiskPolicy, Engine, Graph, RunOptions};
 use relume_tests::{load_test_graph, ran};
+use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::OnceLock;
 
 /// A pipeline-2 graph (`ptt_envlit.ron` or its Cook-Torrance variant) at test size.
 fn small_ptt(name: &str) -> Graph {
@@ -20,11 +23,63 @@ fn small_ptt(name: &str) -> Graph {
     )
 }
 
+/// The tests that start from envlit's precompute (`WARM_TESTS` of them).
+const WARM_TESTS: usize = 3;
+
+/// An engine whose disk cache already holds envlit's precompute at test size, Blinn-Phong and
+/// Cook-Torrance (`ptt_envlit.ron` and `ptt_envlit_ct_bounce.ron` run once, by the first test
+/// that asks, into a cache every asker copies): each test reads its own copy, so its edits,
+/// its cache and its reports are its own, and the precompute (most of their time) is made once
+/// instead of once a test. The last of the `WARM_TESTS` to drop its guard removes the shared
+/// cache.
+fn warm_engine() -> (Engine, tempfile::TempDir, WarmGuard) {
+    static WARM: OnceLock<std::path::PathBuf> = OnceLock::new();
+    let warm = WARM.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap().keep();
+        let e = Engine::new(relume_cli::registry()).with_disk_cache(&dir).with_disk_policy(DiskPolicy::Always);
+        for name in ["ptt_envlit.ron", "ptt_envlit_ct_bounce.ron"] {
+            e.run(&small_ptt(name), &RunOptions::default()).unwrap();
+        }
+        dir
+    });
+    let own = tempfile::tempdir().unwrap();
+    copy_tree(warm, own.path());
+    (Engine::new(relume_cli::registry()).with_disk_cache(own.path()), own, WarmGuard(warm))
+}
+
+/// Removes the shared warm cache when the last test that used it is done (passed or not).
+struct WarmGuard(&'static Path);
+
+impl Drop for WarmGuard {
+    fn drop(&mut self) {
+        static DONE: AtomicUsize = AtomicUsize::new(0);
+        if DONE.fetch_add(1, Ordering::SeqCst) + 1 == WARM_TESTS {
+            let _ = std::fs::remove_dir_all(self.0);
+        }
+    }
+}
+
+fn copy_tree(from: &Path, to: &Path) {
+    for entry in std::fs::read_dir(from).unwrap() {
+        let (entry, target) = {
+            let e = entry.unwrap();
+            let t = to.join(e.file_name());
+            (e, t)
+        };
+        if entry.file_type().unwrap().is_dir() {
+            std::fs::create_dir_all(&target).unwrap();
+            copy_tree(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), &target).unwrap();
+        }
+    }
+}
+
 /// Runs `name` at test size, then orbits, edits the bunny's material with `material` (a
 /// `node.param` and its value) and turns the sky, asserting what each edit re-runs.
 fn edits_rerun_only_what_they_reach(name: &str, material: (&str, &str)) {
     let reg = relume_cli::registry();
-    let e = Engine::new(relume_cli::registry());
+    let (e, _cache, _guard) = warm_engine();
     let mut g = small_ptt(name);
     let r = e.run(&g, &RunOptions::default()).unwrap();
     let img = r.output("image").unwrap().get::<Image>().unwrap().clone();
@@ -73,7 +128,7 @@ fn the_cook_torrance_variant_reruns_the_same_nodes_for_a_roughness_edit() {
 
 #[test]
 fn the_bounce_graph_holds_the_cook_torrance_lobe_on_its_own_space_and_isolates_the_bounces() {
-    let e = Engine::new(relume_cli::registry());
+    let (e, _cache, _guard) = warm_engine();
     let r = e.run(&small_ptt("ptt_envlit_ct_bounce.ron"), &RunOptions::default()).unwrap();
     // The material fitted on the Cook-Torrance space's basis and on the Blinn-Phong one's: the
     // first holds the microfacet lobe, the second cannot (its growth toward grazing).

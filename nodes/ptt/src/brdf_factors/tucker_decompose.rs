@@ -234,7 +234,7 @@ mod tests {
 
     #[test]
     fn the_error_grid_reports_every_rank_pair_and_falls_with_rank() {
-        let t = tensor(&[("disk", i(10)), ("samples", i(30)), ("s_max", f(60.0))]);
+        let t = tensor(&[("disk", i(10)), ("samples", i(12)), ("s_max", f(60.0))]);
         let (_, m) = decompose(&t, &[("error_grid", relume_core::ParamValue::Bool(true))]);
         for a in 1..=6 {
             for b in (4..=32).step_by(4) {
