@@ -92,6 +92,14 @@ fn specular_coefficients(basis: &BrdfBasis, m: &ObjectMaterial) -> Result<Coeffi
 
 #[node(category = "relight", version = 3, metrics = ["fit_error_max_pct"], outputs = [materials])]
 impl MaterialProject {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        // The materials passed on with their coefficients (one a basis, three channels) and a
+        // fit's few vectors of the basis' size.
+        let basis = inputs[0].map_or(0, |s| s.bytes);
+        let materials = inputs[1].map(|s| relume_core::PortSize { bytes: s.bytes.saturating_add(basis), dims: None });
+        relume_core::MemoryEstimate { outputs: vec![materials], working: basis }
+    }
+
     fn run(&self, basis: &BrdfBasis, materials: &ObjectMaterials, cx: &RunCtx) -> Result<ObjectMaterials, NodeError> {
         let mut out = materials.clone();
         if !self.object.is_empty() {
@@ -168,6 +176,20 @@ mod tests {
         let p = [("object", t("obj")), ("kd", rgb([kd; 3])), ("ks", rgb([ks; 3])), ("s", f(s))];
         run_on::<MaterialProject>(&p, vec![Value::new(b.clone()), Value::new(one([0.5; 3], [0.5; 3], 20.0))])
             .map(|o| first::<ObjectMaterials>(&o).0[0].coefficients.iter().map(|c| c[0]).collect())
+    }
+
+    #[test]
+    fn the_memory_estimate_bounds_the_projected_materials() {
+        use relume_core::{Node, PortValue};
+        let (b, _) = basis(&space(6, 6, 12, 20, 1.0, 200.0), 4);
+        let m = one([0.2; 3], [0.3; 3], 40.0);
+        let out = first::<ObjectMaterials>(&run_on::<MaterialProject>(&[], vec![Value::new(b.clone()), Value::new(m.clone())]).unwrap());
+        assert_eq!(out.0[0].coefficients.len(), b.bases());
+        let node =
+            MaterialProject { object: String::new(), kd: [0.5; 3], ks: [0.5; 3], s: 20.0, model: BrdfModel::BlinnPhong, m: 0.3, f0: 0.5 };
+        let e = node.memory(&[Some(b.size()), Some(m.size())]);
+        assert!(e.outputs[0].unwrap().bytes >= out.byte_size() as u64, "{:?} against {}", e.outputs, out.byte_size());
+        assert!(e.working >= b.size().bytes);
     }
 
     #[test]

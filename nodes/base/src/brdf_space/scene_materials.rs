@@ -32,6 +32,12 @@ pub fn scene_materials(scene: &Scene) -> Result<ObjectMaterials, String> {
 
 #[node(category = "relight", version = 2, metrics = ["dynamic_objects"], outputs = [materials])]
 impl SceneMaterials {
+    fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
+        // A few numbers per dynamic object and copies of their texture maps, which are part of
+        // the scene's bytes: the scene's size bounds the output.
+        relume_core::MemoryEstimate { outputs: vec![inputs[0].map(|s| relume_core::PortSize { bytes: s.bytes, dims: None })], working: 0 }
+    }
+
     fn run(&self, scene: &Scene, cx: &RunCtx) -> Result<ObjectMaterials, NodeError> {
         let materials = scene_materials(scene).map_err(|m| NodeError::input("scene", m))?;
         if materials.0.is_empty() {
@@ -65,6 +71,20 @@ mod tests {
         assert_eq!(m.0[0].kd, [0.0; 3], "the group takes its first member's material");
         assert_eq!((m.0[1].name.as_str(), m.0[1].s), (scene.objects[2].name.as_str(), 40.0));
         assert_eq!(scene.dynamic_groups()[0].1, vec![0, 1]);
+    }
+
+    #[test]
+    fn the_memory_estimate_bounds_the_materials_with_their_maps() {
+        use crate::types::Texture;
+        use relume_core::{Node, PortValue};
+        let mut scene = test_scene::spheres();
+        scene.objects[0].dynamic = true;
+        scene.objects[0].maps.kd = Texture::new(64, 32, vec![Vec3::ONE; 64 * 32]);
+        let m = first::<ObjectMaterials>(&run_on::<SceneMaterials>(&[], vec![Value::new(scene.clone())]).unwrap());
+        let e = SceneMaterials {}.memory(&[Some(scene.size())]);
+        let bytes = e.outputs[0].unwrap().bytes;
+        assert!(bytes >= m.byte_size() as u64 && m.byte_size() > 64 * 32 * 12, "{bytes} against {}", m.byte_size());
+        assert_eq!(e.working, 0);
     }
 
     #[test]

@@ -292,7 +292,8 @@ impl PortValue for Scene {
             Some(Environment::Map(m)) => m.texels.len() * 22,
             _ => 0,
         };
-        self.positions.len() * 24 + self.uvs.len() * 8 + self.triangles.len() * 16 + env
+        let maps: usize = self.objects.iter().map(|o| o.maps.byte_size()).sum();
+        self.positions.len() * 24 + self.uvs.len() * 8 + self.triangles.len() * 16 + env + maps
     }
 }
 
