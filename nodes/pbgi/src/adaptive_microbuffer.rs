@@ -30,6 +30,10 @@ use relume_base::brdf;
 use relume_base::math::frame::Frame;
 use relume_base::types::Material;
 
+/// A pixel's BRDF share counts as above the mean only beyond this relative margin (the
+/// rounding of the shares' f32 values; a real lobe's shares differ by far more).
+const SHARE_ROUNDING: f64 = 1e-5;
+
 /// One rasterisation to replay: a splat or a near leaf's exact disk.
 #[derive(Clone, Copy, Debug)]
 enum Record {
@@ -143,11 +147,16 @@ impl AdaptiveMicrobuffer {
         let base = &self.buffers[0];
         let share: Vec<f32> = (0..n * n).map(|i| base.dir(i).map_or(0.0, |d| brdf::eval(m, wo, d).max_element())).collect();
         let inside = share.iter().zip(0..n * n).filter(|(_, i)| base.dir(*i).is_some()).count().max(1);
-        let mean = share.iter().sum::<f32>() / inside as f32;
+        // The mean in f64, and a pixel above it only beyond rounding: a Lambert receiver's
+        // shares are all one value, and an f32 mean of them lands a hair under it for some
+        // albedos (0.5 or 0.7 at 8², most at 16²), which split every pixel of such receivers.
+        let mean = share.iter().map(|&w| w as f64).sum::<f64>() / inside as f64;
         for (i, &w) in share.iter().enumerate() {
             let l = match forced {
                 Some(l) => l.min(self.max_level),
-                None if mean > 0.0 && w > mean => ((w / mean).log2() / 2.0).ceil().clamp(0.0, self.max_level as f32) as u32,
+                None if mean > 0.0 && w as f64 > mean * (1.0 + SHARE_ROUNDING) => {
+                    ((w as f64 / mean).log2() / 2.0).ceil().clamp(0.0, self.max_level as f64) as u32
+                }
                 None => 0,
             };
             self.set_block(Pixel { level: 0, x: i % n, y: i / n }, l);
@@ -434,6 +443,23 @@ mod tests {
         t.run(&[tree.root], r.position[i], &frame, mb, &mut stack, &mut counts, |_, _| false);
         mb.finish();
         (mb.convolve(&r.material[i], wo), counts)
+    }
+
+    #[test]
+    fn a_lambert_receiver_keeps_the_base_buffer_whatever_its_albedo() {
+        // An f32 mean of equal shares rounds under them for some albedos and sizes (0.5 and
+        // 0.7 at 8², 0.2, 0.4, 0.7, 0.8 at 16²): every pixel was split by rounding.
+        for n in [8, 16] {
+            let mut mb = AdaptiveMicrobuffer::new(n, 2, f32::INFINITY);
+            for albedo in [0.2, 0.4, 0.5, 0.6, 0.7, 0.73, 0.8] {
+                mb.start(&Material::Lambert { albedo: Vec3::splat(albedo) }, Vec3::new(0.3, 0.1, 0.9).normalize(), None);
+                let levels = mb.pixels_per_level();
+                assert!(mb.direct && levels[1..].iter().all(|&c| c == 0), "{n}², albedo {albedo}: {levels:?}");
+            }
+            // A glossy lobe still splits the pixels under it.
+            mb.start(&Material::BlinnPhong { kd: Vec3::ZERO, ks: Vec3::ONE, exponent: 180.0 }, Vec3::new(0.3, 0.1, 0.9).normalize(), None);
+            assert!(!mb.direct, "{n}²: {:?}", mb.pixels_per_level());
+        }
     }
 
     #[test]

@@ -39,7 +39,7 @@ params! {
     }
 }
 
-#[node(category = "pbgi", version = 12, metrics = ["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver"], outputs = [indirect, stats])]
+#[node(category = "pbgi", version = 13, metrics = ["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver"], outputs = [indirect, stats])]
 impl WaveletGather {
     fn memory(&self, inputs: &[Option<PortSize>]) -> MemoryEstimate {
         let image = inputs[2].and_then(|s| s.dims).map(|[w, h]| PortSize::image(w, h));
