@@ -366,6 +366,9 @@ fn turning_the_sky_changing_the_material_and_orbiting_on_ptt_envlit_update_the_i
         dir.path(),
         "ptt_envlit.ron",
         &[
+            // The Spot-and-teapot scene: fewer vertices than the bunny's for the same edits.
+            ("scene", "path", ParamValue::Text(graphs().join("scenes/envlit-pair.ron").display().to_string())),
+            ("project", "object", ParamValue::Text("spot".into())),
             ("scene", "width", i(24)),
             ("scene", "height", i(24)),
             ("env", "side", i(8)),
