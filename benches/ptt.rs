@@ -3,7 +3,8 @@
 //! for the relit image only (the references are not asked for). The precompute comes from
 //! the workspace's disk cache (`.relume-cache/`, filled by the first run: several minutes of
 //! visibility and transfer tracing on 2 cores). In test mode (`-- --test`, as CI runs every
-//! bench once) the graph runs at test size instead, in a cache of its own.
+//! bench once) the graph runs at test size instead, on the Spot-and-teapot scene, in a cache of
+//! its own.
 //! `cargo bench -p relume-benches --bench ptt`; `PTT_BENCH_NODES=1` prints each edit's node
 //! times, `PTT_BENCH_KINDS=view,view+brdf` times only those kinds (to profile one).
 //! `PTT_BENCH_GRAPH=ptt_envlit_pair.ron PTT_BENCH_BRDF=spot.s` times the two-object graph
@@ -31,6 +32,11 @@ fn graph_and_engine() -> (Graph, Engine) {
         g.shrink_to_test_size(&reg).unwrap();
         g.set_param_text(&reg, "scene.width", "24").unwrap();
         g.set_param_text(&reg, "scene.height", "24").unwrap();
+        if std::env::var("PTT_BENCH_GRAPH").is_err() {
+            // The Spot-and-teapot scene: the same edits from fewer vertices than the bunny's.
+            g.set_param_text(&reg, "scene.path", "scenes/envlit-pair.ron").unwrap();
+            g.set_param_text(&reg, "project.object", "\"spot\"").unwrap();
+        }
         (g, e)
     } else {
         (g, e.with_disk_cache(graphs_dir().join("../.relume-cache")))
