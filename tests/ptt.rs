@@ -31,11 +31,12 @@ const WARM_TESTS: usize = 3;
 /// that asks, into a cache every asker copies): each test reads its own copy, so its edits,
 /// its cache and its reports are its own, and the precompute (most of their time) is made once
 /// instead of once a test. The last of the `WARM_TESTS` to drop its guard removes the shared
-/// cache.
+/// cache (a run of only some of them leaves it in the target folder's `tmp`).
 fn warm_engine() -> (Engine, tempfile::TempDir, WarmGuard) {
     static WARM: OnceLock<std::path::PathBuf> = OnceLock::new();
     let warm = WARM.get_or_init(|| {
-        let dir = tempfile::tempdir().unwrap().keep();
+        // Under the target folder: a run of some of the tests leaves it there, not in /tmp.
+        let dir = tempfile::tempdir_in(env!("CARGO_TARGET_TMPDIR")).unwrap().keep();
         let e = Engine::new(relume_cli::registry()).with_disk_cache(&dir).with_disk_policy(DiskPolicy::Always);
         for name in ["ptt_envlit.ron", "ptt_envlit_ct_bounce.ron"] {
             e.run(&small_ptt(name), &RunOptions::default()).unwrap();
