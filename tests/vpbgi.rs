@@ -39,12 +39,15 @@ fn the_second_bounce_brings_the_image_toward_the_path_tracer_at_max_depth_4() {
 }
 
 #[test]
-fn the_floor_of_two_bounces_keeps_to_the_path_tracers_within_two_percent() {
-    // `vpbgi_cornell.ron` as it ships (10,000 points, 8² buffers) at 64², against the path
-    // tracer at max_depth 4 (1,024 spp). Measured: the floor (object 0, whole pixels) 1.1 %
-    // under, 0.8 % and 0.2 % over in red, green and blue.
+fn the_floor_of_two_bounces_keeps_to_the_path_tracers_within_one_percent() {
+    // `vpbgi_cornell.ron` as it ships (10,000 points, 8² buffers, the gathers' nodes smaller
+    // than a pixel whole in the pixel that holds them) at its own 256², against the path
+    // tracer at max_depth 4 (256 spp: the floor's mean over its ten thousand pixels moves by
+    // less than 0.1 % from 1,024). Measured: the floor (object 0, whole pixels) 0.990 / 1.009 /
+    // 1.003 of the path tracer's; with the gathers' bilinear spread (`splat: Bilinear`) red
+    // is 0.982, 1.8 % under, and this test fails.
     use relume_pbgi::types::Receivers;
-    let mut g = load_graph("vpbgi_cornell.ron", &[("scene.width", "64"), ("scene.height", "64"), ("reference.spp", "1024")]);
+    let mut g = load_graph("vpbgi_cornell.ron", &[("reference.spp", "256")]);
     relume_tests::add_output(&mut g, "receivers", "gbuffer.receivers");
     let r = run_outputs(&engine(), &g, &["image", "reference", "receivers"]);
     let img = |n: &str| r.output(n).unwrap().get::<Image>().unwrap().clone();
@@ -52,13 +55,13 @@ fn the_floor_of_two_bounces_keeps_to_the_path_tracers_within_two_percent() {
     let floor = |i: &Image| {
         let on_floor = |k: usize| receivers.object[k] == 0 && receivers.weight[k] == 1.0;
         let pixels: Vec<usize> = (0..receivers.len()).filter(|&k| on_floor(k)).map(|k| receivers.pixel[k] as usize).collect();
-        assert!(pixels.len() > 300, "the floor holds {} pixels", pixels.len());
+        assert!(pixels.len() > 5000, "the floor holds {} pixels", pixels.len());
         [0, 1, 2].map(|c| pixels.iter().map(|&p| i.pixels[p][c] as f64).sum::<f64>() / pixels.len() as f64)
     };
     let (ours, theirs) = (floor(&img("image")), floor(&img("reference")));
     for c in 0..3 {
         let ratio = ours[c] / theirs[c];
-        assert!((ratio - 1.0).abs() < 0.02, "channel {c}: the floor at {ratio} × the path tracer's");
+        assert!((ratio - 1.0).abs() < 0.01, "channel {c}: the floor at {ratio} × the path tracer's");
     }
 }
 

@@ -23,7 +23,7 @@
 //! of mixed levels. With every pixel at one level and no split during the traversal, the
 //! result is that level's uniform buffer, write for write.
 
-use super::microbuffer::{DiskBounds, DiskLight, Flat, Microbuffer, OCCLUDE_REACH};
+use super::microbuffer::{DiskBounds, DiskLight, Flat, Microbuffer, SplatRule, OCCLUDE_REACH};
 use super::traversal::{radiance_along, GatherBuffer, GatherCounts, NodeRadiance, Raster, Traversal};
 use glam::Vec3;
 use relume_base::brdf;
@@ -124,6 +124,12 @@ impl AdaptiveMicrobuffer {
     /// the thesis' and the default of `new`).
     pub fn with_coarse_cut(mut self, on: bool) -> Self {
         self.coarse_cut = on;
+        self
+    }
+
+    /// Every level's buffer with nodes smaller than its pixels landing by `rule`.
+    pub fn with_rule(mut self, rule: SplatRule) -> Self {
+        self.buffers = self.buffers.into_iter().map(|b| b.with_rule(rule)).collect();
         self
     }
 

@@ -39,7 +39,7 @@ pub fn factorized_gather(
     cx: &RunCtx,
 ) -> Result<(Image, GatherCounts), NodeError> {
     let t = Traversal::new(tree, p.microbuffer.threshold, 1e-5 * extent);
-    let blank = Microbuffer::new(p.microbuffer.resolution);
+    let blank = Microbuffer::new(p.microbuffer.resolution).with_rule(p.microbuffer.splat);
     let per_cluster: Vec<Vec<(u32, Vec3, GatherCounts)>> = cx.par_map(clusters.clusters.len(), |ci| {
         let c = &clusters.clusters[ci];
         let (mut shared, mut own, mut stack) = (blank.clone(), blank.clone(), Vec::new());
@@ -113,6 +113,7 @@ impl FactorizedGather {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::microbuffer::SplatRule;
     use crate::pbgi_gather::{gather, PbgiGather};
     use crate::test_support::pbgi_setup;
     use relume_base::testing::{cancels_midway, run_on};
@@ -126,8 +127,15 @@ mod tests {
         let out =
             run_on::<FactorizedGather>(&[], vec![Value::new(tree.clone()), Value::new(r.clone()), Value::new(clusters.clone())]).unwrap();
         let img = out[0].get::<Image>().unwrap();
-        let plain =
-            gather(&tree, &r, &PbgiGather { microbuffer: MicrobufferParams { resolution: 16, threshold: 1.0 } }, 4.0, &cx).unwrap().0;
+        let plain = gather(
+            &tree,
+            &r,
+            &PbgiGather { microbuffer: MicrobufferParams { resolution: 16, threshold: 1.0, splat: SplatRule::Bilinear } },
+            4.0,
+            &cx,
+        )
+        .unwrap()
+        .0;
         let mse = relume_base::image::image_error::error_metrics(img, &plain, 1.0, 0.01).get("mse").unwrap();
         assert!(mse < 1e-4, "{mse}");
         let mut fewer = r.clone();
@@ -146,7 +154,8 @@ mod tests {
         let cancel = CancelToken::new();
         let cx = RunCtx::new("t", &cancel, None);
         let (tree, r, clusters) = pbgi_setup::tree_receivers_clusters();
-        let p = FactorizedGather { microbuffer: MicrobufferParams { resolution: 8, threshold: 1.0 }, epsilon: 1.0 };
+        let p =
+            FactorizedGather { microbuffer: MicrobufferParams { resolution: 8, threshold: 1.0, splat: SplatRule::Bilinear }, epsilon: 1.0 };
         let run = |threads| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             let (img, c) = pool.install(|| factorized_gather(&tree, &r, &clusters, &p, 4.0, &cx).unwrap());

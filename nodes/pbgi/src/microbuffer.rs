@@ -6,6 +6,7 @@
 use glam::Vec3;
 use relume_base::brdf;
 use relume_base::types::Material;
+use relume_core::ParamEnum;
 
 /// Local direction of pixel `i`'s centre in an N × N Nusselt buffer: (x, y) on the unit
 /// disk lifted to the hemisphere (`None` outside the disk; the single pixel of N = 1 is +z).
@@ -17,6 +18,15 @@ pub fn nusselt_dir(n: usize, i: usize) -> Option<Vec3> {
     } else {
         (r2 < 1.0).then(|| Vec3::new(x, y, (1.0 - r2).sqrt()))
     }
+}
+
+/// Where a node smaller than a microbuffer pixel lands.
+#[derive(ParamEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SplatRule {
+    /// spread over the four pixel centres around it, each share measured against that pixel's solid angle
+    Bilinear,
+    /// whole into the pixel that holds its direction (at the rim, the nearest pixel inside the disk), by its own projected solid angle
+    Nearest,
 }
 
 #[derive(Clone)]
@@ -34,6 +44,8 @@ pub struct Microbuffer {
     /// Whether writes came after the last `resolve`: the buffer cannot be read until it is
     /// resolved again.
     stale: bool,
+    /// Where nodes smaller than a pixel land.
+    rule: SplatRule,
 }
 
 /// The pixels a disk can cover (`Microbuffer::disk_bounds`): a box of the grid, inclusive,
@@ -132,7 +144,15 @@ impl Microbuffer {
             radiance: vec![Vec3::ZERO; n * n],
             coverage: vec![0.0; n * n],
             stale: false,
+            rule: SplatRule::Bilinear,
         }
+    }
+
+    /// The same buffer with nodes smaller than a pixel landing by `rule` (`Bilinear` unless
+    /// set).
+    pub fn with_rule(mut self, rule: SplatRule) -> Self {
+        self.rule = rule;
+        self
     }
 
     pub fn resolution(&self) -> usize {
@@ -309,13 +329,13 @@ impl Microbuffer {
     /// they lie near one.
     pub fn splat(&mut self, d: Vec3, dist: f32, omega: f32, l: Vec3, flat: Option<Flat>) {
         self.stale = true;
-        let Microbuffer { n, dirs, layers, .. } = self;
-        splat_taps(*n, dirs, d, omega, &mut |i, cov| layer_write(&mut layers[i], dist, l, cov, cov, flat));
+        let Microbuffer { n, dirs, layers, rule, .. } = self;
+        splat_taps(*n, dirs, d, omega, *rule, &mut |i, cov| layer_write(&mut layers[i], dist, l, cov, cov, flat));
     }
 
     /// The writes `splat` makes (pixel, coverage), in its order, without making them.
     pub fn splat_writes(&self, d: Vec3, omega: f32, f: &mut impl FnMut(usize, f32)) {
-        splat_taps(self.n, &self.dirs, d, omega, f)
+        splat_taps(self.n, &self.dirs, d, omega, self.rule, f)
     }
 
     /// Exact raster of a disk (centre `c` relative to the receiver, normal `nrm`, radius `r`,
@@ -545,11 +565,15 @@ fn cone_box(n: usize, axis: Vec3, cos_a: f32) -> ((usize, usize), (usize, usize)
 }
 
 /// The pixels (and coverages) a node seen in direction `d` of solid angle `omega` covers in
-/// an `n`-wide buffer with pixel directions `dirs`: a node smaller than its pixel spreads
-/// bilinearly over the 2 × 2 pixels around its centre, so that neighbouring nodes fill
-/// pixels evenly instead of piling onto one, each share measured against that pixel's own
-/// solid angle; a larger one covers the pixels whose centre lies within its angular radius.
-fn splat_taps(n: usize, dirs: &[Option<Vec3>], d: Vec3, omega: f32, f: &mut impl FnMut(usize, f32)) {
+/// an `n`-wide buffer with pixel directions `dirs`. A node smaller than its pixel, by
+/// `rule`: `Bilinear` spreads it over the 2 × 2 pixels around its centre, so that
+/// neighbouring nodes fill pixels evenly instead of piling onto one, each share measured
+/// against that pixel's own solid angle (shares on pixels off the disk are dropped);
+/// `Nearest` puts it whole into the pixel that holds `d` (`nearest_inside`), covering its
+/// projected solid angle ω cos θ over the pixel's, so that a Lambert receiver gathers exactly
+/// Σ L ω cos θ and an occluder's coverage stays in the pixels its nodes lie in. A larger node
+/// covers the pixels whose centre lies within its angular radius.
+fn splat_taps(n: usize, dirs: &[Option<Vec3>], d: Vec3, omega: f32, rule: SplatRule, f: &mut impl FnMut(usize, f32)) {
     if d.z <= 0.0 || omega <= 0.0 {
         return;
     }
@@ -565,6 +589,12 @@ fn splat_taps(n: usize, dirs: &[Option<Vec3>], d: Vec3, omega: f32, f: &mut impl
     let pixel_omega = weight / d.z.max(1e-3);
     if n == 1 {
         f(centre, omega / pixel_omega);
+        return;
+    }
+    if omega <= pixel_omega && rule == SplatRule::Nearest {
+        if let Some(i) = nearest_inside(n, dirs, d) {
+            f(i, omega * d.z / weight);
+        }
         return;
     }
     if omega <= pixel_omega {
@@ -603,6 +633,33 @@ fn splat_taps(n: usize, dirs: &[Option<Vec3>], d: Vec3, omega: f32, f: &mut impl
     }
 }
 
+/// The pixel of an `n`-wide buffer (n ≥ 2) that holds direction `d` (z > 0), or, where that
+/// pixel's centre lies off the disk (a rim pixel the disk only cuts), the neighbour among the
+/// eight around it whose centre is inside the disk and nearest to `d` on it.
+fn nearest_inside(n: usize, dirs: &[Option<Vec3>], d: Vec3) -> Option<usize> {
+    let nf = n as f32;
+    let at = |c: f32| (((c + 1.0) * 0.5 * nf) as i64).clamp(0, n as i64 - 1);
+    let (cx, cy) = (at(d.x), at(d.y));
+    if dirs[cy as usize * n + cx as usize].is_some() {
+        return Some(cy as usize * n + cx as usize);
+    }
+    let mut best: Option<(f32, usize)> = None;
+    for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)] {
+        let (x, y) = (cx + dx, cy + dy);
+        if x < 0 || y < 0 || x >= n as i64 || y >= n as i64 {
+            continue;
+        }
+        let i = y as usize * n + x as usize;
+        if let Some(p) = dirs[i] {
+            let dd = (p.x - d.x).powi(2) + (p.y - d.y).powi(2);
+            if best.is_none_or(|(b, _)| dd < b) {
+                best = Some((dd, i));
+            }
+        }
+    }
+    best.map(|(_, i)| i)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -636,6 +693,26 @@ mod tests {
         }
     }
 
+    /// 50,000 splats of one layer, uniform over the projected disk, each of projected solid
+    /// angle π / 50,000 and radiance 1, and the buffer resolved.
+    fn hemisphere_of_small_splats(mb: &mut Microbuffer) {
+        let mut next = uniforms(0x2545_f491);
+        let count = 50_000;
+        let area = std::f32::consts::PI / count as f32;
+        let mut drawn = 0;
+        while drawn < count {
+            let (x, y) = (2.0 * next() - 1.0, 2.0 * next() - 1.0);
+            let r2 = x * x + y * y;
+            if r2 >= 1.0 {
+                continue;
+            }
+            let z = (1.0 - r2).sqrt().max(1e-4);
+            mb.splat(Vec3::new(x, y, z), 1.0, area / z, Vec3::ONE, None);
+            drawn += 1;
+        }
+        mb.resolve();
+    }
+
     #[test]
     fn a_hemisphere_of_small_splats_keeps_its_energy_up_to_the_rim() {
         // 50,000 splats of one layer, uniform over the projected disk, each of projected solid
@@ -645,25 +722,51 @@ mod tests {
         // cancel, leaving the energy high by 1.8 % at 8², 0.8 % at 16² and 0.4 % at 32² (this
         // draw; a model of the rule over 200,000 draws: 1.7, 0.7 and 0.3 %).
         for (n, tol) in [(8, 0.025), (16, 0.012), (32, 0.006)] {
-            let mut next = uniforms(0x2545_f491);
             let mut mb = Microbuffer::new(n);
-            let count = 50_000;
-            let area = std::f32::consts::PI / count as f32;
-            let mut drawn = 0;
-            while drawn < count {
-                let (x, y) = (2.0 * next() - 1.0, 2.0 * next() - 1.0);
-                let r2 = x * x + y * y;
-                if r2 >= 1.0 {
-                    continue;
-                }
-                let z = (1.0 - r2).sqrt().max(1e-4);
-                mb.splat(Vec3::new(x, y, z), 1.0, area / z, Vec3::ONE, None);
-                drawn += 1;
-            }
-            mb.resolve();
+            hemisphere_of_small_splats(&mut mb);
             let out = mb.convolve(&Material::Lambert { albedo: Vec3::ONE }, Vec3::Z).x;
             assert!((out - 1.0).abs() < tol, "n = {n}: {out}");
         }
+    }
+
+    #[test]
+    fn nearest_splats_keep_a_hemispheres_energy_to_rounding() {
+        // The same 50,000 splats as above, each whole in one pixel by its own projected solid
+        // angle: nothing is dropped at the rim and no cosine is a pixel centre's, so a Lambert
+        // receiver of albedo 1 reflects 1 up to f32 sums.
+        for n in [8, 16, 32] {
+            let mut mb = Microbuffer::new(n).with_rule(SplatRule::Nearest);
+            hemisphere_of_small_splats(&mut mb);
+            let out = mb.convolve(&Material::Lambert { albedo: Vec3::ONE }, Vec3::Z).x;
+            assert!((out - 1.0).abs() < 1e-3, "n = {n}: {out}");
+        }
+    }
+
+    #[test]
+    fn a_nearest_splat_lands_whole_in_the_pixel_that_holds_it_or_the_nearest_inside_the_disk() {
+        let mb = Microbuffer::new(8).with_rule(SplatRule::Nearest);
+        let taps = |d: Vec3, omega: f32| {
+            let mut got = Vec::new();
+            mb.splat_writes(d, omega, &mut |i, c| got.push((i, c)));
+            got
+        };
+        // Inside pixel (5, 2), away from its centre: one write there, ω cos θ over (2/8)².
+        let d = Vec3::new(0.30, -0.30, 0.0).with_z((1.0f32 - 0.18).sqrt());
+        let got = taps(d, 1e-3);
+        assert_eq!(got.len(), 1);
+        assert_eq!(got[0].0, 2 * 8 + 5);
+        assert!((got[0].1 - 1e-3 * d.z / 0.0625).abs() < 1e-7);
+        // Pixel (7, 6) holds (0.76, 0.55), on the disk, but its centre (0.875, 0.625) is off
+        // it: the write goes to the neighbour inside whose centre is nearest, (6, 6) at
+        // (0.625, 0.625), rather than (7, 5) at (0.875, 0.375).
+        let rim = Vec3::new(0.76, 0.55, (1.0f32 - 0.76 * 0.76 - 0.55 * 0.55).sqrt());
+        assert!(mb.dir(6 * 8 + 7).is_none() && mb.dir(5 * 8 + 7).is_some() && mb.dir(6 * 8 + 6).is_some());
+        let got = taps(rim, 1e-4);
+        assert_eq!(got.iter().map(|w| w.0).collect::<Vec<_>>(), vec![6 * 8 + 6]);
+        // Bilinear spreads the first over four pixels.
+        let mut spread = Vec::new();
+        Microbuffer::new(8).splat_writes(d, 1e-3, &mut |i, c| spread.push((i, c)));
+        assert_eq!(spread.len(), 4);
     }
 
     #[test]

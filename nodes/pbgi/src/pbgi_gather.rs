@@ -22,7 +22,12 @@ params! {
 
 /// Indirect radiance toward the camera for every receiver (`extent` sets the traversal's ε).
 pub fn gather(tree: &PointTree, r: &Receivers, p: &PbgiGather, extent: f32, cx: &RunCtx) -> Result<(Image, GatherCounts), NodeError> {
-    gather_with(&Traversal::new(tree, p.microbuffer.threshold, 1e-5 * extent), r, Microbuffer::new(p.microbuffer.resolution), cx)
+    gather_with(
+        &Traversal::new(tree, p.microbuffer.threshold, 1e-5 * extent),
+        r,
+        Microbuffer::new(p.microbuffer.resolution).with_rule(p.microbuffer.splat),
+        cx,
+    )
 }
 
 #[node(category = "pbgi", version = 6, metrics = ["receivers", "nodes_visited_per_receiver", "nodes_rasterised_per_receiver", "near_leaves_per_receiver"], outputs = [indirect, stats])]
@@ -46,6 +51,7 @@ impl PbgiGather {
 mod tests {
     use super::*;
     use crate::gather::z_order;
+    use crate::microbuffer::SplatRule;
     use crate::test_support::pbgi_setup;
     use relume_base::testing::{cancels_midway, first, i, run_on};
     use relume_core::Value;
@@ -82,7 +88,7 @@ mod tests {
     #[test]
     fn the_gather_gives_the_same_bytes_on_one_and_four_threads() {
         let (tree, r) = pbgi_setup::tree_and_receivers();
-        let p = PbgiGather { microbuffer: MicrobufferParams { resolution: 8, threshold: 1.0 } };
+        let p = PbgiGather { microbuffer: MicrobufferParams { resolution: 8, threshold: 1.0, splat: SplatRule::Bilinear } };
         let cancel = relume_core::CancelToken::new();
         let cx = RunCtx::new("t", &cancel, None);
         let run = |threads| {

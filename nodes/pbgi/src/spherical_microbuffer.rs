@@ -18,7 +18,7 @@
 //! (1 − F)/η² · L(refracted) from the back (nearest pixel). With ior = 1 this is exactly the
 //! back pixel straight behind: light goes through unchanged (docs/QUALITY.md §2 "refraction").
 
-use super::microbuffer::{DiskLight, Flat, Microbuffer};
+use super::microbuffer::{DiskLight, Flat, Microbuffer, SplatRule};
 use super::traversal::{GatherBuffer, GatherCounts, NodeRadiance, Raster, Traversal};
 use crate::types::faces_inside;
 use glam::Vec3;
@@ -52,6 +52,11 @@ impl SphericalMicrobuffer {
     /// Two N × N hemispheres (N ≥ 1).
     pub fn new(n: usize) -> Self {
         SphericalMicrobuffer { front: Microbuffer::new(n), back: Microbuffer::new(n), whole: false, only_front: None }
+    }
+
+    /// Both hemispheres with nodes smaller than a pixel landing by `rule`.
+    pub fn with_rule(self, rule: SplatRule) -> Self {
+        SphericalMicrobuffer { front: self.front.with_rule(rule), back: self.back.with_rule(rule), ..self }
     }
 
     /// Whether receivers of material `m` see the whole sphere: those that transmit light.

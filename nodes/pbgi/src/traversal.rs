@@ -1,7 +1,7 @@
 //! What the two gathers (PbgiGather, FactorizedGather) share: their microbuffer parameters,
 //! the traversal of the point tree for one receiver, and its counts.
 
-use super::microbuffer::{DiskLight, Flat, Microbuffer};
+use super::microbuffer::{DiskLight, Flat, Microbuffer, SplatRule};
 use crate::types::PointTree;
 use glam::Vec3;
 use relume_base::math::frame::Frame;
@@ -17,6 +17,8 @@ params! {
         pub resolution: usize = 16, range = 1..=256, unit = "px";
         /// largest solid angle of a rasterised node, in microbuffer pixels
         pub threshold: f32 = 1.0, range = 0.01..=100.0, unit = "pixels";
+        /// where a node smaller than a pixel lands: spread over the four pixels around it, or whole in the one that holds it (keeps an occluder's coverage inside its silhouette and the energy exact)
+        pub splat: SplatRule = Bilinear;
     }
 }
 

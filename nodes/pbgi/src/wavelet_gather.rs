@@ -52,7 +52,7 @@ impl WaveletGather {
         let source = WaveletSource::checked(tree, coded)?;
         let t = Traversal::with_source(tree, &source, self.microbuffer.threshold, 1e-5 * tree_extent(tree));
         let (img, counts) = if self.max_level == 0 {
-            gather_with(&t, receivers, SphericalMicrobuffer::new(self.microbuffer.resolution), cx)?
+            gather_with(&t, receivers, SphericalMicrobuffer::new(self.microbuffer.resolution).with_rule(self.microbuffer.splat), cx)?
         } else {
             if self.microbuffer.resolution < 2 {
                 return Err(NodeError::param("resolution", "the adaptive microbuffer starts at 2 × 2 or more"));
@@ -60,7 +60,9 @@ impl WaveletGather {
             gather_with(
                 &t,
                 receivers,
-                AdaptiveMicrobuffer::new(self.microbuffer.resolution, self.max_level, self.gamma).with_coarse_cut(self.coarse_cut),
+                AdaptiveMicrobuffer::new(self.microbuffer.resolution, self.max_level, self.gamma)
+                    .with_coarse_cut(self.coarse_cut)
+                    .with_rule(self.microbuffer.splat),
                 cx,
             )?
         };
@@ -75,6 +77,7 @@ impl WaveletGather {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::microbuffer::SplatRule;
     use crate::pbgi_gather::{gather, PbgiGather};
     use crate::test_support::wpbgi_setup;
     use glam::Vec3;
@@ -92,14 +95,18 @@ mod tests {
         img.pixels.iter().map(|p| p[0] as f64).sum::<f64>() / img.pixels.len() as f64
     }
 
+    /// `PbgiGather` (16², threshold 1) on the same tree and receivers.
+    fn diffuse_gather(tree: &PointTree, r: &Receivers) -> Image {
+        let cancel = CancelToken::new();
+        let cx = RunCtx::new("t", &cancel, None);
+        let p = PbgiGather { microbuffer: MicrobufferParams { resolution: 16, threshold: 1.0, splat: SplatRule::Bilinear } };
+        gather(tree, r, &p, tree_extent(tree), &cx).unwrap().0
+    }
+
     #[test]
     fn on_a_diffuse_scene_the_wavelet_gather_agrees_with_the_diffuse_one() {
         let (tree, coded, r) = setup(Material::Lambert { albedo: Vec3::splat(0.6) });
-        let cancel = CancelToken::new();
-        let cx = RunCtx::new("t", &cancel, None);
-        let (diffuse, _) =
-            gather(&tree, &r, &PbgiGather { microbuffer: MicrobufferParams { resolution: 16, threshold: 1.0 } }, tree_extent(&tree), &cx)
-                .unwrap();
+        let diffuse = diffuse_gather(&tree, &r);
         let out = run_on::<WaveletGather>(&[], vec![Value::new(tree.clone()), Value::new(coded), Value::new(r)]).unwrap();
         let wavelet: Image = first(&out);
         let (a, b) = (mean(&diffuse), mean(&wavelet));
@@ -132,11 +139,7 @@ mod tests {
         // point light above the floor mirrors down onto the floor in front of the wall.
         let glossy = Material::BlinnPhong { kd: Vec3::splat(0.1), ks: Vec3::splat(0.5), exponent: 60.0 };
         let (tree, coded, r) = setup(glossy);
-        let cancel = CancelToken::new();
-        let cx = RunCtx::new("t", &cancel, None);
-        let (diffuse, _) =
-            gather(&tree, &r, &PbgiGather { microbuffer: MicrobufferParams { resolution: 16, threshold: 1.0 } }, tree_extent(&tree), &cx)
-                .unwrap();
+        let diffuse = diffuse_gather(&tree, &r);
         let wavelet: Image = first(&run_on::<WaveletGather>(&[], vec![Value::new(tree), Value::new(coded), Value::new(r)]).unwrap());
         let (a, b) = (mean(&diffuse), mean(&wavelet));
         // Measured: 0.00638 against 0.00900 (1.41×).
