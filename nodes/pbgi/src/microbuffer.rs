@@ -569,7 +569,7 @@ fn cone_box(n: usize, axis: Vec3, cos_a: f32) -> ((usize, usize), (usize, usize)
 /// `rule`: `Bilinear` spreads it over the 2 × 2 pixels around its centre, so that
 /// neighbouring nodes fill pixels evenly instead of piling onto one, each share measured
 /// against that pixel's own solid angle (shares on pixels off the disk are dropped);
-/// `Nearest` puts it whole into the pixel that holds `d` (`nearest_inside`), covering its
+/// `Nearest` puts it whole into the pixel that holds `d` (`centre`, or `nearest_inside` at the rim), covering its
 /// projected solid angle ω cos θ over the pixel's, so that a Lambert receiver gathers exactly
 /// Σ L ω cos θ and an occluder's coverage stays in the pixels its nodes lie in. A larger node
 /// covers the pixels whose centre lies within its angular radius.
@@ -592,7 +592,7 @@ fn splat_taps(n: usize, dirs: &[Option<Vec3>], d: Vec3, omega: f32, rule: SplatR
         return;
     }
     if omega <= pixel_omega && rule == SplatRule::Nearest {
-        if let Some(i) = nearest_inside(n, dirs, d) {
+        if let Some(i) = nearest_inside(n, dirs, centre, d) {
             f(i, omega * d.z / weight);
         }
         return;
@@ -633,16 +633,14 @@ fn splat_taps(n: usize, dirs: &[Option<Vec3>], d: Vec3, omega: f32, rule: SplatR
     }
 }
 
-/// The pixel of an `n`-wide buffer (n ≥ 2) that holds direction `d` (z > 0), or, where that
-/// pixel's centre lies off the disk (a rim pixel the disk only cuts), the neighbour among the
-/// eight around it whose centre is inside the disk and nearest to `d` on it.
-fn nearest_inside(n: usize, dirs: &[Option<Vec3>], d: Vec3) -> Option<usize> {
-    let nf = n as f32;
-    let at = |c: f32| (((c + 1.0) * 0.5 * nf) as i64).clamp(0, n as i64 - 1);
-    let (cx, cy) = (at(d.x), at(d.y));
-    if dirs[cy as usize * n + cx as usize].is_some() {
-        return Some(cy as usize * n + cx as usize);
+/// Pixel `centre` of an `n`-wide buffer, the one that holds direction `d`, or, where its centre
+/// lies off the disk (a rim pixel the disk only cuts), the neighbour among the eight around it
+/// whose centre is inside the disk and nearest to `d` on it.
+fn nearest_inside(n: usize, dirs: &[Option<Vec3>], centre: usize, d: Vec3) -> Option<usize> {
+    if dirs[centre].is_some() {
+        return Some(centre);
     }
+    let (cx, cy) = ((centre % n) as i64, (centre / n) as i64);
     let mut best: Option<(f32, usize)> = None;
     for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)] {
         let (x, y) = (cx + dx, cy + dy);
