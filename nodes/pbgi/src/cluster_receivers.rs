@@ -260,6 +260,7 @@ mod tests {
             object: vec![0; n],
             material: vec![Material::Lambert { albedo: Vec3::splat(0.5) }; n],
             weight: vec![1.0; n],
+            fill: vec![],
         }
     }
 

@@ -82,6 +82,7 @@ pub fn factorized_gather(
         r.add_to(&mut img, x as usize, l);
         total = total + c;
     }
+    r.fill_in(&mut img);
     Ok((img, total))
 }
 

@@ -50,6 +50,7 @@ pub fn gather_with<R: NodeRadiance, B: GatherBuffer>(
         r.add_to(&mut img, i as usize, l);
         total = total + c;
     }
+    r.fill_in(&mut img);
     Ok((img, total))
 }
 

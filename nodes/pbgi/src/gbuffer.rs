@@ -1,4 +1,4 @@
-use crate::types::Receivers;
+use crate::types::{Fill, Receivers};
 use glam::Vec3;
 use relume_base::render::camera::CameraRays;
 use relume_base::render::surface::Surface;
@@ -17,12 +17,23 @@ params! {
     /// one-sided surface get no receiver, nor do those that see a smooth dielectric unless
     /// `dielectrics` is on (only `WaveletGather` shades them, through its spherical
     /// microbuffer; the other gathers leave them black).
+    ///
+    /// With `stride` s > 1 (2, 4 or 8) only every s-th pixel of every s-th row is sure to be
+    /// gathered where the image is smooth: any other pixel that is not at an edge, on a surface
+    /// without texture maps, is filled after the gather by bilinear weights from the corners of
+    /// the largest cell (side s, s/2, … 2, on the same grid) whose corners with a weight are
+    /// each whole on the pixel's own piece of surface (the edge test's) and not at an edge;
+    /// where no cell is, the pixel gets its own receiver. Indirect light is smooth across a
+    /// surface, so a gather costs about 1/s² of its receivers on smooth surfaces and stays per
+    /// pixel at edges and textures. The fraction of pixels filled is a metric.
     pub struct GBuffer {
         /// make receivers of the pixels that see a smooth dielectric (glass) too
         pub dielectrics: bool = false;
         /// side of the grid of receivers in a pixel that spans an edge (1: one receiver at
         /// every pixel centre)
         pub edge_samples: usize = 2, range = 1..=4;
+        /// spacing of the pixels gathered where the surface is smooth: 1 (every pixel), 2, 4 or 8
+        pub stride: usize = 1, range = 1..=8, unit = "pixels";
     }
 }
 
@@ -37,10 +48,14 @@ fn same_surface(a: &(Surface, Vec3, f32), b: &(Surface, Vec3, f32)) -> bool {
 /// (or sees what the other does not) traces a `k` × `k` grid: where all of the grid's hits lie on
 /// its centre's piece of surface it keeps the centre's receiver, else each hit becomes one at
 /// 1/k² of the pixel. An edge that passes between no two pixel centres goes unseen.
-pub fn gbuffer(scene: &Scene, accel: &Accel, dielectrics: bool, k: usize, cx: &RunCtx) -> Result<Receivers, NodeError> {
+///
+/// With `stride` s > 1 (a power of two), a pixel off the s-grid that is not an edge and can be
+/// read off the corners of a cell around it becomes a `Fill` instead of a receiver (see the
+/// node's doc).
+pub fn gbuffer(scene: &Scene, accel: &Accel, dielectrics: bool, k: usize, stride: usize, cx: &RunCtx) -> Result<Receivers, NodeError> {
     let cam = CameraRays::new(&scene.camera);
     let (w, h) = (scene.camera.width, scene.camera.height);
-    let k = k.max(1);
+    let (k, stride) = (k.max(1), stride.max(1));
     // The surface a ray through (x, y) of the image makes a receiver of, with the direction
     // back to the camera and the distance.
     let receiver_at = |x: f32, y: f32| {
@@ -58,15 +73,54 @@ pub fn gbuffer(scene: &Scene, accel: &Accel, dielectrics: bool, k: usize, cx: &R
         (None, None) => false,
         _ => true,
     };
-    let rows: Vec<Vec<(u32, Surface, Vec3, f32)>> = cx.par_map(h, |y| {
-        let mut row = Vec::new();
+    let edge: Vec<Vec<bool>> = cx.par_map(h, |y| {
+        (0..w)
+            .map(|x| {
+                let neighbours = [(x.wrapping_sub(1), y), (x + 1, y), (x, y.wrapping_sub(1)), (x, y + 1)];
+                k > 1 && neighbours.iter().any(|&(nx, ny)| nx < w && ny < h && differs(&centres[y][x], &centres[ny][nx]))
+            })
+            .collect()
+    })?;
+    // Pixel (x, y), whose centre sees `c`, read off the corners of the coarsest cell whose
+    // corners all lie whole on its surface, with the class of that cell (`fill_class`).
+    let fill_of = |x: usize, y: usize, c: &(Surface, Vec3, f32)| -> Option<(u32, Fill)> {
+        if !scene.objects[c.0.object as usize].maps.is_empty() {
+            return None;
+        }
+        let valid =
+            |ax: usize, ay: usize| ax < w && ay < h && !edge[ay][ax] && centres[ay][ax].as_ref().is_some_and(|a| same_surface(c, a));
+        let own = fill_class(x, y, stride);
+        (own + 1..=stride.trailing_zeros()).rev().find_map(|m| {
+            let side = 1usize << m;
+            let (x0, y0) = (x / side * side, y / side * side);
+            let (fx, fy) = ((x - x0) as f32 / side as f32, (y - y0) as f32 / side as f32);
+            let corners = [
+                (x0, y0, (1.0 - fx) * (1.0 - fy)),
+                (x0 + side, y0, fx * (1.0 - fy)),
+                (x0, y0 + side, (1.0 - fx) * fy),
+                (x0 + side, y0 + side, fx * fy),
+            ];
+            let mut f = Fill { pixel: (y * w + x) as u32, ..Default::default() };
+            for (j, &(ax, ay, wt)) in corners.iter().enumerate().filter(|(_, c)| c.2 > 0.0) {
+                if !valid(ax, ay) {
+                    return None;
+                }
+                (f.from[j], f.weight[j]) = ((ay * w + ax) as u32, wt);
+            }
+            Some((own, f))
+        })
+    };
+    let rows: Vec<(Vec<(u32, Surface, Vec3, f32)>, Vec<(u32, Fill)>)> = cx.par_map(h, |y| {
+        let (mut row, mut fills) = (Vec::new(), Vec::new());
         for x in 0..w {
             let i = (y * w + x) as u32;
             let centre = &centres[y][x];
-            let neighbours = [(x.wrapping_sub(1), y), (x + 1, y), (x, y.wrapping_sub(1)), (x, y + 1)];
-            let edge = k > 1 && neighbours.iter().any(|&(nx, ny)| nx < w && ny < h && differs(centre, &centres[ny][nx]));
-            if !edge {
-                row.extend(centre.as_ref().map(|(s, wo, _)| (i, s.clone(), *wo, 1.0)));
+            if !edge[y][x] {
+                match centre.as_ref().map(|c| (c, fill_of(x, y, c))) {
+                    Some((_, Some(f))) => fills.push(f),
+                    Some(((s, wo, _), None)) => row.push((i, s.clone(), *wo, 1.0)),
+                    None => {}
+                }
                 continue;
             }
             let grid: Vec<_> = (0..k * k)
@@ -77,9 +131,14 @@ pub fn gbuffer(scene: &Scene, accel: &Accel, dielectrics: bool, k: usize, cx: &R
                 _ => row.extend(grid.into_iter().flatten().map(|(s, wo, _)| (i, s, wo, 1.0 / (k * k) as f32))),
             }
         }
-        row
+        (row, fills)
     })?;
     let mut r = Receivers { width: w, height: h, ..Default::default() };
+    let (rows, fills): (Vec<_>, Vec<_>) = rows.into_iter().unzip();
+    // Coarser classes first: a filled pixel's corners are gathered or filled before it.
+    let mut fills: Vec<(u32, Fill)> = fills.into_iter().flatten().collect();
+    fills.sort_by_key(|&(class, f)| (std::cmp::Reverse(class), f.pixel));
+    r.fill = fills.into_iter().map(|(_, f)| f).collect();
     for (pixel, s, wo, weight) in rows.into_iter().flatten() {
         r.pixel.push(pixel);
         r.position.push(s.p);
@@ -92,30 +151,41 @@ pub fn gbuffer(scene: &Scene, accel: &Accel, dielectrics: bool, k: usize, cx: &R
     Ok(r)
 }
 
+/// The class of pixel (x, y) on the grids of a power-of-two `stride`: the largest m with
+/// 2^m ≤ stride dividing both coordinates (the s-grid's pixels are of the top class, always
+/// gathered). A pixel of class l is read off the corners of a cell of side 2^m, m > l, which
+/// are of class m or more.
+fn fill_class(x: usize, y: usize, stride: usize) -> u32 {
+    (x | y | stride).trailing_zeros().min(stride.trailing_zeros())
+}
+
 /// Pixels with more than one receiver, or one that covers only part of them.
 fn edge_pixels(r: &Receivers) -> usize {
     let mut last = None;
     r.pixel.iter().zip(&r.weight).filter(|&(&p, &w)| w < 1.0 && last.replace(p) != Some(p)).count()
 }
 
-#[node(category = "pbgi", version = 3, metrics = ["receivers", "edge_pixels"], outputs = [receivers])]
+#[node(category = "pbgi", version = 4, metrics = ["receivers", "edge_pixels", "filled_pct"], outputs = [receivers])]
 impl GBuffer {
     fn memory(&self, inputs: &[Option<relume_core::PortSize>]) -> relume_core::MemoryEstimate {
-        // At most edge_samples² receivers per pixel; the pixel centres' hits while it runs.
-        let per_pixel = self.edge_samples.clamp(1, 4).pow(2);
+        // At most edge_samples² receivers per pixel, or one fill; the pixel centres' hits and
+        // edge flags while it runs.
+        let per_pixel = self.edge_samples.clamp(1, 4).pow(2) * Receivers::BYTES_PER_RECEIVER;
         let dims = inputs[0].and_then(|s| s.dims);
-        let size = dims.map(|[w, h]| relume_core::PortSize {
-            bytes: (w * h * per_pixel * crate::types::Receivers::BYTES_PER_RECEIVER) as u64,
-            dims: Some([w, h]),
-        });
-        let centres = dims.map_or(0, |[w, h]| (w * h * std::mem::size_of::<Option<(Surface, Vec3, f32)>>()) as u64);
+        let size = dims
+            .map(|[w, h]| relume_core::PortSize { bytes: (w * h * per_pixel.max(Receivers::BYTES_PER_FILL)) as u64, dims: Some([w, h]) });
+        let centres = dims.map_or(0, |[w, h]| (w * h * (std::mem::size_of::<Option<(Surface, Vec3, f32)>>() + 1)) as u64);
         relume_core::MemoryEstimate { outputs: vec![size], working: centres }
     }
 
     fn run(&self, scene: &Scene, accel: &Accel, cx: &RunCtx) -> Result<Receivers, NodeError> {
-        let r = gbuffer(scene, accel, self.dielectrics, self.edge_samples, cx)?;
+        if !self.stride.is_power_of_two() {
+            return Err(NodeError::param("stride", format!("{} is not 1, 2, 4 or 8", self.stride)));
+        }
+        let r = gbuffer(scene, accel, self.dielectrics, self.edge_samples, self.stride, cx)?;
         cx.metric("receivers", r.len() as f64);
         cx.metric("edge_pixels", edge_pixels(&r) as f64);
+        cx.metric("filled_pct", 100.0 * r.fill.len() as f64 / (r.width * r.height).max(1) as f64);
         Ok(r)
     }
 }
@@ -132,7 +202,7 @@ mod tests {
         let scene = test_scene::spheres();
         let accel = Accel::build(&scene, BuildQuality::Fast);
         let cancel = CancelToken::new();
-        let r = gbuffer(&scene, &accel, false, k, &RunCtx::new("t", &cancel, None)).unwrap();
+        let r = gbuffer(&scene, &accel, false, k, 1, &RunCtx::new("t", &cancel, None)).unwrap();
         (scene, r)
     }
 
@@ -175,6 +245,55 @@ mod tests {
     }
 
     #[test]
+    fn with_a_stride_smooth_pixels_are_read_off_cells_on_their_own_surface() {
+        let scene = test_scene::spheres();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let cancel = CancelToken::new();
+        let run = |s| gbuffer(&scene, &accel, false, 2, s, &RunCtx::new("t", &cancel, None)).unwrap();
+        let every = run(1);
+        assert!(every.fill.is_empty());
+        let covered = |r: &Receivers| {
+            let mut px: Vec<u32> = r.pixel.iter().copied().chain(r.fill.iter().map(|f| f.pixel)).collect();
+            px.sort();
+            px.dedup();
+            px
+        };
+        let object_at = |r: &Receivers, p: u32| r.pixel.iter().position(|&q| q == p).map(|i| r.object[i]);
+        for stride in [2, 4] {
+            let r = run(stride);
+            assert_eq!(covered(&r), covered(&every), "the same pixels lit, gathered or filled");
+            // 16² pixels, a third of them at an edge.
+            assert!(r.fill.len() >= 16, "stride {stride}: {} filled", r.fill.len());
+            assert!(r.len() + r.fill.len() <= every.len(), "stride {stride}: {} receivers against {}", r.len(), every.len());
+            for (k, f) in r.fill.iter().enumerate() {
+                let (x, y) = (f.pixel as usize % r.width, f.pixel as usize / r.width);
+                assert!(x % stride != 0 || y % stride != 0, "the s-grid is gathered");
+                assert!(!r.pixel.contains(&f.pixel), "a filled pixel has no receiver");
+                assert!((f.weight.iter().sum::<f32>() - 1.0).abs() < 1e-6, "{:?}", f.weight);
+                let own = object_at(&every, f.pixel).expect("lit at stride 1");
+                for (&p, _) in f.from.iter().zip(&f.weight).filter(|(_, &w)| w > 0.0) {
+                    assert_eq!(object_at(&every, p), Some(own), "read off the pixel's own object");
+                    let at: Vec<usize> = (0..r.len()).filter(|&i| r.pixel[i] == p).collect();
+                    let earlier = r.fill[..k].iter().any(|g| g.pixel == p);
+                    assert!(earlier || (at.len() == 1 && r.weight[at[0]] == 1.0), "read off a whole receiver or a pixel filled before");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_stride_must_be_a_power_of_two() {
+        let scene = test_scene::spheres();
+        let accel = Accel::build(&scene, BuildQuality::Fast);
+        let e = relume_base::testing::run_full::<GBuffer>(
+            &[("stride", relume_base::testing::i(3))],
+            std::path::Path::new("."),
+            vec![Value::new(scene), Value::new(accel)],
+        );
+        assert!(e.is_err_and(|e| e.to_string().contains("not 1, 2, 4 or 8")));
+    }
+
+    #[test]
     fn pixels_on_glass_become_receivers_only_when_asked() {
         use glam::Vec3;
         use relume_base::scene::builder::SceneBuilder;
@@ -186,7 +305,7 @@ mod tests {
             .build();
         let accel = Accel::build(&scene, BuildQuality::Fast);
         let cancel = CancelToken::new();
-        let run = |d| gbuffer(&scene, &accel, d, 1, &RunCtx::new("t", &cancel, None)).unwrap();
+        let run = |d| gbuffer(&scene, &accel, d, 1, 1, &RunCtx::new("t", &cancel, None)).unwrap();
         let (without, with) = (run(false), run(true));
         let on_glass = |r: &Receivers| r.material.iter().filter(|m| matches!(m, Material::Dielectric { .. })).count();
         assert_eq!(on_glass(&without), 0);

@@ -101,6 +101,7 @@ impl PreviewSplat {
                 None => missed += 1,
             }
         }
+        r.fill_in(&mut img);
         let nodes =
             tree.nodes.iter().enumerate().filter(|(k, t)| level[*k] == self.level || (t.is_leaf() && level[*k] < self.level)).count();
         let m = Metrics(vec![
@@ -169,6 +170,7 @@ mod tests {
             object: vec![0; 900],
             material: vec![Material::Lambert { albedo: Vec3::ONE }; 900],
             weight: vec![1.0; 900],
+            fill: vec![],
         }
     }
 

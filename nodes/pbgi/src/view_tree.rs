@@ -354,6 +354,7 @@ mod tests {
             object: p.object.clone(),
             material: p.material.clone(),
             weight: vec![1.0; n],
+            fill: vec![],
         };
         let cancel = CancelToken::new();
         let cx = RunCtx::new("t", &cancel, None);

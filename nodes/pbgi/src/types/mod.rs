@@ -6,5 +6,5 @@ mod receivers;
 mod wavelets;
 
 pub use point_tree::{faces_inside, PointTree, TreeNode, MIN_AREA_FRACTION};
-pub use receivers::{PointRadiance, Receivers};
+pub use receivers::{Fill, PointRadiance, Receivers};
 pub use wavelets::{CodedWavelets, PointWavelets, MAX_WAVELET_SIDE};

@@ -32,12 +32,28 @@ pub struct Receivers {
     /// pixel add up to at most 1 (the rest of its footprint sees nothing a gather lights).
     #[serde(with = "pod_vec")]
     pub weight: Vec<f32>,
+    /// Pixels with no receiver of their own whose gathered light is read off receivers'
+    /// pixels around them on the same surface (`GBuffer`'s `stride`), filled after a gather.
+    #[serde(with = "pod_vec")]
+    pub fill: Vec<Fill>,
+}
+
+/// A pixel whose gathered light is the weighted sum of up to four other pixels' (weight 0:
+/// no pixel), each of those a single receiver's whole pixel.
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
+pub struct Fill {
+    pub pixel: u32,
+    pub from: [u32; 4],
+    pub weight: [f32; 4],
 }
 
 impl Receivers {
     /// Memory per receiver: pixel index, position, normal, outgoing direction, object,
     /// material, weight.
     pub const BYTES_PER_RECEIVER: usize = 4 + 36 + 4 + std::mem::size_of::<Material>() + 4;
+    /// Memory per filled pixel.
+    pub const BYTES_PER_FILL: usize = std::mem::size_of::<Fill>();
 
     pub fn len(&self) -> usize {
         self.pixel.len()
@@ -59,6 +75,20 @@ impl Receivers {
             *c += w * v;
         }
     }
+
+    /// Writes each filled pixel of `img` (after every receiver's light was added) from the
+    /// pixels it reads: those hold no filled pixel, so the order changes no byte.
+    pub fn fill_in(&self, img: &mut relume_base::types::Image) {
+        for f in &self.fill {
+            let mut sum = [0.0f32; 3];
+            for (&p, &w) in f.from.iter().zip(&f.weight).filter(|(_, &w)| w > 0.0) {
+                for (s, v) in sum.iter_mut().zip(img.pixels[p as usize]) {
+                    *s += w * v;
+                }
+            }
+            img.pixels[f.pixel as usize] = sum;
+        }
+    }
 }
 
 impl Receivers {
@@ -70,7 +100,10 @@ impl Receivers {
         let lengths = [self.position.len(), self.normal.len(), self.wo.len(), self.object.len(), self.material.len(), self.weight.len()]
             .iter()
             .all(|&l| l == n);
-        lengths && self.pixel.iter().all(|&p| (p as usize) < pixels) && self.weight.iter().all(|w| (0.0..=1.0).contains(w))
+        let fill_ok = self.fill.iter().all(|f| {
+            (f.pixel as usize) < pixels && f.from.iter().all(|&p| (p as usize) < pixels) && f.weight.iter().all(|w| (0.0..=1.0).contains(w))
+        });
+        lengths && fill_ok && self.pixel.iter().all(|&p| (p as usize) < pixels) && self.weight.iter().all(|w| (0.0..=1.0).contains(w))
     }
 }
 
@@ -83,7 +116,7 @@ impl PortValue for Receivers {
     const DOC: &'static str = "camera primary hits: pixel, position, normal, view direction, material";
     relume_core::serde_codec!(check Receivers::is_consistent);
     fn byte_size(&self) -> usize {
-        self.len() * Self::BYTES_PER_RECEIVER
+        self.len() * Self::BYTES_PER_RECEIVER + self.fill.len() * Self::BYTES_PER_FILL
     }
     /// Bytes, and the image the receivers are pixels of.
     fn size(&self) -> relume_core::PortSize {
@@ -122,6 +155,7 @@ mod tests {
             object: vec![0, 1, 1],
             material: vec![Material::Lambert { albedo: Vec3::splat(0.5) }; n],
             weight: vec![1.0, 0.5, 0.25],
+            fill: vec![Fill { pixel: 4, from: [0, 5, 0, 0], weight: [0.25, 0.75, 0.0, 0.0] }],
         }
     }
 
@@ -144,8 +178,27 @@ mod tests {
         r.weight[1] = f32::NAN;
         assert!(Receivers::decode(&r.encode()).is_none(), "a share that is not a number");
         let mut r = receivers();
+        r.fill[0].from[1] = 8;
+        assert!(Receivers::decode(&r.encode()).is_none(), "a filled pixel reading outside the image");
+        let mut r = receivers();
+        r.fill[0].weight[0] = -1.0;
+        assert!(Receivers::decode(&r.encode()).is_none(), "a negative fill weight");
+        let mut r = receivers();
         r.width = 8;
         assert_ne!(r.fingerprint(), receivers().fingerprint());
+    }
+
+    #[test]
+    fn a_filled_pixel_is_the_weighted_sum_of_the_pixels_it_reads() {
+        let r = receivers();
+        let mut img = r.blank_image();
+        for (i, l) in [(0, 2.0), (1, 4.0), (2, 8.0)] {
+            r.add_to(&mut img, i, Vec3::splat(l));
+        }
+        img.pixels[4] = [9.0; 3];
+        r.fill_in(&mut img);
+        assert_eq!(img.pixels[4], [0.25 * 2.0 + 0.75 * 2.0; 3], "pixel 0 holds 2, pixel 5 half of 4");
+        assert_eq!(img.pixels[0], [2.0; 3], "the pixels read are left alone");
     }
 
     #[test]
