@@ -151,6 +151,14 @@ mod tests {
     }
 
     #[test]
+    fn a_filled_pixel_takes_the_gathered_light_of_the_pixels_it_reads() {
+        let (tree, r, clusters) = pbgi_setup::tree_receivers_clusters();
+        let (r, pixels) = pbgi_setup::with_a_fill(&r);
+        let out = run_on::<FactorizedGather>(&[], vec![Value::new(tree), Value::new(r), Value::new(clusters)]).unwrap();
+        pbgi_setup::assert_filled(out[0].get::<Image>().unwrap(), pixels);
+    }
+
+    #[test]
     fn the_gather_gives_the_same_bytes_on_one_and_four_threads() {
         let cancel = CancelToken::new();
         let cx = RunCtx::new("t", &cancel, None);

@@ -86,6 +86,14 @@ mod tests {
     }
 
     #[test]
+    fn a_filled_pixel_takes_the_gathered_light_of_the_pixels_it_reads() {
+        let (tree, r) = pbgi_setup::tree_and_receivers();
+        let (r, pixels) = pbgi_setup::with_a_fill(&r);
+        let out = run_on::<PbgiGather>(&[("resolution", i(8))], vec![Value::new(tree), Value::new(r)]).unwrap();
+        pbgi_setup::assert_filled(&first(&out), pixels);
+    }
+
+    #[test]
     fn the_gather_gives_the_same_bytes_on_one_and_four_threads() {
         let (tree, r) = pbgi_setup::tree_and_receivers();
         let p = PbgiGather { microbuffer: MicrobufferParams { resolution: 8, threshold: 1.0, splat: SplatRule::Bilinear } };

@@ -51,6 +51,24 @@ pub mod pbgi_setup {
         let (t, r, _) = tree_receivers_clusters();
         (t, r)
     }
+
+    /// `r` with its last receiver's pixel filled from the first two receivers' pixels
+    /// (weights ¼ and ¾), and those three pixels.
+    pub fn with_a_fill(r: &Receivers) -> (Receivers, [u32; 3]) {
+        let mut r = r.clone();
+        let (p, a, b) = (r.pixel[r.len() - 1], r.pixel[0], r.pixel[1]);
+        assert!(p != a && p != b && a != b, "three pixels");
+        r.fill = vec![crate::types::Fill { pixel: p, from: [a, b, 0, 0], weight: [0.25, 0.75, 0.0, 0.0] }];
+        (r, [p, a, b])
+    }
+
+    /// Pixel p of `img` holds ¼ of pixel a's light and ¾ of b's (`with_a_fill`).
+    pub fn assert_filled(img: &relume_base::types::Image, [p, a, b]: [u32; 3]) {
+        let px = |q: u32| img.pixels[q as usize];
+        let want: Vec<f32> = (0..3).map(|c| 0.25 * px(a)[c] + 0.75 * px(b)[c]).collect();
+        assert_eq!(px(p).to_vec(), want, "the filled pixel reads the two it names");
+        assert!(want.iter().any(|&v| v > 0.0), "and they are lit");
+    }
 }
 
 /// A small wavelet-PBGI set-up: a floor and a back wall under a point light, 3,000 points,
