@@ -32,14 +32,14 @@ pub struct Receivers {
     /// pixel add up to at most 1 (the rest of its footprint sees nothing a gather lights).
     #[serde(with = "pod_vec")]
     pub weight: Vec<f32>,
-    /// Pixels with no receiver of their own whose gathered light is read off receivers'
-    /// pixels around them on the same surface (`GBuffer`'s `stride`), filled after a gather.
+    /// Pixels with no receiver of their own whose gathered light is read off pixels around
+    /// them on the same surface (`GBuffer`'s `stride`), filled after a gather in this order.
     #[serde(with = "pod_vec")]
     pub fill: Vec<Fill>,
 }
 
 /// A pixel whose gathered light is the weighted sum of up to four other pixels' (weight 0:
-/// no pixel), each of those a single receiver's whole pixel.
+/// no pixel), each of those a single receiver's whole pixel or one filled before it.
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]
 pub struct Fill {
@@ -76,8 +76,9 @@ impl Receivers {
         }
     }
 
-    /// Writes each filled pixel of `img` (after every receiver's light was added) from the
-    /// pixels it reads: those hold no filled pixel, so the order changes no byte.
+    /// Writes each filled pixel of `img`, in the list's order, after every receiver's light was
+    /// added: from receivers' pixels or pixels filled before it, so the result is fixed by the
+    /// list, never by the order the receivers were gathered in.
     pub fn fill_in(&self, img: &mut relume_base::types::Image) {
         for f in &self.fill {
             let mut sum = [0.0f32; 3];
