@@ -16,11 +16,13 @@ const FAMILY: &str = "sans-serif";
 /// Width and height of the plot in pixels.
 pub(crate) const SIZE: (u32, u32) = (1024, 720);
 
-/// One curve: points `(x, y, label)` in the order they are joined.
+/// One curve: points `(x, y, label)` in the order they are joined; a dashed curve is a guide
+/// (a goal drawn from another curve), drawn without its points and their labels.
 pub(crate) struct Curve {
     pub name: String,
     pub color: RGBColor,
     pub points: Vec<(f64, f64, String)>,
+    pub dashed: bool,
 }
 
 /// What goes around the curves.
@@ -70,7 +72,7 @@ pub(crate) fn log_log_png(axes: &Axes, curves: &[Curve]) -> Result<(Vec<u8>, Vec
                     which.join(", ")
                 ));
             }
-            Curve { name: c.name.clone(), color: c.color, points: good }
+            Curve { name: c.name.clone(), color: c.color, points: good, dashed: c.dashed }
         })
         .collect();
     let (x_range, y_range) = (
@@ -138,6 +140,13 @@ fn draw(buf: &mut [u8], axes: &Axes, curves: &[Curve], x: (f64, f64), y: (f64, f
         let points = &curve.points;
         let color = curve.color;
         let xy: Vec<(f64, f64)> = points.iter().map(|p| (p.0, p.1)).collect();
+        if curve.dashed {
+            chart
+                .draw_series(DashedLineSeries::new(xy.iter().copied(), 10, 6, color.stroke_width(2)))?
+                .label(curve.name.as_str())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 10, y)], color.stroke_width(2)));
+            continue;
+        }
         chart
             .draw_series(LineSeries::new(xy.iter().copied(), color.stroke_width(2)))?
             .label(curve.name.as_str())
@@ -220,6 +229,7 @@ mod tests {
             name: name.into(),
             color,
             points: points.into_iter().enumerate().map(|(i, (x, y))| (x, y, format!("v{i}"))).collect(),
+            dashed: false,
         };
         let curves = [
             curve("method", RGBColor(31, 119, 180), vec![(1.0, 0.1), (0.0, 0.05), (4.0, f64::NAN), (8.0, 0.01)]),
@@ -233,5 +243,25 @@ mod tests {
         let img = image::open(&path).unwrap().to_rgb8();
         assert_eq!(img.dimensions(), SIZE);
         assert!(img.pixels().any(|p| p.0 == [31, 119, 180]), "the method curve is drawn");
+    }
+
+    #[test]
+    fn a_dashed_curve_is_drawn_as_a_broken_line() {
+        let grey = RGBColor(120, 120, 120);
+        let guide =
+            Curve { name: "goal".into(), color: grey, points: vec![(1.0, 1.0, "a".into()), (100.0, 0.01, "b".into())], dashed: true };
+        let axes = Axes { title: "t".into(), x_label: "time (ms)".into(), y_label: "rel_mse".into() };
+        let (png, warnings) = log_log_png(&axes, &[guide]).unwrap();
+        assert!(warnings.is_empty());
+        let img = image::load_from_memory(&png).unwrap().to_rgb8();
+        // Along the diagonal the line is drawn in pieces: grey pixels, then gaps, then grey again.
+        let (w, h) = SIZE;
+        let runs = (0..w)
+            .map(|x| (0..h).any(|y| img.get_pixel(x, y).0 == [120, 120, 120]))
+            .collect::<Vec<bool>>()
+            .windows(2)
+            .filter(|p| p[0] && !p[1])
+            .count();
+        assert!(runs > 10, "a dashed line breaks many times across the plot, here {runs}");
     }
 }

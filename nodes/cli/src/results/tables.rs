@@ -8,9 +8,17 @@ use crate::sweep::csv_table::CsvTable;
 use crate::sweep::{Plotted, XAxis};
 
 /// The section's body (after its caption): provenance, command, plot, table.
-pub(crate) fn section(name: &str, command: &str, p: &Plotted, t: &CsvTable) -> Result<String, String> {
+/// With a goal (a speed-up at equal error the method should reach), the plot's dashed line
+/// is said to be it.
+pub(crate) fn section(name: &str, command: &str, p: &Plotted, t: &CsvTable, goal: Option<f64>) -> Result<String, String> {
     let mut out = format!("{} ([csv](../results/sweep_{name}.csv)):\n\n", provenance(t)?);
     out += &format!("```text\n{command}\n```\n\n![{}](../results/sweep_{name}.png)\n\n", p.title);
+    if let Some(g) = goal {
+        out += &format!(
+            "The dashed line is the goal, {g}× the baseline's speed at equal error: its curve at 1/{g} of its times. \
+             A method's point on or left of it reaches the goal; how far right of it a point lies is by how much it falls short.\n\n"
+        );
+    }
     let metric = format!("`{}`", p.metric);
     let x = p.x.column();
     let time_axis = matches!(p.x, XAxis::Time(_));
@@ -70,9 +78,9 @@ pub(crate) fn section(name: &str, command: &str, p: &Plotted, t: &CsvTable) -> R
 }
 
 /// A sweep's headline row, the method row whose variant is `variant`: its error (with the
-/// metric's name), its time, the baseline's time for that error and the speed-up at equal
-/// error.
-pub(crate) fn headline(p: &Plotted, t: &CsvTable, variant: &str) -> Result<[String; 4], String> {
+/// metric's name), its time, the baseline's time for that error, the speed-up at equal error
+/// and, with a goal for that speed-up, whether it is met or by how much it falls short.
+pub(crate) fn headline(p: &Plotted, t: &CsvTable, variant: &str, goal: Option<f64>) -> Result<[String; 5], String> {
     if p.baseline.is_none() || !matches!(p.x, XAxis::Time(_)) {
         return Err("a headline needs a sweep with a baseline on a time axis".into());
     }
@@ -81,13 +89,28 @@ pub(crate) fn headline(p: &Plotted, t: &CsvTable, variant: &str) -> Result<[Stri
         format!("no method row `{variant}` for the headline (the rows: {})", all.join(", "))
     })?;
     let (tm, e) = (t.number(r, &p.x.column()), t.number(r, &p.y_column("method")));
-    let (time_for, speed) = equal_error(&baseline_curve(p, t), tm, e);
-    Ok([format!("{} (`{}`)", num(e), p.metric), ms(tm), time_for, speed])
+    let curve = baseline_curve(p, t);
+    let (time_for, speed) = equal_error(&curve, tm, e);
+    let against = goal.map_or("—".to_string(), |g| against_goal(&time_for_error(&curve, e), tm, g));
+    Ok([format!("{} (`{}`)", num(e), p.metric), ms(tm), time_for, speed, against])
+}
+
+/// A speed-up at equal error against its goal: `met` or how many times short, as far as the
+/// baseline's curve tells (its reach outside its points is a bound, not a value).
+fn against_goal(reach: &Reach, tm: f64, goal: f64) -> String {
+    let met = format!("≥ {goal}×: met");
+    match *reach {
+        Reach::At(tb) if tb / tm >= goal => met,
+        Reach::At(tb) => format!("≥ {goal}×: {:.2}× short", goal * tm / tb),
+        Reach::Below(tb) if tb / tm >= goal => met,
+        Reach::Above(tb) if tb / tm < goal => format!("≥ {goal}×: more than {:.2}× short", goal * tm / tb),
+        _ => format!("≥ {goal}×: not known from the baseline's points"),
+    }
 }
 
 /// The headline rows of a page's sweeps as a table.
 pub(crate) fn headline_table(rows: &[Vec<String>]) -> String {
-    let head = ["sweep", "row", "error", "pipeline time", "the baseline's time for that error", "speed-up at equal error"];
+    let head = ["sweep", "row", "error", "pipeline time", "the baseline's time for that error", "speed-up at equal error", "goal"];
     let mut out = header(&head.map(String::from));
     for r in rows {
         out += &line(r);

@@ -105,6 +105,8 @@ const PALETTE: [RGBColor; 8] = [
     RGBColor(23, 190, 207),
 ];
 const BASELINE: RGBColor = RGBColor(214, 39, 40);
+/// A goal's guide line.
+const GOAL: RGBColor = RGBColor(120, 120, 120);
 
 /// A sweep's figure: which columns of its CSV are drawn, and how its rows become curves.
 pub(crate) struct Plotted {
@@ -178,19 +180,35 @@ impl Plotted {
                     name: format!("{} = {value}", vary.targets.join(" = ")),
                     color: PALETTE[c % PALETTE.len()],
                     points: self.points(t, rows, "method", |r| self.point_label(t, r)),
+                    dashed: false,
                 });
             }
         } else if !self.varies.is_empty() {
             let columns: Vec<&str> = self.varies.iter().flat_map(|v| v.targets.iter().map(String::as_str)).collect();
             let name = format!("method ({})", columns.join(", "));
-            curves.push(Curve { name, color: PALETTE[0], points: self.points(t, method(), "method", |r| self.point_label(t, r)) });
+            let points = self.points(t, method(), "method", |r| self.point_label(t, r));
+            curves.push(Curve { name, color: PALETTE[0], points, dashed: false });
         }
         if let Some((param, node)) = &self.baseline {
             let of = if *node != self.error_node { format!(", error of \"{node}\"") } else { String::new() };
             let points = self.points(t, self.rows(t, "baseline"), "baseline", |r| t.text(r, param).to_string());
-            curves.push(Curve { name: format!("baseline ({param} = 1, 2, 4, …{of})"), color: BASELINE, points });
+            curves.push(Curve { name: format!("baseline ({param} = 1, 2, 4, …{of})"), color: BASELINE, points, dashed: false });
         }
         curves
+    }
+
+    /// A goal for the speed-up at equal error, drawn: the baseline's curve at `1/goal` of its
+    /// times, dashed. A method's point on or left of it reaches the goal; its distance to the
+    /// right is by how much it falls short. None without a baseline on a time axis.
+    pub(crate) fn goal_curve(&self, t: &CsvTable, goal: f64) -> Option<Curve> {
+        if self.baseline.is_none() || !matches!(self.x, XAxis::Time(_)) {
+            return None;
+        }
+        let mut points = self.points(t, self.rows(t, "baseline"), "baseline", |_| String::new());
+        for p in &mut points {
+            p.0 /= goal;
+        }
+        Some(Curve { name: format!("goal: the baseline {goal}× faster"), color: GOAL, points, dashed: true })
     }
 
     pub(crate) fn axes(&self) -> Axes {
