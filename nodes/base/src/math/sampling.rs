@@ -151,15 +151,76 @@ impl Distribution1D {
 
 /// Kensler's hash permutation of 0..len ("Correlated Multi-Jittered Sampling", Pixar 2013):
 /// element `i` of the permutation numbered `pattern`.
-pub fn permute(mut i: u32, len: u32, pattern: u32) -> u32 {
-    let p = pattern;
-    let mut w = len.max(1) - 1;
-    w |= w >> 1;
-    w |= w >> 2;
-    w |= w >> 4;
-    w |= w >> 8;
-    w |= w >> 16;
-    loop {
+pub fn permute(i: u32, len: u32, pattern: u32) -> u32 {
+    Permutation::new(len).numbered(pattern).at(i)
+}
+
+/// The permutations of 0..len: what Kensler's hash needs of the length, computed once.
+#[derive(Clone, Copy, Debug)]
+struct Permutation {
+    len: u32,
+    /// The smallest all-ones mask covering len − 1.
+    mask: u32,
+    /// 2³² mod len: what a wrapped `i + pattern` loses.
+    wrap: u32,
+}
+
+impl Permutation {
+    fn new(len: u32) -> Permutation {
+        let len = len.max(1);
+        let mut w = len - 1;
+        w |= w >> 1;
+        w |= w >> 2;
+        w |= w >> 4;
+        w |= w >> 8;
+        w |= w >> 16;
+        Permutation { len, mask: w, wrap: ((1u64 << 32) % len as u64) as u32 }
+    }
+
+    /// The permutation numbered `p`.
+    fn numbered(self, p: u32) -> Numbered {
+        Numbered { of: self, p, offset: p % self.len }
+    }
+}
+
+/// One permutation of 0..len, its pattern's offset modulo len computed once.
+#[derive(Clone, Copy, Debug)]
+struct Numbered {
+    of: Permutation,
+    p: u32,
+    offset: u32,
+}
+
+impl Numbered {
+    /// Element `i` (< len): the hash walked until it lands below len, then shifted.
+    #[inline]
+    fn at(&self, mut i: u32) -> u32 {
+        loop {
+            i = self.hash(i);
+            if i < self.of.len {
+                return self.shift(i);
+            }
+        }
+    }
+
+    /// Elements 0..out.len() (each < len) at once: every first hash before any walk, so that
+    /// the independent hashes overlap.
+    fn fill(&self, out: &mut [u32]) {
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = self.hash(i as u32);
+        }
+        for o in out.iter_mut() {
+            while *o >= self.of.len {
+                *o = self.hash(*o);
+            }
+            *o = self.shift(*o);
+        }
+    }
+
+    /// One round of Kensler's hash, within the mask.
+    #[inline]
+    fn hash(&self, mut i: u32) -> u32 {
+        let (p, w) = (self.p, self.of.mask);
         i ^= p;
         i = i.wrapping_mul(0xe170893d);
         i ^= p >> 16;
@@ -178,25 +239,129 @@ pub fn permute(mut i: u32, len: u32, pattern: u32) -> u32 {
         i = i.wrapping_mul(0xc860a3df);
         i &= w;
         i ^= i >> 5;
-        if i < len.max(1) {
-            return (i.wrapping_add(p)) % len.max(1);
+        i
+    }
+
+    /// A hash below len shifted by the pattern modulo len: `(i + p) mod 2³² mod len` without a
+    /// division.
+    #[inline]
+    fn shift(&self, i: u32) -> u32 {
+        let (p, len) = (self.p, self.of.len);
+        // i + offset < 2 len; a wrapped sum lost 2³² ≡ wrap (mod len).
+        let len = len as u64;
+        let mut r = i as u64 + self.offset as u64;
+        if i.overflowing_add(p).1 {
+            r += len - self.of.wrap as u64;
         }
+        while r >= len {
+            r -= len;
+        }
+        r as u32
     }
 }
 
 /// Sample `s` of `n` correlated multi-jittered points in [0, 1)² (Kensler 2013): the n points
 /// of one `pattern` fall one per cell of an m × ⌈n/m⌉ grid (m = ⌊√n⌋) and one per 1/n strip
 /// along each axis. `jitter` (two uniforms in [0, 1)) places the point within its cell.
+/// [`Cmj`] gives the same points with the work that depends only on n, or on n and the
+/// pattern, done once.
 pub fn cmj(s: u32, n: u32, pattern: u32, jitter: Vec2) -> Vec2 {
-    let n = n.max(1);
-    let m = ((n as f32).sqrt() as u32).max(1);
-    let rows = n.div_ceil(m);
-    let s = permute(s % n, n, pattern.wrapping_mul(0x51633e2d));
-    let sx = permute(s % m, m, pattern.wrapping_mul(0x68bc21eb));
-    let sy = permute(s / m, rows, pattern.wrapping_mul(0x02e5be93));
-    let x = (sx as f32 + (sy as f32 + jitter.x) / rows as f32) / m as f32;
-    let y = (s as f32 + jitter.y) / n as f32;
-    Vec2::new(x.min(1.0 - f32::EPSILON), y.min(1.0 - f32::EPSILON))
+    Cmj::new(n).pattern(pattern).sample(s, jitter)
+}
+
+/// Correlated multi-jittered sets of n points: the grid and the permutations' lengths.
+#[derive(Clone, Copy, Debug)]
+pub struct Cmj {
+    n: Permutation,
+    m: Permutation,
+    rows: Permutation,
+    /// ⌈2⁶⁴ / m⌉, to divide by m with a multiplication (exact for every 32-bit dividend);
+    /// 0 for m = 1.
+    by_m: u64,
+}
+
+impl Cmj {
+    pub fn new(n: u32) -> Cmj {
+        let n = n.max(1);
+        let m = ((n as f32).sqrt() as u32).max(1);
+        let by_m = if m == 1 { 0 } else { u64::MAX / m as u64 + 1 };
+        Cmj { n: Permutation::new(n), m: Permutation::new(m), rows: Permutation::new(n.div_ceil(m)), by_m }
+    }
+
+    /// The set numbered `pattern`. A set of at most [`TABLED`] points has its three
+    /// permutations computed whole, once: its n samples then cost n + m + ⌈n/m⌉ evaluations of
+    /// the hash, independent of each other, against about 3n one sample at a time.
+    pub fn pattern(&self, pattern: u32) -> CmjPattern {
+        let s = self.n.numbered(pattern.wrapping_mul(0x51633e2d));
+        let x = self.m.numbered(pattern.wrapping_mul(0x68bc21eb));
+        let y = self.rows.numbered(pattern.wrapping_mul(0x02e5be93));
+        let tables = (self.n.len as usize <= TABLED).then(|| {
+            let mut t = Tables { s: [0; TABLED], x: [0; TABLED_SIDE], y: [0; TABLED_SIDE] };
+            s.fill(&mut t.s[..self.n.len as usize]);
+            x.fill(&mut t.x[..self.m.len as usize]);
+            y.fill(&mut t.y[..self.rows.len as usize]);
+            t
+        });
+        CmjPattern { of: *self, s, x, y, tables }
+    }
+
+    /// (s / m, s mod m).
+    #[inline]
+    fn div_m(&self, s: u32) -> (u32, u32) {
+        if self.by_m == 0 {
+            return (s, 0);
+        }
+        let q = ((s as u128 * self.by_m as u128) >> 64) as u32;
+        (q, s - q * self.m.len)
+    }
+}
+
+/// The most points of a set whose permutations [`Cmj::pattern`] computes whole, and the most
+/// columns or rows such a set's grid has (m = ⌊√n⌋ ≤ 16, ⌈n/m⌉ ≤ 16 + 1).
+const TABLED: usize = 256;
+const TABLED_SIDE: usize = 17;
+
+/// A set's three permutations whole.
+#[derive(Clone, Copy, Debug)]
+struct Tables {
+    s: [u32; TABLED],
+    x: [u32; TABLED_SIDE],
+    y: [u32; TABLED_SIDE],
+}
+
+/// One correlated multi-jittered set of points: [`cmj`] with a fixed n and pattern.
+#[derive(Clone, Copy, Debug)]
+pub struct CmjPattern {
+    of: Cmj,
+    s: Numbered,
+    x: Numbered,
+    y: Numbered,
+    /// The permutations whole, for a small set.
+    tables: Option<Tables>,
+}
+
+impl CmjPattern {
+    /// Sample `s` (taken modulo n), `jitter` placing it within its cell.
+    #[inline]
+    pub fn sample(&self, s: u32, jitter: Vec2) -> Vec2 {
+        let (n, m, rows) = (self.of.n.len, self.of.m.len, self.of.rows.len);
+        let s = if s < n { s } else { s % n };
+        let (s, (sx, sy)) = match &self.tables {
+            Some(t) => {
+                let s = t.s[s as usize];
+                let (q, r) = self.of.div_m(s);
+                (s, (t.x[r as usize], t.y[q as usize]))
+            }
+            None => {
+                let s = self.s.at(s);
+                let (q, r) = self.of.div_m(s);
+                (s, (self.x.at(r), self.y.at(q)))
+            }
+        };
+        let x = (sx as f32 + (sy as f32 + jitter.x) / rows as f32) / m as f32;
+        let y = (s as f32 + jitter.y) / n as f32;
+        Vec2::new(x.min(1.0 - f32::EPSILON), y.min(1.0 - f32::EPSILON))
+    }
 }
 
 /// A density on [0, 1]² proportional to the bilinear interpolant of a `width` × `height` grid
@@ -432,6 +597,54 @@ mod tests {
         assert!((d.pdf_cell(2) - 3.0).abs() < 1e-6, "density integrates to 1 over [0,1)");
         let zero = Distribution1D::new(&[0.0, 0.0]);
         assert_eq!(zero.pdf_cell(1), 1.0);
+    }
+
+    /// Kensler's permutation as the paper writes it around its hash round: the walk, then
+    /// `(i + p) mod len` with a division.
+    fn permute_as_written(mut i: u32, len: u32, p: u32) -> u32 {
+        let round = Permutation::new(len).numbered(p);
+        loop {
+            i = round.hash(i);
+            if i < len.max(1) {
+                return (i.wrapping_add(p)) % len.max(1);
+            }
+        }
+    }
+
+    fn cmj_as_written(s: u32, n: u32, pattern: u32, jitter: Vec2) -> Vec2 {
+        let n = n.max(1);
+        let m = ((n as f32).sqrt() as u32).max(1);
+        let rows = n.div_ceil(m);
+        let s = permute_as_written(s % n, n, pattern.wrapping_mul(0x51633e2d));
+        let sx = permute_as_written(s % m, m, pattern.wrapping_mul(0x68bc21eb));
+        let sy = permute_as_written(s / m, rows, pattern.wrapping_mul(0x02e5be93));
+        let x = (sx as f32 + (sy as f32 + jitter.x) / rows as f32) / m as f32;
+        let y = (s as f32 + jitter.y) / n as f32;
+        Vec2::new(x.min(1.0 - f32::EPSILON), y.min(1.0 - f32::EPSILON))
+    }
+
+    #[test]
+    fn the_precomputed_cmj_gives_the_papers_points_bit_for_bit() {
+        // Patterns whose sums with i wrap past 2³² included (0xffff_fff0 and up).
+        let patterns = [0u32, 1, 77, 0x5bd1_e995, 0xdead_beef, 0xffff_fff0, 0xffff_ffff];
+        for n in (1u32..=70).chain([96, 100, 255, 256, 1000, 1024, 4097, 65536]) {
+            for &pattern in &patterns {
+                let set = Cmj::new(n).pattern(pattern);
+                for s in (0..n.min(300)).chain([n, n + 3, 2 * n + 1]) {
+                    let j = u2(s as u64 * 31 + n as u64);
+                    assert_eq!(set.sample(s, j), cmj_as_written(s, n, pattern, j), "n {n}, pattern {pattern:#x}, s {s}");
+                    assert_eq!(permute(s % n, n, pattern), permute_as_written(s % n, n, pattern));
+                }
+            }
+        }
+        // Lengths not a power of two near 2³², where the mask and the wrap matter most.
+        for len in [3u32, 1 << 20, (1 << 31) + 5, u32::MAX] {
+            for &pattern in &patterns {
+                for i in [0u32, 1, 2] {
+                    assert_eq!(permute(i, len, pattern), permute_as_written(i, len, pattern), "len {len}");
+                }
+            }
+        }
     }
 
     #[test]

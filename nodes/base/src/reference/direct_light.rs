@@ -1,7 +1,7 @@
 use crate::brdf;
 use crate::math::frame::Frame;
-use crate::math::rng::{mix64, uniform};
-use crate::math::sampling::cmj;
+use crate::math::rng::{mix64, stream, uniform_in};
+use crate::math::sampling::{Cmj, CmjPattern};
 use crate::render::camera::CameraRays;
 use crate::render::film::{per_pixel, with_ctx};
 use crate::render::integrator::{Counts, Settings, Tracer};
@@ -37,26 +37,26 @@ inputs!(pub DirectLightIn { scene: Scene, accel: Accel });
 outputs!(pub DirectLightOut { image: Image });
 
 /// Direct light arriving at an opaque front-facing hit and leaving toward `-d`, from the
-/// `light_samples` light samples `first..` of the pixel's `total`.
+/// `count` light samples `first..` of the pixel's set `lights`, their jitter drawn from the
+/// camera sample's random `stream`.
 #[allow(clippy::too_many_arguments)]
 fn shade(
     t: &Tracer,
     surf: &Surface,
     m: &Material,
     d: Vec3,
-    sample: (u32, u32, u32),
-    (seed, pattern): (u64, u32),
-    id: u64,
+    (first, count): (u32, u32),
+    lights: &CmjPattern,
+    stream: u64,
     counts: &mut Counts,
 ) -> Vec3 {
-    let (first, count, total) = sample;
     let frame = Frame::from_normal(surf.ns);
     let wo = frame.to_local(-d);
     let eps = t.eps();
     let mut sum = Vec3::ZERO;
     for k in first..first + count {
-        let jitter = Vec2::new(uniform(seed, id, 2 * k + 2), uniform(seed, id, 2 * k + 3));
-        let Some(ls) = t.lights.sample_2d(t.scene, surf.p, cmj(k, total, pattern, jitter)) else { continue };
+        let jitter = Vec2::new(uniform_in(stream, 2 * k + 2), uniform_in(stream, 2 * k + 3));
+        let Some(ls) = t.lights.sample_2d(t.scene, surf.p, lights.sample(k, jitter)) else { continue };
         let wi = frame.to_local(ls.wi);
         let f = brdf::eval(m, wo, wi) * wi.z.abs();
         if f == Vec3::ZERO || ls.li == Vec3::ZERO || ls.wi.dot(surf.ng) <= 0.0 || ls.pdf <= 0.0 {
@@ -84,17 +84,20 @@ pub fn render_rows(scene: &Scene, accel: &Accel, p: &DirectLight, rows: Range<us
     );
     let cam_rays = CameraRays::new(&scene.camera);
     let (spp, ls) = (p.pixel_samples.max(1), p.light_samples.max(1));
+    let (camera_sets, light_sets) = (Cmj::new(spp), Cmj::new(spp * ls));
     let y0 = rows.start;
     let (img, rays) = with_ctx(cx, |cx| {
         per_pixel(cx, w, rows.len(), |x, y, counts| {
             let y = y + y0;
             let pixel = (y * w + x) as u64;
             let pattern = mix64(p.seed ^ pixel.wrapping_mul(0x9E37_79B9_7F4A_7C15)) as u32;
+            let (camera, lights) = (camera_sets.pattern(pattern), light_sets.pattern(pattern ^ 0x5bd1_e995));
             let mut sum = Vec3::ZERO;
             for s in 0..spp {
                 let id = pixel << 32 | s as u64;
-                let jitter = Vec2::new(uniform(p.seed, id, 0), uniform(p.seed, id, 1));
-                let uv = cmj(s, spp, pattern, jitter);
+                let random = stream(p.seed, id);
+                let jitter = Vec2::new(uniform_in(random, 0), uniform_in(random, 1));
+                let uv = camera.sample(s, jitter);
                 let (o, d) = cam_rays.ray(x as f32 + uv.x, y as f32 + uv.y);
                 counts.rays += 1;
                 sum += match accel.intersect(o, d, 0.0, f32::INFINITY) {
@@ -105,8 +108,7 @@ pub fn render_rows(scene: &Scene, accel: &Accel, p: &DirectLight, rows: Range<us
                         if brdf::is_delta(&obj.material) {
                             t.radiance(o, d, id, counts)
                         } else if front {
-                            let sample = (s * ls, ls, spp * ls);
-                            obj.emission + shade(&t, &surf, &surf.material(scene), d, sample, (p.seed, pattern ^ 0x5bd1_e995), id, counts)
+                            obj.emission + shade(&t, &surf, &surf.material(scene), d, (s * ls, ls), &lights, random, counts)
                         } else {
                             Vec3::ZERO
                         }
