@@ -1,6 +1,6 @@
 //! `relume sweep`: runs a graph once per combination of parameter values, all through one
 //! engine so every variant reuses what earlier ones computed, and writes error against time
-//! as CSV and as a log-log plot, optionally next to a baseline's convergence curve (an integer
+//! as CSV and as a log-log plot, optionally next to a baseline's convergence curve (a numeric
 //! parameter such as a path tracer's samples per pixel at 1, 2, 4, …). `--x` plots against a
 //! varied parameter or a metric instead of time and `--series` draws one line per value of a
 //! varied parameter (`axes.rs`), so error-against-rank and error-against-bytes figures come
@@ -38,7 +38,7 @@ pub(crate) struct SweepArgs {
     /// --vary tucker.n_wi+tucker.n_wo=4,8.
     #[arg(long = "vary", value_name = "NODE.PARAM=A,B,..", required_unless_present = "baseline")]
     varies: Vec<String>,
-    /// Also run this integer parameter at 1, 2, 4, … up to --baseline-max (the --vary
+    /// Also run this numeric parameter at 1, 2, 4, … up to --baseline-max (the --vary
     /// parameters at their graph values): the baseline's own error-vs-time curve.
     #[arg(long, value_name = "NODE.PARAM")]
     baseline: Option<String>,
@@ -329,7 +329,7 @@ fn method_variants(reg: &Registry, base: &Graph, varies: &[Vary]) -> Result<Vec<
     }
 }
 
-/// The base graph with the integer parameter `target` at 1, 2, 4, … ≤ `max`.
+/// The base graph with the numeric parameter `target` at 1, 2, 4, … ≤ `max`.
 fn baseline_variants(reg: &Registry, base: &Graph, target: &str, max: i64) -> Result<Vec<Variant>, CliError> {
     let flag = format!("--baseline {target}");
     let (id, name) = target.split_once('.').ok_or_else(|| CliError::graph(format!("{flag}: expected node.param")))?;
@@ -339,8 +339,8 @@ fn baseline_variants(reg: &Registry, base: &Graph, target: &str, max: i64) -> Re
         let names: Vec<_> = kind.schema().0.iter().map(|p| p.name).collect();
         CliError::graph(format!("{flag}: {} has no parameter `{name}` (it has: {})", node.kind, names.join(", ")))
     })?;
-    if !matches!(spec.kind, ParamKind::Int { .. }) {
-        return Err(CliError::graph(format!("{flag}: the baseline parameter must be an integer; `{name}` is {}", spec.kind.type_name())));
+    if !matches!(spec.kind, ParamKind::Int { .. } | ParamKind::Float { .. }) {
+        return Err(CliError::graph(format!("{flag}: the baseline parameter must be a number; `{name}` is {}", spec.kind.type_name())));
     }
     if max < 1 {
         return Err(CliError::graph(format!("--baseline-max {max}: must be at least 1")));
