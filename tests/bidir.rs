@@ -44,6 +44,11 @@ fn it_renders_the_path_tracers_image_on_cornell_ring_glass_glass_medium_and_envl
         let z = z_test(&bm, &bv, &pm, &pv, 3.29).unwrap();
         assert!(z.passes(0.995), "{name}: {} of the pixels pass (mean z {})", z.pass_fraction, z.mean_z);
         let ((mb, sb), (mp, sp)) = (mean(&bm, &bv), mean(&pm, &pv));
+        // What the reference page quotes (run with --nocapture).
+        eprintln!(
+            "{name}: z-test pass {:.4}, mean z {:.3}; red mean BDPT {mb:.5} ± {sb:.5}, path tracer {mp:.5} ± {sp:.5}",
+            z.pass_fraction, z.mean_z
+        );
         assert!((mb - mp).abs() < 4.0 * (sb * sb + sp * sp).sqrt(), "{name}: {mb} ± {sb} against {mp} ± {sp}");
         // The light scattered inside glass-medium's ball reaches it only through the glass:
         // by joins of two points inside the ball, or by a path that happens to hit the small
