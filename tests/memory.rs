@@ -30,6 +30,37 @@ fn filters_at_6000_squared_is_refused_under_a_4_gib_budget_before_any_node_runs(
 }
 
 #[test]
+fn the_point_based_graphs_at_1024_squared_and_a_million_points_are_refused_before_any_node_runs() {
+    // The theses' scale: each graph's estimate per node comes from its parameters alone (the
+    // points' count, the image's size), so the refusal needs no node to run.
+    let at_scale = |graph: &str, scene: Option<&'static str>| {
+        let mut sets = vec![("scene.width", "1024"), ("scene.height", "1024"), ("points.count", "1000000")];
+        sets.extend(scene.map(|s| ("scene.path", s)));
+        load_graph(graph, &sets)
+    };
+    let cases = [
+        ("pbgi_vs_reference.ron", Some("scenes/cornell-heavy.ron"), &["\"tree\" (PointTree)", "\"gbuffer\" (GBuffer)"][..]),
+        ("vpbgi_cornell.ron", None, &["\"wavelets\" (SurfelWavelets)", "\"tree\" (PointTree)"][..]),
+        ("wpbgi_ring.ron", None, &["\"wavelets\" (SurfelWavelets)", "\"tree\" (PointTree)"][..]),
+    ];
+    for (graph, scene, named) in cases {
+        let g = at_scale(graph, scene);
+        let e = Engine::new(relume_cli::registry()).with_run_budget(512 << 20, "the test");
+        let msg = e.plan(&g, None).expect_err("refused").to_string();
+        assert!(msg.contains("over the memory budget of 512.0 MiB"), "{graph}: {msg}");
+        for node in named {
+            assert!(msg.contains(node), "{graph}: {node} is among the estimates: {msg}");
+        }
+        let err = e.run(&g, &RunOptions::default()).err().expect("a run is refused the same");
+        assert_eq!(err.to_string(), msg);
+        assert_eq!(e.memory_bytes(), 0, "{graph}: nothing ran");
+    }
+    // PBGI's graph at that scale fits 4 GiB (its sweeps ran so, peaking at 1.1–1.2 GiB).
+    let g = at_scale("pbgi_vs_reference.ron", Some("scenes/cornell-heavy.ron"));
+    assert!(Engine::new(relume_cli::registry()).with_run_budget(4 << 30, "the test").plan(&g, None).is_ok());
+}
+
+#[test]
 fn a_budget_too_small_for_one_node_with_actual_inputs_is_refused_at_that_node() {
     // LoadImage's size is known from the file header; downstream estimates follow from it.
     let g = load_graph("image_error.ron", &[]);
