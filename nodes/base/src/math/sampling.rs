@@ -281,6 +281,7 @@ pub struct Cmj {
 }
 
 impl Cmj {
+    /// The sets of `n` points (at least one).
     pub fn new(n: u32) -> Cmj {
         let n = n.max(1);
         let m = ((n as f32).sqrt() as u32).max(1);
@@ -288,7 +289,7 @@ impl Cmj {
         Cmj { n: Permutation::new(n), m: Permutation::new(m), rows: Permutation::new(n.div_ceil(m)), by_m }
     }
 
-    /// The set numbered `pattern`. A set of at most [`TABLED`] points has its three
+    /// The set numbered `pattern`. A set of at most 256 points (`TABLED`) has its three
     /// permutations computed whole, once: its n samples then cost n + m + ⌈n/m⌉ evaluations of
     /// the hash, independent of each other, against about 3n one sample at a time.
     pub fn pattern(&self, pattern: u32) -> CmjPattern {
