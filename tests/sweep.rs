@@ -85,7 +85,9 @@ fn results_draw_a_sweep_again_byte_for_byte_from_its_csv_and_command() {
     let folder = dir.path().join("results");
     std::fs::create_dir_all(&folder).unwrap();
     let (csv, drawn) = (folder.join("sweep_blur.csv"), dir.path().join("drawn_by_the_sweep.png"));
-    let command = format!("relume sweep {} --vary blur.sigma=0.5,1.5 --baseline median.radius --baseline-max 4 --no-disk-cache", filters());
+    // With a goal: its dashed guide is part of the figure both draw.
+    let command =
+        format!("relume sweep {} --vary blur.sigma=0.5,1.5 --baseline median.radius --baseline-max 4 --goal 2 --no-disk-cache", filters());
     let mut args: Vec<&str> = command.split(' ').skip(1).collect();
     args.extend(["--csv", csv.to_str().unwrap(), "--plot", drawn.to_str().unwrap(), "-q"]);
     assert_eq!(relume(&args), 0);
@@ -104,6 +106,7 @@ fn results_draw_a_sweep_again_byte_for_byte_from_its_csv_and_command() {
     let md = std::fs::read_to_string(folder.join("sweep_blur.md")).unwrap();
     assert!(md.contains("| blur.sigma=0.5 |") && md.contains("| median.radius=4 |"), "{md}");
     assert!(md.contains("speed-up at equal error"), "{md}");
+    assert!(md.contains("The dashed line is the goal, 2×"), "{md}");
 }
 
 #[test]
@@ -247,6 +250,8 @@ fn unknown_nodes_params_metrics_and_empty_lists_exit_2() {
     assert_eq!(sweep(&["--vary", "blur.sigma=1", "--metric", "nosuch"]), 2);
     assert_eq!(sweep(&["--vary", "blur.sigma=1", "--error-node", "blur"]), 2, "blur reports no rel_mse");
     assert_eq!(sweep(&["--vary", "blur.sigma=1", "--baseline", "tonemap.operator"]), 2, "not a number");
+    assert_eq!(sweep(&["--vary", "blur.sigma=1", "--goal", "2"]), 2, "a goal needs a baseline");
+    assert_eq!(sweep(&["--vary", "blur.sigma=1", "--baseline", "median.radius", "--goal", "0.5"]), 2, "a goal under 1×");
     assert_eq!(sweep(&["--vary", "blur.sigma=1", "--baseline", "median.radius", "--baseline-max", "64"]), 2, "radius ≤ 16");
     assert_eq!(sweep(&[]), 2, "neither --vary nor --baseline");
     assert!(!out.join("sweep.csv").exists(), "nothing written for bad input");

@@ -19,7 +19,7 @@ use crate::error::CliError;
 use crate::plot::log_log_png;
 use crate::sweep::csv_table::CsvTable;
 use clap::Args;
-use relume_core::ron::fields::{f64_in, list_of, map_of, str_of, Fields};
+use relume_core::ron::fields::{list_of, map_of, str_of, Fields};
 use relume_core::ron::parse;
 use std::path::{Path, PathBuf};
 
@@ -43,9 +43,6 @@ struct Entry {
     /// A sweep's row that stands for it in its page's summary (`headlines_PAGE.md`): the page
     /// and the row's variant.
     headline: Option<(String, String)>,
-    /// A sweep's goal for the speed-up at equal error over its baseline: drawn on its plot,
-    /// and its headline row says whether it is met.
-    goal: Option<f64>,
     /// A measurement table's columns that name a row of the generated table (its runs are
     /// the CSV rows that agree on them).
     group: Vec<String>,
@@ -82,7 +79,7 @@ const SWEEPS: Kind = Kind {
     root: "SweepResults",
     list: "sweeps",
     prefix: "sweep_",
-    fields: &["name", "caption", "command", "page", "headline", "goal"],
+    fields: &["name", "caption", "command", "page", "headline"],
 };
 const BENCHES: Kind = Kind {
     manifest: "benches.ron",
@@ -141,7 +138,6 @@ fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
                 )))
             }
         };
-        let goal = f.opt("goal").filter(|_| has("goal")).map(|v| f64_in(v, "goal", 1.0, 1e6)).transpose().map_err(at)?;
         let group = match f.opt("group").filter(|_| has("group")) {
             Some(v) => list_of(v, "group")
                 .map_err(at)?
@@ -235,7 +231,7 @@ fn load_manifest(dir: &Path, kind: &Kind) -> Result<Vec<Entry>, CliError> {
         if out.iter().any(|o| o.name == name) {
             return Err(CliError::graph(format!("{}: `{name}` is listed twice", path.display())));
         }
-        out.push(Entry { name, caption, command, against, headline, goal, group, columns, compare, sources, filter, rows, headings });
+        out.push(Entry { name, caption, command, against, headline, group, columns, compare, sources, filter, rows, headings });
     }
     Ok(out)
 }
@@ -261,15 +257,13 @@ fn sweep_files(dir: &Path, sweeps: &[Entry]) -> Result<Vec<(PathBuf, Vec<u8>)>, 
         let (csv, table) = read_csv(dir, &SWEEPS, &s.name)?;
         let fail = |e: String| CliError::run(format!("{}: {e}", csv.display()));
         let plotted = crate::sweep::replay(&s.command, &table).map_err(fail)?;
-        let mut curves = plotted.curves(&table);
-        curves.extend(s.goal.and_then(|g| plotted.goal_curve(&table, g)));
-        let (png, _) = log_log_png(&plotted.axes(), &curves).map_err(fail)?;
-        let body = tables::section(&s.name, &s.command, &plotted, &table, s.goal).map_err(fail)?;
+        let (png, _) = log_log_png(&plotted.axes(), &plotted.curves(&table)).map_err(fail)?;
+        let body = tables::section(&s.name, &s.command, &plotted, &table).map_err(fail)?;
         files.push((dir.join(format!("sweep_{}.png", s.name)), png));
         files.push(section_file(dir, &SWEEPS, s, &body));
         overview += &format!("\n## {}\n\n{body}", s.caption);
         if let Some((page, variant)) = &s.headline {
-            let cells = tables::headline(&plotted, &table, variant, s.goal).map_err(fail)?;
+            let cells = tables::headline(&plotted, &table, variant).map_err(fail)?;
             let row = [vec![s.caption.clone(), format!("`{variant}`")], cells.to_vec()].concat();
             match headlines.iter_mut().find(|(p, _)| p == page) {
                 Some((_, rows)) => rows.push(row),
@@ -532,8 +526,7 @@ mod tests {
 
     #[test]
     fn a_goal_is_drawn_and_its_headline_says_whether_it_is_met_or_by_how_much_not() {
-        let with_goal =
-            |g: &str| MANIFEST_TEXT.replace(r#"headline: "blur.sigma=1")"#, &format!(r#"headline: "blur.sigma=1", goal: {g})"#));
+        let with_goal = |g: &str| MANIFEST_TEXT.replace("--baseline-max 2", &format!("--baseline-max 2 --goal {g}"));
         let dir = folder(&with_goal("1.2"));
         let args = || ResultsArgs { dir: dir.path().to_path_buf(), check: false };
         let read = |f: &str| std::fs::read_to_string(dir.path().join(f)).unwrap();
@@ -547,7 +540,7 @@ mod tests {
         results(&args()).unwrap();
         assert!(read("headlines_filters.md").contains("| 1.32× | ≥ 2×: 1.52× short |"), "{}", read("headlines_filters.md"));
         std::fs::write(dir.path().join("sweeps.ron"), with_goal("0.5")).unwrap();
-        assert!(results(&args()).unwrap_err().msg.contains("goal"), "a goal under 1× is no goal");
+        assert!(results(&args()).unwrap_err().msg.contains("no speed-up"), "a goal under 1× is no goal");
     }
 
     #[test]

@@ -45,6 +45,12 @@ pub(crate) struct SweepArgs {
     /// Largest baseline value.
     #[arg(long, value_name = "N", default_value_t = 256)]
     baseline_max: i64,
+    /// A speed-up at equal error the method should reach over the baseline (at least 1):
+    /// the plot draws the baseline's curve at 1/GOAL of its times, dashed (a method point on
+    /// or left of it reaches the goal), and `relume results` says in the headline row whether
+    /// it is met or by how much it falls short.
+    #[arg(long, value_name = "GOAL", requires = "baseline", value_parser = parse_goal)]
+    goal: Option<f64>,
     /// Folder for the CSV and the plot.
     #[arg(long, default_value = "out")]
     out: PathBuf,
@@ -81,6 +87,14 @@ pub(crate) struct SweepArgs {
     /// No progress bars and no table.
     #[arg(long, short)]
     quiet: bool,
+}
+
+/// `--goal`: a finite speed-up of at least 1.
+fn parse_goal(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(g) if g.is_finite() && g >= 1.0 => Ok(g),
+        _ => Err(format!("`{s}` is no speed-up: give a number of at least 1")),
+    }
 }
 
 /// Nodes whose cost counts toward the plotted image: upstream of the error node's `image`
@@ -227,6 +241,7 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
         error_node: error_node.clone(),
         metric: a.metric.clone(),
         baseline: a.baseline.clone().map(|b| (b, baseline_node)),
+        goal: a.goal,
         title,
     };
     // Drawn from the CSV as written, as `relume results` draws it.

@@ -8,12 +8,12 @@ use crate::sweep::csv_table::CsvTable;
 use crate::sweep::{Plotted, XAxis};
 
 /// The section's body (after its caption): provenance, command, plot, table.
-/// With a goal (a speed-up at equal error the method should reach), the plot's dashed line
-/// is said to be it.
-pub(crate) fn section(name: &str, command: &str, p: &Plotted, t: &CsvTable, goal: Option<f64>) -> Result<String, String> {
+/// With a goal (`--goal`, a speed-up at equal error the method should reach), the plot's
+/// dashed line is said to be it.
+pub(crate) fn section(name: &str, command: &str, p: &Plotted, t: &CsvTable) -> Result<String, String> {
     let mut out = format!("{} ([csv](../results/sweep_{name}.csv)):\n\n", provenance(t)?);
     out += &format!("```text\n{command}\n```\n\n![{}](../results/sweep_{name}.png)\n\n", p.title);
-    if let Some(g) = goal {
+    if let Some(g) = p.goal {
         out += &format!(
             "The dashed line is the goal, {g}× the baseline's speed at equal error: its curve at 1/{g} of its times. \
              A method's point on or left of it reaches the goal; how far right of it a point lies is by how much it falls short.\n\n"
@@ -80,7 +80,7 @@ pub(crate) fn section(name: &str, command: &str, p: &Plotted, t: &CsvTable, goal
 /// A sweep's headline row, the method row whose variant is `variant`: its error (with the
 /// metric's name), its time, the baseline's time for that error, the speed-up at equal error
 /// and, with a goal for that speed-up, whether it is met or by how much it falls short.
-pub(crate) fn headline(p: &Plotted, t: &CsvTable, variant: &str, goal: Option<f64>) -> Result<[String; 5], String> {
+pub(crate) fn headline(p: &Plotted, t: &CsvTable, variant: &str) -> Result<[String; 5], String> {
     if p.baseline.is_none() || !matches!(p.x, XAxis::Time(_)) {
         return Err("a headline needs a sweep with a baseline on a time axis".into());
     }
@@ -91,7 +91,7 @@ pub(crate) fn headline(p: &Plotted, t: &CsvTable, variant: &str, goal: Option<f6
     let (tm, e) = (t.number(r, &p.x.column()), t.number(r, &p.y_column("method")));
     let curve = baseline_curve(p, t);
     let (time_for, speed) = equal_error(&curve, tm, e);
-    let against = goal.map_or("—".to_string(), |g| against_goal(&time_for_error(&curve, e), tm, g));
+    let against = p.goal.map_or("—".to_string(), |g| against_goal(&time_for_error(&curve, e), tm, g));
     Ok([format!("{} (`{}`)", num(e), p.metric), ms(tm), time_for, speed, against])
 }
 

@@ -119,6 +119,8 @@ pub(crate) struct Plotted {
     pub metric: String,
     /// The baseline's parameter and its error node.
     pub baseline: Option<(String, String)>,
+    /// `--goal`: the speed-up at equal error the method should reach over the baseline.
+    pub goal: Option<f64>,
     pub title: String,
 }
 
@@ -160,7 +162,8 @@ impl Plotted {
     }
 
     /// The method's rows as one curve, or one per value of the `--series` vary (in the order
-    /// its values first appear), each in the order the rows ran; then the baseline's.
+    /// its values first appear), each in the order the rows ran; then the baseline's, and the
+    /// goal's guide when there is one.
     pub(crate) fn curves(&self, t: &CsvTable) -> Vec<Curve> {
         let mut curves = Vec::new();
         let method = || self.rows(t, "method");
@@ -194,13 +197,14 @@ impl Plotted {
             let points = self.points(t, self.rows(t, "baseline"), "baseline", |r| t.text(r, param).to_string());
             curves.push(Curve { name: format!("baseline ({param} = 1, 2, 4, …{of})"), color: BASELINE, points, dashed: false });
         }
+        curves.extend(self.goal.and_then(|g| self.goal_curve(t, g)));
         curves
     }
 
     /// A goal for the speed-up at equal error, drawn: the baseline's curve at `1/goal` of its
     /// times, dashed. A method's point on or left of it reaches the goal; its distance to the
     /// right is by how much it falls short. None without a baseline on a time axis.
-    pub(crate) fn goal_curve(&self, t: &CsvTable, goal: f64) -> Option<Curve> {
+    fn goal_curve(&self, t: &CsvTable, goal: f64) -> Option<Curve> {
         if self.baseline.is_none() || !matches!(self.x, XAxis::Time(_)) {
             return None;
         }

@@ -36,8 +36,16 @@ pub(crate) fn replay(command: &str, table: &CsvTable) -> Result<Plotted, String>
     };
     let baseline = a.baseline.clone().map(|b| (b, a.baseline_error_node.clone().unwrap_or_else(|| error_node.clone())));
     let title = a.g.graph.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_else(|| a.g.graph.display().to_string());
-    let plotted =
-        Plotted { x: XAxis::of_column(a.x.as_deref(), a.time, &columns), series, varies, error_node, metric: a.metric, baseline, title };
+    let plotted = Plotted {
+        x: XAxis::of_column(a.x.as_deref(), a.time, &columns),
+        series,
+        varies,
+        error_node,
+        metric: a.metric,
+        baseline,
+        goal: a.goal,
+        title,
+    };
     let mut wanted = columns;
     wanted.extend([plotted.x.column(), plotted.y_column("method")]);
     if let Some((param, _)) = &plotted.baseline {
