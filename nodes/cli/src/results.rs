@@ -13,7 +13,7 @@
 //! differs from what it would write, so a figure cannot go stale by hand.
 
 mod grouped;
-mod tables;
+pub(crate) mod tables;
 
 use crate::error::CliError;
 use crate::plot::log_log_png;

@@ -89,6 +89,23 @@ pub(crate) struct SweepArgs {
     quiet: bool,
 }
 
+/// With a baseline on a time axis, each method row's speed-up at equal error as
+/// `relume results` reads it off the baseline's curve, and the goal's verdict: a line each.
+fn speed_ups(p: &Plotted, t: &CsvTable) -> Vec<String> {
+    if p.baseline.is_none() || !matches!(p.x, XAxis::Time(_)) {
+        return Vec::new();
+    }
+    p.rows(t, "method")
+        .filter_map(|r| {
+            let variant = t.text(r, "variant");
+            let [error, time, baseline_time, speed, goal] = crate::results::tables::headline(p, t, variant).ok()?;
+            let goal = if p.goal.is_some() { format!("; goal {goal}") } else { String::new() };
+            let error = error.replace('`', "");
+            Some(format!("{variant}: {speed} at equal error ({error} in {time}; the baseline {baseline_time}){goal}"))
+        })
+        .collect()
+}
+
 /// `--goal`: a finite speed-up of at least 1.
 fn parse_goal(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
@@ -258,6 +275,9 @@ pub(crate) fn sweep(reg: &Registry, a: &SweepArgs) -> Result<(), CliError> {
 
     if !a.quiet {
         say_part!("{}", table(&rows, &error_node, &a.metric));
+        for line in speed_ups(&plotted, &written) {
+            say!("{line}");
+        }
         say!("wrote {}", csv_path.display());
         say!("wrote {}", plot_path.display());
     }
@@ -555,6 +575,25 @@ fn table(rows: &[Row], error_node: &str, metric: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_console_says_each_rows_speed_up_and_the_goals_verdict() {
+        // The method at 4 ms and 0.02; the baseline passes 0.02 at 5.3 ms: 1.32×.
+        let csv = "series,variant,blur.sigma,pt.spp,time_ms,pipeline_ms,error.rel_mse,pt_error.rel_mse,date,machine,threads,commit\n\
+            method,blur.sigma=1,1,4,5,4,0.02,0.5,d,m,2,c\n\
+            baseline,pt.spp=1,1,1,3,2,0.5,0.1,d,m,2,c\n\
+            baseline,pt.spp=2,1,2,6,8,0.5,0.01,d,m,2,c\n";
+        let t = CsvTable::parse(csv).unwrap();
+        let command = |extra: &str| {
+            format!("relume sweep g.ron --vary blur.sigma=1 --baseline pt.spp --baseline-max 2 --error-node error --baseline-error-node pt_error{extra}")
+        };
+        let lines = speed_ups(&replay::replay(&command(" --goal 2"), &t).unwrap(), &t);
+        assert_eq!(lines, ["blur.sigma=1: 1.32× at equal error (0.0200 (rel_mse) in 4.0 ms; the baseline 5.3 ms); goal ≥ 2×: 1.52× short"]);
+        let lines = speed_ups(&replay::replay(&command(""), &t).unwrap(), &t);
+        assert_eq!(lines, ["blur.sigma=1: 1.32× at equal error (0.0200 (rel_mse) in 4.0 ms; the baseline 5.3 ms)"]);
+        let lines = speed_ups(&replay::replay(&command(" --x blur.sigma"), &t).unwrap(), &t);
+        assert!(lines.is_empty(), "no speed-up off a time axis");
+    }
 
     #[test]
     fn value_lists_split_at_top_level_commas_only() {
