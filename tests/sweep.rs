@@ -109,29 +109,23 @@ fn results_draw_a_sweep_again_byte_for_byte_from_its_csv_and_command() {
     assert!(md.contains("The dashed line is the goal, 2×"), "{md}");
 }
 
+/// `relume sweep filters.ron --vary VARY --baseline BASELINE --baseline-max MAX` into `dir`:
+/// the CSV's header and rows; the plot at `dir/plots/s.png`.
+fn baseline_sweep(dir: &Path, vary: &str, baseline: &str, max: &str) -> (Vec<String>, Vec<Vec<String>>) {
+    let (csv, plot) = (dir.join("s.csv"), dir.join("plots/s.png"));
+    let g = filters();
+    let args = ["sweep", &g, "--vary", vary, "--baseline", baseline, "--baseline-max", max, "--csv", csv.to_str().unwrap()];
+    let code = relume(&[&args[..], &["--plot", plot.to_str().unwrap(), "--no-disk-cache", "-q"]].concat());
+    assert_eq!(code, 0);
+    read_csv(&csv)
+}
+
 #[test]
 fn a_baseline_on_a_float_parameter_takes_the_same_doubling_values() {
     // One method against another at its settings: a blur's width against itself, the way the
     // factorised gather is put against the plain one over the rasterisation threshold.
     let dir = tempfile::tempdir().unwrap();
-    let csv = dir.path().join("s.csv");
-    let g = filters();
-    let code = relume(&[
-        "sweep",
-        &g,
-        "--vary",
-        "median.radius=2",
-        "--baseline",
-        "blur.sigma",
-        "--baseline-max",
-        "2",
-        "--csv",
-        csv.to_str().unwrap(),
-        "--no-disk-cache",
-        "-q",
-    ]);
-    assert_eq!(code, 0);
-    let (header, rows) = read_csv(&csv);
+    let (header, rows) = baseline_sweep(dir.path(), "median.radius=2", "blur.sigma", "2");
     let variants: Vec<&str> = rows.iter().map(|r| r[col(&header, "variant")].as_str()).collect();
     assert_eq!(variants, ["median.radius=2", "blur.sigma=1", "blur.sigma=2"]);
 }
@@ -139,27 +133,7 @@ fn a_baseline_on_a_float_parameter_takes_the_same_doubling_values() {
 #[test]
 fn a_baseline_on_an_integer_parameter_adds_rows_at_doubling_values() {
     let dir = tempfile::tempdir().unwrap();
-    let csv = dir.path().join("s.csv");
-    let plot = dir.path().join("plots/s.png");
-    let g = filters();
-    let code = relume(&[
-        "sweep",
-        &g,
-        "--vary",
-        "blur.sigma=0.5,1.5",
-        "--baseline",
-        "median.radius",
-        "--baseline-max",
-        "4",
-        "--csv",
-        csv.to_str().unwrap(),
-        "--plot",
-        plot.to_str().unwrap(),
-        "--no-disk-cache",
-        "-q",
-    ]);
-    assert_eq!(code, 0);
-    let (header, rows) = read_csv(&csv);
+    let (header, rows) = baseline_sweep(dir.path(), "blur.sigma=0.5,1.5", "median.radius", "4");
     let (radius, sigma) = (col(&header, "median.radius"), col(&header, "blur.sigma"));
     let series: Vec<&str> = rows.iter().map(|r| r[0].as_str()).collect();
     assert_eq!(series, ["method", "method", "baseline", "baseline", "baseline"]);
@@ -175,7 +149,7 @@ fn a_baseline_on_an_integer_parameter_adds_rows_at_doubling_values() {
     for r in &rows[..2] {
         assert_eq!(r[radius], "1");
     }
-    assert!(plot.is_file());
+    assert!(dir.path().join("plots/s.png").is_file());
 }
 
 #[test]

@@ -37,7 +37,7 @@ pub(crate) fn section(name: &str, command: &str, p: &Plotted, t: &CsvTable) -> R
             out += &header(&head);
             for r in p.rows(t, "method") {
                 let (tm, e) = (t.number(r, &x), t.number(r, &p.y_column("method")));
-                let (time_for, speed) = equal_error(&curve, tm, e);
+                let (time_for, speed) = equal_error(&time_for_error(&curve, e), tm);
                 let at = error_at_time(&curve, tm).map_or("outside its times".to_string(), num);
                 out += &line(&[label(r), num(e), ms(tm), at, time_for, speed]);
             }
@@ -89,9 +89,9 @@ pub(crate) fn headline(p: &Plotted, t: &CsvTable, variant: &str) -> Result<[Stri
         format!("no method row `{variant}` for the headline (the rows: {})", all.join(", "))
     })?;
     let (tm, e) = (t.number(r, &p.x.column()), t.number(r, &p.y_column("method")));
-    let curve = baseline_curve(p, t);
-    let (time_for, speed) = equal_error(&curve, tm, e);
-    let against = p.goal.map_or("—".to_string(), |g| against_goal(&time_for_error(&curve, e), tm, g));
+    let reach = time_for_error(&baseline_curve(p, t), e);
+    let (time_for, speed) = equal_error(&reach, tm);
+    let against = p.goal.map_or("—".to_string(), |g| against_goal(&reach, tm, g));
     Ok([format!("{} (`{}`)", num(e), p.metric), ms(tm), time_for, speed, against])
 }
 
@@ -118,9 +118,10 @@ pub(crate) fn headline_table(rows: &[Vec<String>]) -> String {
     out
 }
 
-/// The baseline's time for error `e` and the speed-up over time `tm`, as table cells.
-fn equal_error(curve: &[(f64, f64)], tm: f64, e: f64) -> (String, String) {
-    match time_for_error(curve, e) {
+/// The baseline's time for an error (`reach`, from `time_for_error`) and the speed-up over
+/// time `tm`, as table cells.
+fn equal_error(reach: &Reach, tm: f64) -> (String, String) {
+    match *reach {
         Reach::At(tb) => (ms(tb), format!("{:.2}×", tb / tm)),
         Reach::Below(tb) => (format!("more than {} (below its last point)", ms(tb)), format!("> {:.2}×", tb / tm)),
         Reach::Above(tb) => (format!("less than {} (above its first point)", ms(tb)), format!("< {:.2}×", tb / tm)),
